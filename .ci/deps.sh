@@ -1,0 +1,16 @@
+#!/usr/bin/env bash
+# Install the Debian packages rbcloth needs to build and test, if any is missing.
+# Runs as root (CI and a fresh machine); with sudo otherwise.
+set -euo pipefail
+pkgs=(cmake make gcc libc6-dev pkg-config libcjson-dev abigail-tools binutils)
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+[ ${#missing[@]} -eq 0 ] && exit 0
+echo "rbcloth: installing ${missing[*]}" >&2
+SUDO=""
+[ "$(id -u)" -eq 0 ] || SUDO="sudo"
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >&2

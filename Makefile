@@ -1,0 +1,31 @@
+# Thin wrapper over CMake. `make demo` and `make test` install what is missing
+# (Debian packages, as root), build, and run.
+BUILD ?= build
+JOBS ?= $(shell nproc)
+CMAKE_FLAGS ?=
+
+.PHONY: all deps build demo test clean abi-baseline
+
+all: build
+
+deps:
+	@bash .ci/deps.sh
+
+$(BUILD)/CMakeCache.txt: CMakeLists.txt
+	cmake -S . -B $(BUILD) $(CMAKE_FLAGS)
+
+build: deps $(BUILD)/CMakeCache.txt
+	cmake --build $(BUILD) -j $(JOBS)
+
+demo: build
+	$(BUILD)/bin/rbcloth run --out out
+
+test: build
+	cd $(BUILD) && ctest --output-on-failure -j $(JOBS)
+
+# Regenerate the committed ABI baseline after a deliberate ABI change.
+abi-baseline: build
+	abidw --no-corpus-path --headers-dir abi --out-file abi/rbcloth.abi $(BUILD)/lib/librbcloth.so
+
+clean:
+	rm -rf $(BUILD) out

@@ -1,0 +1,501 @@
+/*
+ * rbcloth.h -- the public C ABI of librbcloth, a real-time quad mass-spring cloth
+ * solver (Projective Dynamics with a Red-Black Gauss-Seidel global step; Pall,
+ * Nylen, Fratarcangeli, "Fast Quadrangular Mass-Spring Systems using Red-Black
+ * Ordering").
+ *
+ * This is the only file a host includes. It is C11 and C++ compatible and depends
+ * on <stdint.h> and <stddef.h> alone. Every public struct uses fixed-width types,
+ * enums are stored as int32_t, and there are no bool fields, so the structs are
+ * blittable for C# P/Invoke, Python ctypes and similar FFIs.
+ *
+ * Conventions
+ *  - Units are SI: metres, kilograms, seconds, newtons.
+ *  - Every fallible call returns an rbc_result (0 = RBC_OK, errors are negative).
+ *    After an error, rbc_last_error() returns a message for the calling thread that
+ *    names the object, the index and what was wrong. A failing call leaves every
+ *    existing object exactly as it was.
+ *  - Defs (rbc_world_def, ...) start with uint32_t struct_size. Fill a def with its
+ *    *_default() function, change what you need, and pass it. The library reads
+ *    only the fields that fit in struct_size, so a host compiled against an older
+ *    header keeps working when fields are appended; a struct_size that matches no
+ *    released version of the struct is refused with RBC_ERR_INVALID_ARGUMENT.
+ *  - Handles are 32-bit ids that carry a kind and a generation: a destroyed or
+ *    foreign id is reported as RBC_ERR_STALE_HANDLE, never dereferenced. 0 is the
+ *    null id of every kind.
+ *  - The library copies what it is given; outputs go into caller buffers.
+ *  - The library never prints to stdout or stderr; messages go to the log hook of
+ *    the world def, if any.
+ *
+ * Thread contract
+ *  - Different worlds may be used concurrently from different threads.
+ *  - One world is used by one thread at a time (the host serialises calls on it).
+ *    A world may run its own worker threads inside rbc_world_step; host callbacks
+ *    are always called on the thread that called rbc_world_step.
+ *  - rbc_last_error() is per thread.
+ *  - The functions without a world argument are thread-safe.
+ *
+ * ABI versioning
+ *  - RBC_ABI_VERSION_MAJOR changes only when an existing function, struct layout or
+ *    meaning changes incompatibly; functions and struct fields are only appended
+ *    within a major. rbc_get_api(major) returns the function table of that major.
+ *  - The ABI version is not the library's release version (rbc_version_string).
+ */
+#ifndef RBCLOTH_H
+#define RBCLOTH_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#if defined(_WIN32)
+#  if defined(RBC_BUILDING_LIBRARY)
+#    define RBC_API __declspec(dllexport)
+#  else
+#    define RBC_API __declspec(dllimport)
+#  endif
+#  define RBC_CALL __cdecl
+#else
+#  if defined(RBC_BUILDING_LIBRARY)
+#    define RBC_API __attribute__((visibility("default")))
+#  else
+#    define RBC_API
+#  endif
+#  define RBC_CALL
+#endif
+
+/// Major version of this ABI: incompatible changes bump it.
+#define RBC_ABI_VERSION_MAJOR 1
+/// Minor version of this ABI: appended functions or fields bump it.
+#define RBC_ABI_VERSION_MINOR 0
+/// (major << 16) | minor, as returned by rbc_abi_version().
+#define RBC_ABI_VERSION ((RBC_ABI_VERSION_MAJOR << 16) | RBC_ABI_VERSION_MINOR)
+
+/* ------------------------------------------------------------------------- */
+/* Results                                                                   */
+/* ------------------------------------------------------------------------- */
+
+/// Result of every fallible call: 0 is success, errors are negative.
+typedef int32_t rbc_result;
+enum {
+    RBC_OK = 0,
+    /// An argument or a def field is out of its documented range (NULL pointer,
+    /// non-finite number, dt <= 0, wrong struct_size, ...).
+    RBC_ERR_INVALID_ARGUMENT = -1,
+    /// An allocation failed (the library's or the host's allocator hook).
+    RBC_ERR_OUT_OF_MEMORY = -2,
+    /// The request is valid but this build does not support it.
+    RBC_ERR_UNSUPPORTED = -3,
+    /// The requested backend (e.g. CUDA) is not available on this machine or build.
+    RBC_ERR_BACKEND_UNAVAILABLE = -4,
+    /// The mesh is unusable: index out of range, degenerate quad, non-bipartite graph.
+    RBC_ERR_BAD_MESH = -5,
+    /// A file could not be read or written.
+    RBC_ERR_IO = -6,
+    /// A step produced a non-finite position; the world was restored to its state
+    /// before the step.
+    RBC_ERR_UNSTABLE = -7,
+    /// A handle was destroyed, belongs to another world or is of another kind.
+    RBC_ERR_STALE_HANDLE = -8,
+    /// A host callback reported failure (or wrote non-finite data); the world was
+    /// restored to its state before the step.
+    RBC_ERR_CALLBACK = -9,
+    /// A fixed capacity (worlds, cloths, colliders per world) is exhausted.
+    RBC_ERR_CAPACITY = -10,
+    RBC_RESULT_FORCE32 = 0x7FFFFFFF
+};
+
+/* ------------------------------------------------------------------------- */
+/* Handles                                                                   */
+/* ------------------------------------------------------------------------- */
+
+/// A world: owns cloths, colliders, threads and memory. 0 is null.
+typedef uint32_t rbc_world_id;
+/// A cloth inside one world. 0 is null.
+typedef uint32_t rbc_cloth_id;
+/// A collider inside one world. 0 is null.
+typedef uint32_t rbc_collider_id;
+/// A point-cache writer. 0 is null.
+typedef uint32_t rbc_cache_id;
+
+/* ------------------------------------------------------------------------- */
+/* Enums (stored as int32_t)                                                 */
+/* ------------------------------------------------------------------------- */
+
+/// Which backend runs the solver.
+typedef int32_t rbc_backend;
+enum {
+    RBC_BACKEND_AUTO = 0,  ///< the fastest available (CPU in this release)
+    RBC_BACKEND_CPU = 1,   ///< threads on the host CPU
+    RBC_BACKEND_CUDA = 2,  ///< an NVIDIA GPU (RBC_ERR_BACKEND_UNAVAILABLE if none)
+    RBC_BACKEND_FORCE32 = 0x7FFFFFFF
+};
+
+/// Severity passed to the log hook.
+typedef int32_t rbc_log_level;
+enum {
+    RBC_LOG_ERROR = 0,
+    RBC_LOG_WARNING = 1,
+    RBC_LOG_INFO = 2,
+    RBC_LOG_DEBUG = 3,
+    RBC_LOG_FORCE32 = 0x7FFFFFFF
+};
+
+/// Collider shapes.
+typedef int32_t rbc_shape;
+enum {
+    /// The plane y = 0 of the collider's frame; cloth is kept on its +y side.
+    RBC_SHAPE_PLANE = 1,
+    /// A sphere of `radius` around the collider's origin.
+    RBC_SHAPE_SPHERE = 2,
+    RBC_SHAPE_FORCE32 = 0x7FFFFFFF
+};
+
+/// Point-cache formats.
+typedef int32_t rbc_cache_format;
+enum {
+    /// PC2 (Blender's Mesh Cache modifier, 3ds Max): little-endian, "POINTCACHE2".
+    RBC_CACHE_PC2 = 1,
+    RBC_CACHE_FORMAT_FORCE32 = 0x7FFFFFFF
+};
+
+/* ------------------------------------------------------------------------- */
+/* Host hooks                                                                */
+/* ------------------------------------------------------------------------- */
+
+/// Allocate `size` bytes aligned to `alignment` (a power of two, at most 64).
+/// Return NULL on failure.
+typedef void *(RBC_CALL *rbc_alloc_fn)(void *user, size_t size, size_t alignment);
+/// Free memory returned by the matching rbc_alloc_fn; `size` is the size asked for.
+typedef void (RBC_CALL *rbc_free_fn)(void *user, void *ptr, size_t size);
+/// Receive a NUL-terminated message from the library.
+typedef void (RBC_CALL *rbc_log_fn)(void *user, rbc_log_level level, const char *message);
+
+/// One cloth as seen by the collision callback.
+typedef struct rbc_collision_cloth {
+    /// The cloth.
+    rbc_cloth_id cloth;
+    /// Number of vertices (entries of 3 floats in the arrays below).
+    uint32_t vertex_count;
+    /// Positions at the end of this substep, x y z per vertex in the order the cloth
+    /// was created with, metres. The callback may move vertices (to resolve its own
+    /// contacts); pinned vertices are put back on their pins afterwards.
+    float *positions;
+    /// Positions at the start of this substep, same layout, metres. Read only.
+    const float *previous_positions;
+} rbc_collision_cloth;
+
+/// The host's collision code, called once per substep on the thread that called
+/// rbc_world_step, after the solver and the built-in colliders. `dt` is the
+/// substep length in seconds. Return 0 on success; any other value ends the step
+/// with RBC_ERR_CALLBACK and the world as it was before the step.
+typedef int32_t (RBC_CALL *rbc_collision_fn)(void *user, rbc_world_id world, float dt,
+                                             const rbc_collision_cloth *cloths,
+                                             uint32_t cloth_count);
+
+/* ------------------------------------------------------------------------- */
+/* Defs                                                                      */
+/* ------------------------------------------------------------------------- */
+
+/// How a world is made. Get one from rbc_world_def_default().
+typedef struct rbc_world_def {
+    /// sizeof(rbc_world_def) as compiled by the host.
+    uint32_t struct_size;
+    /// Gravity, m/s^2. Default (0, -9.81, 0).
+    float gravity[3];
+    /// Substeps per rbc_world_step call (each of length dt/substeps). Default 1,
+    /// range 1..1024.
+    uint32_t substeps;
+    /// Non-linear (local/global) iterations per substep, Alg. 1 line 2. Default 1,
+    /// range 1..1024.
+    uint32_t nonlinear_iterations;
+    /// Linear Red-Black Gauss-Seidel iterations per non-linear iteration, Alg. 1
+    /// line 4. Default 11 (the paper's count), range 1..4096.
+    uint32_t linear_iterations;
+    /// Backend, an rbc_backend. Default RBC_BACKEND_AUTO.
+    rbc_backend backend;
+    /// Worker threads including the caller's, for the CPU backend; 0 = one per
+    /// available core (at most 64). Default 0.
+    uint32_t thread_count;
+    /// Log threshold: messages of this level and more severe reach `log`.
+    /// Default RBC_LOG_WARNING.
+    rbc_log_level log_level;
+    /// Optional allocator hooks; both or neither. Default NULL (malloc/free).
+    rbc_alloc_fn alloc;
+    rbc_free_fn free;
+    void *alloc_user;
+    /// Optional log hook. Default NULL (messages are dropped).
+    rbc_log_fn log;
+    void *log_user;
+} rbc_world_def;
+
+/// How a cloth is made. Get one from rbc_cloth_def_default(). All arrays are copied.
+typedef struct rbc_cloth_def {
+    /// sizeof(rbc_cloth_def) as compiled by the host.
+    uint32_t struct_size;
+    /// Number of vertices (particles), at least 1.
+    uint32_t vertex_count;
+    /// Rest positions, x y z per vertex, metres. Also the initial positions.
+    const float *positions;
+    /// Number of quads.
+    uint32_t quad_count;
+    /// Quads, 4 vertex indices each, in order around the face. Each quad edge
+    /// becomes one structural spring (shared edges once).
+    const uint32_t *quads;
+    /// Number of explicit extra springs.
+    uint32_t spring_count;
+    /// Extra springs, 2 vertex indices each; duplicates of quad edges are merged.
+    const uint32_t *springs;
+    /// Per-vertex masses, kg, or NULL to use `density` or `vertex_mass`.
+    const float *masses;
+    /// Areal density, kg/m^2: if > 0 and `masses` is NULL, each quad's area is
+    /// split equally among its four vertices. Default 0.
+    float density;
+    /// Mass of every vertex, kg, when `masses` is NULL and `density` is 0.
+    /// Default 1e-4.
+    float vertex_mass;
+    /// Spring stiffness s of Eq. 4, N/m, for every spring. Default 1000.
+    float stiffness;
+    /// Velocity damping, 1/s: Alg. 2's f_damping as an acceleration -damping * v.
+    /// Default 0. damping * substep length is clamped to 1 (critical).
+    float damping;
+    /// Number of pinned vertices.
+    uint32_t pin_count;
+    /// Vertices pinned at their initial positions (move them with rbc_cloth_set_pin).
+    const uint32_t *pins;
+} rbc_cloth_def;
+
+/// How a collider is made. Get one from rbc_collider_def_default().
+typedef struct rbc_collider_def {
+    /// sizeof(rbc_collider_def) as compiled by the host.
+    uint32_t struct_size;
+    /// An rbc_shape. Default RBC_SHAPE_PLANE.
+    rbc_shape shape;
+    /// Sphere radius, metres (> 0 for spheres). Default 0.5.
+    float radius;
+    /// Distance kept between the cloth and the surface, metres (>= 0). Default 0.
+    float thickness;
+    /// Origin of the collider's frame in the world, metres. Default (0, 0, 0).
+    float position[3];
+    /// Orientation of the collider's frame, unit quaternion x y z w. Default identity.
+    float rotation[4];
+} rbc_collider_def;
+
+/// How a point cache is written. Get one from rbc_cache_def_default().
+typedef struct rbc_cache_def {
+    /// sizeof(rbc_cache_def) as compiled by the host.
+    uint32_t struct_size;
+    /// An rbc_cache_format. Default RBC_CACHE_PC2.
+    rbc_cache_format format;
+    /// Output file (UTF-8). It appears only when rbc_cache_finish succeeds; until
+    /// then data goes to "<path>.tmp" (written, then renamed).
+    const char *path;
+    /// Points per frame, at least 1.
+    uint32_t point_count;
+    /// First frame number stored in the header. Default 0.
+    float start_frame;
+    /// Frames between samples, stored in the header. Default 1.
+    float sample_rate;
+} rbc_cache_def;
+
+/* ------------------------------------------------------------------------- */
+/* Stats                                                                     */
+/* ------------------------------------------------------------------------- */
+
+/// Figures of a world, filled by rbc_world_get_stats. Set struct_size first; only
+/// the fields that fit in it are written.
+typedef struct rbc_world_stats {
+    /// sizeof(rbc_world_stats) as compiled by the host.
+    uint32_t struct_size;
+    /// Live cloths and colliders.
+    uint32_t cloth_count;
+    uint32_t collider_count;
+    /// Particles and springs over all cloths.
+    uint32_t particle_count;
+    uint32_t spring_count;
+    /// Largest number of colors used by any cloth (2 for a quad grid).
+    uint32_t color_count;
+    /// Worker threads including the caller's.
+    uint32_t thread_count;
+    /// Backend in use, an rbc_backend (never AUTO).
+    rbc_backend backend;
+    /// Successful rbc_world_step calls so far.
+    uint64_t step_count;
+    /// Substeps, non-linear and linear iterations done by the last step (totals over
+    /// its substeps).
+    uint32_t substeps;
+    uint32_t nonlinear_iterations;
+    uint32_t linear_iterations;
+    uint32_t reserved0;
+    /// Wall time of the last step and of its stages, milliseconds: Verlet
+    /// integration (Alg. 2), local step (Alg. 3), global Red-Black Gauss-Seidel
+    /// sweeps (Eq. 6), built-in colliders, the host callback, and the rest
+    /// (pins, stability checks, bookkeeping).
+    double step_ms;
+    double integrate_ms;
+    double local_ms;
+    double global_ms;
+    double collide_ms;
+    double callback_ms;
+    double other_ms;
+    /// Eq. 7 of the paper at the current positions: sum over springs of
+    /// (|p_i - p_j| - L_ij)^2, m^2.
+    double error_eq7;
+    /// Largest relative spring violation | |p_i - p_j| / L_ij - 1 | now (0 for
+    /// zero-length springs).
+    double max_strain;
+} rbc_world_stats;
+
+/* ------------------------------------------------------------------------- */
+/* Functions                                                                 */
+/* ------------------------------------------------------------------------- */
+
+/// RBC_ABI_VERSION of the loaded library: (major << 16) | minor.
+RBC_API uint32_t RBC_CALL rbc_abi_version(void);
+/// Release version of the library, e.g. "0.1.0".
+RBC_API const char *RBC_CALL rbc_version_string(void);
+/// Name of a result code, e.g. "RBC_ERR_BAD_MESH"; "unknown result" otherwise.
+RBC_API const char *RBC_CALL rbc_result_string(rbc_result result);
+/// Message of the last error on the calling thread ("" if none yet). Valid until
+/// the next failing call on this thread.
+RBC_API const char *RBC_CALL rbc_last_error(void);
+
+RBC_API rbc_world_def RBC_CALL rbc_world_def_default(void);
+RBC_API rbc_cloth_def RBC_CALL rbc_cloth_def_default(void);
+RBC_API rbc_collider_def RBC_CALL rbc_collider_def_default(void);
+RBC_API rbc_cache_def RBC_CALL rbc_cache_def_default(void);
+
+/// Create a world. *out_world receives its id.
+RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *def, rbc_world_id *out_world);
+/// Destroy a world with everything in it.
+RBC_API rbc_result RBC_CALL rbc_world_destroy(rbc_world_id world);
+/// Advance the world by dt seconds (> 0) in `substeps` substeps. On error the world
+/// is as it was before the call.
+RBC_API rbc_result RBC_CALL rbc_world_step(rbc_world_id world, float dt);
+/// Change the iteration counts used by the next steps (ranges as in rbc_world_def).
+RBC_API rbc_result RBC_CALL rbc_world_set_iterations(rbc_world_id world, uint32_t substeps,
+                                                     uint32_t nonlinear_iterations,
+                                                     uint32_t linear_iterations);
+/// Change gravity, m/s^2.
+RBC_API rbc_result RBC_CALL rbc_world_set_gravity(rbc_world_id world, const float gravity[3]);
+/// Fill *stats (set stats->struct_size first). Computes Eq. 7 at call time.
+RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id world, rbc_world_stats *stats);
+/// Install (or, with fn NULL, remove) the host collision callback.
+RBC_API rbc_result RBC_CALL rbc_world_set_collision_callback(rbc_world_id world,
+                                                             rbc_collision_fn fn, void *user);
+
+/// Create a cloth from a quad mesh. *out_cloth receives its id.
+RBC_API rbc_result RBC_CALL rbc_cloth_create(rbc_world_id world, const rbc_cloth_def *def,
+                                             rbc_cloth_id *out_cloth);
+RBC_API rbc_result RBC_CALL rbc_cloth_destroy(rbc_world_id world, rbc_cloth_id cloth);
+/// Number of vertices of the cloth into *out_count.
+RBC_API rbc_result RBC_CALL rbc_cloth_get_vertex_count(rbc_world_id world, rbc_cloth_id cloth,
+                                                       uint32_t *out_count);
+/// Number of springs and of colors of the cloth (either pointer may be NULL).
+RBC_API rbc_result RBC_CALL rbc_cloth_get_topology(rbc_world_id world, rbc_cloth_id cloth,
+                                                   uint32_t *out_spring_count,
+                                                   uint32_t *out_color_count);
+/// Copy current positions, x y z per vertex in the creation order, into xyz.
+/// `capacity` is the number of floats xyz holds (at least 3 * vertex count).
+/// With xyz NULL, only *out_written (if not NULL) receives the float count needed.
+RBC_API rbc_result RBC_CALL rbc_cloth_read_positions(rbc_world_id world, rbc_cloth_id cloth,
+                                                     float *xyz, size_t capacity,
+                                                     size_t *out_written);
+/// Pin `vertex` at `target` (x y z, metres), moving it there linearly over the
+/// substeps of the next step; or release its pin with target NULL.
+RBC_API rbc_result RBC_CALL rbc_cloth_set_pin(rbc_world_id world, rbc_cloth_id cloth,
+                                              uint32_t vertex, const float *target);
+
+/// Create a collider. *out_collider receives its id.
+RBC_API rbc_result RBC_CALL rbc_collider_create(rbc_world_id world, const rbc_collider_def *def,
+                                                rbc_collider_id *out_collider);
+/// Move a collider: position (metres) and unit quaternion x y z w.
+RBC_API rbc_result RBC_CALL rbc_collider_set_transform(rbc_world_id world,
+                                                       rbc_collider_id collider,
+                                                       const float position[3],
+                                                       const float rotation[4]);
+RBC_API rbc_result RBC_CALL rbc_collider_destroy(rbc_world_id world, rbc_collider_id collider);
+
+/// Write a quad mesh as Wavefront OBJ ("v" lines in the given order, 1-based "f"
+/// lines), atomically (temporary file, then rename).
+RBC_API rbc_result RBC_CALL rbc_write_obj(const char *path, const float *xyz,
+                                          uint32_t vertex_count, const uint32_t *quads,
+                                          uint32_t quad_count);
+/// Start a point cache. *out_cache receives its id.
+RBC_API rbc_result RBC_CALL rbc_cache_create(const rbc_cache_def *def, rbc_cache_id *out_cache);
+/// Append one frame: 3 * point_count floats.
+RBC_API rbc_result RBC_CALL rbc_cache_write_frame(rbc_cache_id cache, const float *xyz);
+/// Complete the file (header, flush, rename into place) and destroy the writer.
+RBC_API rbc_result RBC_CALL rbc_cache_finish(rbc_cache_id cache);
+/// Abandon a cache: its temporary file is removed, the destination is untouched.
+RBC_API rbc_result RBC_CALL rbc_cache_destroy(rbc_cache_id cache);
+
+/* ------------------------------------------------------------------------- */
+/* Function table                                                            */
+/* ------------------------------------------------------------------------- */
+
+/// Every function of ABI major 1, for hosts that load the library with dlopen /
+/// LoadLibrary and resolve one symbol. Entries are only appended.
+typedef struct rbc_api_v1 {
+    uint32_t struct_size;
+    uint32_t abi_version;
+    uint32_t (RBC_CALL *abi_version_fn)(void);
+    const char *(RBC_CALL *version_string)(void);
+    const char *(RBC_CALL *result_string)(rbc_result result);
+    const char *(RBC_CALL *last_error)(void);
+    rbc_world_def (RBC_CALL *world_def_default)(void);
+    rbc_cloth_def (RBC_CALL *cloth_def_default)(void);
+    rbc_collider_def (RBC_CALL *collider_def_default)(void);
+    rbc_cache_def (RBC_CALL *cache_def_default)(void);
+    rbc_result (RBC_CALL *world_create)(const rbc_world_def *def, rbc_world_id *out_world);
+    rbc_result (RBC_CALL *world_destroy)(rbc_world_id world);
+    rbc_result (RBC_CALL *world_step)(rbc_world_id world, float dt);
+    rbc_result (RBC_CALL *world_set_iterations)(rbc_world_id world, uint32_t substeps,
+                                                uint32_t nonlinear_iterations,
+                                                uint32_t linear_iterations);
+    rbc_result (RBC_CALL *world_set_gravity)(rbc_world_id world, const float gravity[3]);
+    rbc_result (RBC_CALL *world_get_stats)(rbc_world_id world, rbc_world_stats *stats);
+    rbc_result (RBC_CALL *world_set_collision_callback)(rbc_world_id world, rbc_collision_fn fn,
+                                                        void *user);
+    rbc_result (RBC_CALL *cloth_create)(rbc_world_id world, const rbc_cloth_def *def,
+                                        rbc_cloth_id *out_cloth);
+    rbc_result (RBC_CALL *cloth_destroy)(rbc_world_id world, rbc_cloth_id cloth);
+    rbc_result (RBC_CALL *cloth_get_vertex_count)(rbc_world_id world, rbc_cloth_id cloth,
+                                                  uint32_t *out_count);
+    rbc_result (RBC_CALL *cloth_get_topology)(rbc_world_id world, rbc_cloth_id cloth,
+                                              uint32_t *out_spring_count,
+                                              uint32_t *out_color_count);
+    rbc_result (RBC_CALL *cloth_read_positions)(rbc_world_id world, rbc_cloth_id cloth,
+                                                float *xyz, size_t capacity,
+                                                size_t *out_written);
+    rbc_result (RBC_CALL *cloth_set_pin)(rbc_world_id world, rbc_cloth_id cloth, uint32_t vertex,
+                                         const float *target);
+    rbc_result (RBC_CALL *collider_create)(rbc_world_id world, const rbc_collider_def *def,
+                                           rbc_collider_id *out_collider);
+    rbc_result (RBC_CALL *collider_set_transform)(rbc_world_id world, rbc_collider_id collider,
+                                                  const float position[3],
+                                                  const float rotation[4]);
+    rbc_result (RBC_CALL *collider_destroy)(rbc_world_id world, rbc_collider_id collider);
+    rbc_result (RBC_CALL *write_obj)(const char *path, const float *xyz, uint32_t vertex_count,
+                                     const uint32_t *quads, uint32_t quad_count);
+    rbc_result (RBC_CALL *cache_create)(const rbc_cache_def *def, rbc_cache_id *out_cache);
+    rbc_result (RBC_CALL *cache_write_frame)(rbc_cache_id cache, const float *xyz);
+    rbc_result (RBC_CALL *cache_finish)(rbc_cache_id cache);
+    rbc_result (RBC_CALL *cache_destroy)(rbc_cache_id cache);
+} rbc_api_v1;
+
+/// The function table of ABI major `abi_major`, or NULL if this library does not
+/// implement that major. The table is static: never free it.
+RBC_API const void *RBC_CALL rbc_get_api(uint32_t abi_major);
+
+/// Signature of rbc_get_api, for dlsym / GetProcAddress.
+typedef const void *(RBC_CALL *rbc_get_api_fn)(uint32_t abi_major);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* RBCLOTH_H */
