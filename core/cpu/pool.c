@@ -1,0 +1,159 @@
+#define _GNU_SOURCE
+#include "pool.h"
+
+#include <pthread.h>
+#include <sched.h>
+#include <stdatomic.h>
+#include <string.h>
+#include <unistd.h>
+
+#if defined(__x86_64__) || defined(__i386__)
+#include <immintrin.h>
+#define CPU_RELAX() _mm_pause()
+#else
+#define CPU_RELAX() ((void)0)
+#endif
+
+/* Spins before yielding the core: long enough to cover a phase of a 10K-particle
+ * step (a few microseconds), short enough not to starve a host thread on a
+ * machine with fewer cores than threads. */
+#define SPIN_BEFORE_YIELD 4000
+/* Spins before a worker sleeps on the condition variable between steps. */
+#define SPIN_BEFORE_SLEEP 20000
+
+struct rbc_pool {
+    rbc_allocator alloc;
+    uint32_t n;
+    pthread_t *threads;
+    pthread_mutex_t mu;
+    pthread_cond_t cv;
+    _Atomic uint32_t job_gen;
+    _Atomic int quit;
+    _Atomic uint32_t done;
+    rbc_pool_fn fn;
+    void *ctx;
+    _Alignas(64) _Atomic uint32_t bar_count;
+    _Alignas(64) _Atomic uint32_t bar_gen;
+};
+
+typedef struct worker_arg {
+    rbc_pool *pool;
+    uint32_t tid;
+} worker_arg;
+
+static void *worker_main(void *arg) {
+    rbc_pool *pool = ((worker_arg *)arg)->pool;
+    uint32_t tid = ((worker_arg *)arg)->tid;
+    uint32_t seen = 0;
+    for (;;) {
+        uint32_t spins = 0;
+        while (atomic_load_explicit(&pool->job_gen, memory_order_acquire) == seen &&
+               !atomic_load_explicit(&pool->quit, memory_order_acquire)) {
+            if (++spins < SPIN_BEFORE_SLEEP) {
+                CPU_RELAX();
+                continue;
+            }
+            pthread_mutex_lock(&pool->mu);
+            while (atomic_load(&pool->job_gen) == seen && !atomic_load(&pool->quit))
+                pthread_cond_wait(&pool->cv, &pool->mu);
+            pthread_mutex_unlock(&pool->mu);
+        }
+        if (atomic_load(&pool->quit)) break;
+        seen = atomic_load(&pool->job_gen);
+        pool->fn(pool->ctx, tid, pool->n);
+        atomic_fetch_add_explicit(&pool->done, 1, memory_order_acq_rel);
+    }
+    return NULL;
+}
+
+uint32_t rbc_cpu_count(void) {
+    cpu_set_t set;
+    if (sched_getaffinity(0, sizeof set, &set) == 0) {
+        int c = CPU_COUNT(&set);
+        if (c > 0) return (uint32_t)c;
+    }
+    long c = sysconf(_SC_NPROCESSORS_ONLN);
+    return c > 0 ? (uint32_t)c : 1u;
+}
+
+int rbc_pool_create(rbc_pool **out, uint32_t nthreads, const rbc_allocator *a) {
+    *out = NULL;
+    if (nthreads < 1) nthreads = 1;
+    rbc_pool *pool = rbc_mem_alloc(a, sizeof *pool);
+    if (!pool) return -1;
+    pool->alloc = *a;
+    pool->n = nthreads;
+    pthread_mutex_init(&pool->mu, NULL);
+    pthread_cond_init(&pool->cv, NULL);
+    size_t bytes = sizeof(pthread_t) * nthreads + sizeof(worker_arg) * nthreads;
+    pool->threads = rbc_mem_alloc(a, bytes);
+    if (!pool->threads) {
+        rbc_pool_destroy(pool);
+        return -1;
+    }
+    worker_arg *args = (worker_arg *)(pool->threads + nthreads);
+    for (uint32_t t = 1; t < nthreads; ++t) {
+        args[t].pool = pool;
+        args[t].tid = t;
+        if (pthread_create(&pool->threads[t], NULL, worker_main, &args[t]) != 0) {
+            pool->n = t; /* join only the ones started */
+            rbc_pool_destroy(pool);
+            return -1;
+        }
+    }
+    *out = pool;
+    return 0;
+}
+
+void rbc_pool_destroy(rbc_pool *pool) {
+    if (!pool) return;
+    pthread_mutex_lock(&pool->mu);
+    atomic_store(&pool->quit, 1);
+    pthread_cond_broadcast(&pool->cv);
+    pthread_mutex_unlock(&pool->mu);
+    if (pool->threads)
+        for (uint32_t t = 1; t < pool->n; ++t) pthread_join(pool->threads[t], NULL);
+    pthread_mutex_destroy(&pool->mu);
+    pthread_cond_destroy(&pool->cv);
+    rbc_allocator a = pool->alloc;
+    uint32_t n = pool->n;
+    rbc_mem_free(&a, pool->threads, sizeof(pthread_t) * n + sizeof(worker_arg) * n);
+    rbc_mem_free(&a, pool, sizeof *pool);
+}
+
+uint32_t rbc_pool_size(const rbc_pool *pool) { return pool->n; }
+
+void rbc_pool_run(rbc_pool *pool, rbc_pool_fn fn, void *ctx) {
+    if (pool->n == 1) {
+        fn(ctx, 0, 1);
+        return;
+    }
+    pool->fn = fn;
+    pool->ctx = ctx;
+    atomic_store_explicit(&pool->done, 0, memory_order_relaxed);
+    pthread_mutex_lock(&pool->mu);
+    atomic_fetch_add_explicit(&pool->job_gen, 1, memory_order_release);
+    pthread_cond_broadcast(&pool->cv);
+    pthread_mutex_unlock(&pool->mu);
+    fn(ctx, 0, pool->n);
+    uint32_t spins = 0;
+    while (atomic_load_explicit(&pool->done, memory_order_acquire) != pool->n - 1) {
+        if (++spins < SPIN_BEFORE_YIELD) CPU_RELAX();
+        else sched_yield();
+    }
+}
+
+void rbc_pool_barrier(rbc_pool *pool) {
+    if (pool->n == 1) return;
+    uint32_t gen = atomic_load_explicit(&pool->bar_gen, memory_order_acquire);
+    if (atomic_fetch_add_explicit(&pool->bar_count, 1, memory_order_acq_rel) == pool->n - 1) {
+        atomic_store_explicit(&pool->bar_count, 0, memory_order_relaxed);
+        atomic_fetch_add_explicit(&pool->bar_gen, 1, memory_order_release);
+        return;
+    }
+    uint32_t spins = 0;
+    while (atomic_load_explicit(&pool->bar_gen, memory_order_acquire) == gen) {
+        if (++spins < SPIN_BEFORE_YIELD) CPU_RELAX();
+        else sched_yield();
+    }
+}

@@ -1,0 +1,24 @@
+/* pool.h -- a persistent thread pool that runs one SPMD function on every thread
+ * (the caller is thread 0) with a spinning barrier between the solver's phases.
+ * Workers are woken once per rbc_world_step, not once per phase: a 10K-particle
+ * color sweep takes microseconds, so per-phase wake-ups would dominate. */
+#ifndef RBC_CPU_POOL_H
+#define RBC_CPU_POOL_H
+#include <stdint.h>
+
+#include "../alloc.h"
+
+typedef struct rbc_pool rbc_pool;
+typedef void (*rbc_pool_fn)(void *ctx, uint32_t tid, uint32_t nthreads);
+
+/* nthreads >= 1; 1 starts no thread. Returns 0, or -1 (out of memory or no thread). */
+int rbc_pool_create(rbc_pool **out, uint32_t nthreads, const rbc_allocator *a);
+void rbc_pool_destroy(rbc_pool *pool);
+uint32_t rbc_pool_size(const rbc_pool *pool);
+/* Run fn(ctx, tid, n) on all n threads; returns when every thread has returned. */
+void rbc_pool_run(rbc_pool *pool, rbc_pool_fn fn, void *ctx);
+/* Inside fn: wait until all n threads arrive. */
+void rbc_pool_barrier(rbc_pool *pool);
+/* The number of cores this process may run on (at least 1). */
+uint32_t rbc_cpu_count(void);
+#endif

@@ -1,0 +1,112 @@
+/* solver.h -- per-frame state of cloths and colliders and the step of Algorithm 1
+ * (Verlet integration, local step, Red-Black Gauss-Seidel global step), scheduled on
+ * the CPU backend's thread pool.
+ *
+ * The core knows nothing of handles or error strings for hosts: the plugin maps ids
+ * to these objects, validates defs and turns results into messages. */
+#ifndef RBC_CORE_SOLVER_H
+#define RBC_CORE_SOLVER_H
+#include <stddef.h>
+#include <stdint.h>
+
+#include "../abi/rbcloth.h"
+#include "alloc.h"
+#include "cpu/pool.h"
+#include "topology.h"
+
+/* One cloth: immutable topology plus the state that a step changes. */
+typedef struct rbc_cloth_state {
+    rbc_topology topo;
+    uint32_t public_id;         /* the host's id, for messages */
+    float damping;              /* 1/s */
+
+    /* Position sets, SoA, internal order. x: now (t); q: previous (t - h); p: the
+     * iterate of the current substep; y: its inertial target. A committed substep
+     * rotates the buffers (q <- x <- p), so the state before a substep stays intact
+     * until the substep is known to be finite. */
+    float *x[3], *q[3], *p[3], *y[3];
+    float *snap_x[3], *snap_q[3]; /* start of a multi-substep step, for restore */
+    float *dx, *dy, *dz;        /* [2 ns] local-step targets d_ij per half-edge */
+    float *w, *inv_denom;       /* [n] m_i/h^2 and 1/(m_i/h^2 + sum s_ij) for h_cached */
+    float h_cached;
+    uint8_t *pinned;            /* [n] */
+
+    /* Pins: internal index, target, and position at the start of the step (pins move
+     * linearly from start to target over the substeps). */
+    uint32_t pin_count, pin_cap;
+    uint32_t *pin_idx;
+    float *pin_target, *pin_start; /* 3 per pin */
+
+    /* Host-order buffers for the collision callback (allocated while one is set). */
+    float *cb_pos, *cb_prev;
+
+    size_t state_bytes;
+} rbc_cloth_state;
+
+typedef struct rbc_collider_state {
+    uint32_t public_id;
+    rbc_shape shape;
+    float radius, thickness;
+    float position[3], rotation[4];
+    float normal[3];            /* plane normal: rotation applied to +y */
+} rbc_collider_state;
+
+typedef struct rbc_step_times {
+    double step, integrate, local, global, collide, callback, other; /* ms */
+} rbc_step_times;
+
+typedef struct rbc_solver {
+    rbc_allocator alloc;
+    rbc_pool *pool;
+    float gravity[3];
+    uint32_t substeps, nonlinear_iterations, linear_iterations;
+
+    rbc_cloth_state **cloths;   /* dense list of live cloths, in creation order */
+    uint32_t cloth_count, cloth_cap;
+    rbc_collider_state *colliders; /* dense */
+    uint32_t collider_count, collider_cap;
+
+    rbc_collision_fn callback;
+    void *callback_user;
+    uint32_t public_world_id;
+    rbc_collision_cloth *cb_list; /* [cloth_cap] */
+
+    rbc_step_times last;        /* of the last successful step */
+    uint64_t step_count;
+} rbc_solver;
+
+/* Solver life cycle. nthreads >= 1. */
+int32_t rbc_solver_init(rbc_solver *s, const rbc_allocator *a, uint32_t nthreads);
+void rbc_solver_fini(rbc_solver *s);
+
+/* Build a cloth (validates the mesh). The cloth is not yet in the solver. */
+int32_t rbc_cloth_state_create(rbc_solver *s, const rbc_mesh_input *in, float damping,
+                               rbc_cloth_state **out, char *err, size_t errlen);
+void rbc_cloth_state_destroy(rbc_solver *s, rbc_cloth_state *c);
+/* Add to / remove from the dense list. Add may fail with RBC_ERR_OUT_OF_MEMORY. */
+int32_t rbc_solver_add_cloth(rbc_solver *s, rbc_cloth_state *c);
+void rbc_solver_remove_cloth(rbc_solver *s, rbc_cloth_state *c);
+
+/* Pins (host vertex index; validated by the caller). target NULL releases. */
+int32_t rbc_cloth_state_set_pin(rbc_solver *s, rbc_cloth_state *c, uint32_t host_vertex,
+                                const float *target);
+/* Positions in host order, 3 floats per vertex. */
+void rbc_cloth_state_read(const rbc_cloth_state *c, float *xyz);
+/* Eq. 7 (sum of squared spring violations, m^2) and the largest relative
+ * violation, at the current positions, in double precision. */
+void rbc_cloth_state_error(const rbc_cloth_state *c, double *eq7, double *max_strain);
+
+/* Colliders: a dense array; the returned index is valid until the next remove. */
+int32_t rbc_solver_add_collider(rbc_solver *s, const rbc_collider_state *c);
+void rbc_solver_remove_collider(rbc_solver *s, uint32_t index);
+void rbc_collider_update_frame(rbc_collider_state *c);
+
+/* Install or remove the host collision callback (allocates host-order buffers). */
+int32_t rbc_solver_set_callback(rbc_solver *s, rbc_collision_fn fn, void *user);
+
+/* Advance by dt (> 0, validated by the caller). On error (RBC_ERR_UNSTABLE,
+ * RBC_ERR_CALLBACK) every cloth is as it was before the call and err says which
+ * cloth, vertex and substep. */
+int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen);
+
+#endif

@@ -1,0 +1,51 @@
+/* api.c -- versions and the function table that dlopen hosts resolve with one
+ * symbol (OpenFX's OfxGetPlugin idea). Entries are only ever appended. */
+#include <stddef.h>
+
+#include "rbcloth.h"
+
+#ifndef RBC_VERSION_STRING
+#define RBC_VERSION_STRING "0.0.0"
+#endif
+
+RBC_API uint32_t RBC_CALL rbc_abi_version(void) { return RBC_ABI_VERSION; }
+
+RBC_API const char *RBC_CALL rbc_version_string(void) { return RBC_VERSION_STRING; }
+
+static const rbc_api_v1 g_api_v1 = {
+    sizeof(rbc_api_v1),
+    RBC_ABI_VERSION,
+    rbc_abi_version,
+    rbc_version_string,
+    rbc_result_string,
+    rbc_last_error,
+    rbc_world_def_default,
+    rbc_cloth_def_default,
+    rbc_collider_def_default,
+    rbc_cache_def_default,
+    rbc_world_create,
+    rbc_world_destroy,
+    rbc_world_step,
+    rbc_world_set_iterations,
+    rbc_world_set_gravity,
+    rbc_world_get_stats,
+    rbc_world_set_collision_callback,
+    rbc_cloth_create,
+    rbc_cloth_destroy,
+    rbc_cloth_get_vertex_count,
+    rbc_cloth_get_topology,
+    rbc_cloth_read_positions,
+    rbc_cloth_set_pin,
+    rbc_collider_create,
+    rbc_collider_set_transform,
+    rbc_collider_destroy,
+    rbc_write_obj,
+    rbc_cache_create,
+    rbc_cache_write_frame,
+    rbc_cache_finish,
+    rbc_cache_destroy,
+};
+
+RBC_API const void *RBC_CALL rbc_get_api(uint32_t abi_major) {
+    return abi_major == RBC_ABI_VERSION_MAJOR ? &g_api_v1 : NULL;
+}

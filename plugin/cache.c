@@ -1,0 +1,287 @@
+/* cache.c -- writers of what DCC tools read: the rest mesh as OBJ and PC2 point
+ * caches. Every file is written to "<path>.tmp" and renamed into place only when
+ * complete, so a reader never sees half a file. */
+#include <errno.h>
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "errors.h"
+#include "handles.h"
+#include "rbcloth.h"
+
+#define RBC_MAX_CACHES 4096u
+
+typedef struct cache {
+    FILE *f;
+    char *path, *tmp_path;
+    rbc_cache_def def;
+    uint32_t frames;
+} cache;
+
+/* Caches are not tied to a world; the table is guarded by one lock (the functions
+ * without a world argument are thread-safe). */
+static pthread_mutex_t g_cache_lock = PTHREAD_MUTEX_INITIALIZER;
+static struct {
+    uint32_t gen;
+    cache *ptr;
+} g_caches[RBC_MAX_CACHES];
+
+static char *dup_suffix(const char *s, const char *suffix) {
+    size_t a = strlen(s), b = strlen(suffix);
+    char *r = malloc(a + b + 1);
+    if (!r) return NULL;
+    memcpy(r, s, a);
+    memcpy(r + a, suffix, b + 1);
+    return r;
+}
+
+/* Little-endian writers (PC2 is little-endian whatever the host). */
+static int put_u32le(FILE *f, uint32_t v) {
+    unsigned char b[4] = {(unsigned char)v, (unsigned char)(v >> 8), (unsigned char)(v >> 16),
+                          (unsigned char)(v >> 24)};
+    return fwrite(b, 1, 4, f) == 4;
+}
+static int put_f32le(FILE *f, float x) {
+    uint32_t v;
+    memcpy(&v, &x, 4);
+    return put_u32le(f, v);
+}
+
+static int host_is_little_endian(void) {
+    uint32_t one = 1;
+    unsigned char c;
+    memcpy(&c, &one, 1);
+    return c == 1;
+}
+
+RBC_API rbc_result RBC_CALL rbc_write_obj(const char *path, const float *xyz,
+                                          uint32_t vertex_count, const uint32_t *quads,
+                                          uint32_t quad_count) {
+    static const char fn[] = "rbc_write_obj";
+    if (!path || !*path) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: path is empty", fn);
+    if (!xyz && vertex_count)
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: xyz is NULL", fn);
+    if (!quads && quad_count)
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: quads is NULL", fn);
+    for (uint32_t v = 0; v < vertex_count; ++v)
+        if (!(isfinite(xyz[3 * (size_t)v]) && isfinite(xyz[3 * (size_t)v + 1]) &&
+              isfinite(xyz[3 * (size_t)v + 2])))
+            return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                                 "%s: vertex %u has a non-finite position", fn, v);
+    for (uint32_t q = 0; q < quad_count; ++q)
+        for (int k = 0; k < 4; ++k)
+            if (quads[4 * (size_t)q + k] >= vertex_count)
+                return rbc_set_error(RBC_ERR_BAD_MESH,
+                                     "%s: quad %u corner %d is vertex %u; vertex_count is %u", fn,
+                                     q, k, quads[4 * (size_t)q + k], vertex_count);
+    char *tmp = dup_suffix(path, ".tmp");
+    if (!tmp) return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: out of memory", fn);
+    FILE *f = fopen(tmp, "wb");
+    if (!f) {
+        rbc_result rc = rbc_set_error(RBC_ERR_IO, "%s: cannot create %s: %s", fn, tmp,
+                                      strerror(errno));
+        free(tmp);
+        return rc;
+    }
+    int ok = fprintf(f, "# rbcloth %s: %u vertices, %u quads\n", rbc_version_string(),
+                     vertex_count, quad_count) > 0;
+    /* %.9g round-trips every float exactly. */
+    for (uint32_t v = 0; ok && v < vertex_count; ++v)
+        ok = fprintf(f, "v %.9g %.9g %.9g\n", (double)xyz[3 * (size_t)v],
+                     (double)xyz[3 * (size_t)v + 1], (double)xyz[3 * (size_t)v + 2]) > 0;
+    for (uint32_t q = 0; ok && q < quad_count; ++q) {
+        const uint32_t *c = quads + 4 * (size_t)q;
+        ok = fprintf(f, "f %u %u %u %u\n", c[0] + 1, c[1] + 1, c[2] + 1, c[3] + 1) > 0;
+    }
+    ok = (fflush(f) == 0) && ok;
+    ok = (fclose(f) == 0) && ok;
+    if (!ok || rename(tmp, path) != 0) {
+        rbc_result rc = rbc_set_error(RBC_ERR_IO, "%s: writing %s failed: %s", fn, path,
+                                      strerror(errno));
+        remove(tmp);
+        free(tmp);
+        return rc;
+    }
+    free(tmp);
+    return RBC_OK;
+}
+
+RBC_API rbc_cache_def RBC_CALL rbc_cache_def_default(void) {
+    rbc_cache_def d;
+    memset(&d, 0, sizeof d);
+    d.struct_size = sizeof d;
+    d.format = RBC_CACHE_PC2;
+    d.start_frame = 0.0f;
+    d.sample_rate = 1.0f;
+    return d;
+}
+
+/* The PC2 header: char[12] "POINTCACHE2\0", int32 version 1, int32 points,
+ * float32 start frame, float32 sample rate, int32 samples (32 bytes). */
+static int write_pc2_header(cache *c) {
+    static const char magic[12] = "POINTCACHE2";
+    return fseek(c->f, 0, SEEK_SET) == 0 && fwrite(magic, 1, 12, c->f) == 12 &&
+           put_u32le(c->f, 1) && put_u32le(c->f, c->def.point_count) &&
+           put_f32le(c->f, c->def.start_frame) && put_f32le(c->f, c->def.sample_rate) &&
+           put_u32le(c->f, c->frames);
+}
+
+static void cache_free(cache *c) {
+    if (!c) return;
+    if (c->f) fclose(c->f);
+    if (c->tmp_path) remove(c->tmp_path);
+    free(c->path);
+    free(c->tmp_path);
+    free(c);
+}
+
+RBC_API rbc_result RBC_CALL rbc_cache_create(const rbc_cache_def *user_def, rbc_cache_id *out) {
+    static const char fn[] = "rbc_cache_create";
+    if (!out) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: out_cache is NULL", fn);
+    *out = 0;
+    if (!user_def) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: def is NULL", fn);
+    if (user_def->struct_size != sizeof(rbc_cache_def))
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                             "%s: rbc_cache_def->struct_size is %u, which matches no released "
+                             "version (this library knows %zu)",
+                             fn, user_def->struct_size, sizeof(rbc_cache_def));
+    rbc_cache_def def = *user_def;
+    if (def.format != RBC_CACHE_PC2)
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: format %d is not an rbc_cache_format",
+                             fn, (int)def.format);
+    if (!def.path || !*def.path)
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: path is empty", fn);
+    if (def.point_count == 0)
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: point_count is 0", fn);
+    if (!isfinite(def.start_frame) || !(isfinite(def.sample_rate) && def.sample_rate > 0.0f))
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                             "%s: start_frame %g and sample_rate %g must be finite, the rate > 0",
+                             fn, (double)def.start_frame, (double)def.sample_rate);
+    cache *c = calloc(1, sizeof *c);
+    if (!c) return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: out of memory", fn);
+    c->def = def;
+    c->path = dup_suffix(def.path, "");
+    c->tmp_path = dup_suffix(def.path, ".tmp");
+    if (!c->path || !c->tmp_path) {
+        free(c->path);
+        free(c->tmp_path);
+        free(c);
+        return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: out of memory", fn);
+    }
+    c->def.path = c->path;
+    c->f = fopen(c->tmp_path, "wb");
+    if (!c->f) {
+        rbc_result rc = rbc_set_error(RBC_ERR_IO, "%s: cannot create %s: %s", fn, c->tmp_path,
+                                      strerror(errno));
+        free(c->path);
+        free(c->tmp_path);
+        free(c);
+        return rc;
+    }
+    if (!write_pc2_header(c)) {
+        rbc_result rc = rbc_set_error(RBC_ERR_IO, "%s: cannot write %s: %s", fn, c->tmp_path,
+                                      strerror(errno));
+        cache_free(c);
+        return rc;
+    }
+    pthread_mutex_lock(&g_cache_lock);
+    uint32_t s = RBC_MAX_CACHES;
+    for (uint32_t k = 0; k < RBC_MAX_CACHES; ++k)
+        if (!g_caches[k].ptr) {
+            s = k;
+            break;
+        }
+    if (s == RBC_MAX_CACHES) {
+        pthread_mutex_unlock(&g_cache_lock);
+        cache_free(c);
+        return rbc_set_error(RBC_ERR_CAPACITY, "%s: %u caches are open already", fn,
+                             RBC_MAX_CACHES);
+    }
+    g_caches[s].gen = rbc_gen_next(g_caches[s].gen);
+    g_caches[s].ptr = c;
+    *out = rbc_id_make(RBC_KIND_CACHE, g_caches[s].gen, s);
+    pthread_mutex_unlock(&g_cache_lock);
+    return RBC_OK;
+}
+
+/* With the lock held: the cache of `id`, or NULL with the error set. */
+static cache *cache_lookup(rbc_cache_id id, const char *fn) {
+    if (rbc_id_kind(id) != RBC_KIND_CACHE) {
+        rbc_set_error(RBC_ERR_STALE_HANDLE, "%s: id 0x%08x is %s, not a cache id", fn, id,
+                      id ? rbc_kind_name(rbc_id_kind(id)) : "null");
+        return NULL;
+    }
+    uint32_t s = rbc_id_slot(id);
+    if (s >= RBC_MAX_CACHES || !g_caches[s].ptr || g_caches[s].gen != rbc_id_gen(id)) {
+        rbc_set_error(RBC_ERR_STALE_HANDLE, "%s: cache id 0x%08x is stale", fn, id);
+        return NULL;
+    }
+    return g_caches[s].ptr;
+}
+
+RBC_API rbc_result RBC_CALL rbc_cache_write_frame(rbc_cache_id id, const float *xyz) {
+    static const char fn[] = "rbc_cache_write_frame";
+    pthread_mutex_lock(&g_cache_lock);
+    cache *c = cache_lookup(id, fn);
+    rbc_result rc = RBC_ERR_STALE_HANDLE;
+    if (!c) goto out;
+    if (!xyz) {
+        rc = rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: xyz is NULL", fn);
+        goto out;
+    }
+    size_t count = 3 * (size_t)c->def.point_count;
+    int ok;
+    if (host_is_little_endian()) {
+        ok = fwrite(xyz, sizeof(float), count, c->f) == count;
+    } else {
+        ok = 1;
+        for (size_t k = 0; ok && k < count; ++k) ok = put_f32le(c->f, xyz[k]);
+    }
+    if (!ok) {
+        rc = rbc_set_error(RBC_ERR_IO, "%s: writing frame %u to %s failed: %s", fn, c->frames,
+                           c->tmp_path, strerror(errno));
+        goto out;
+    }
+    c->frames++;
+    rc = RBC_OK;
+out:
+    pthread_mutex_unlock(&g_cache_lock);
+    return rc;
+}
+
+static rbc_result cache_end(rbc_cache_id id, const char *fn, int keep) {
+    pthread_mutex_lock(&g_cache_lock);
+    cache *c = cache_lookup(id, fn);
+    if (!c) {
+        pthread_mutex_unlock(&g_cache_lock);
+        return RBC_ERR_STALE_HANDLE;
+    }
+    g_caches[rbc_id_slot(id)].ptr = NULL;
+    pthread_mutex_unlock(&g_cache_lock);
+    rbc_result rc = RBC_OK;
+    if (keep) {
+        int ok = write_pc2_header(c) && fflush(c->f) == 0;
+        ok = (fclose(c->f) == 0) && ok;
+        c->f = NULL;
+        if (!ok || rename(c->tmp_path, c->path) != 0)
+            rc = rbc_set_error(RBC_ERR_IO, "%s: completing %s failed: %s", fn, c->path,
+                               strerror(errno));
+        else {
+            free(c->tmp_path);
+            c->tmp_path = NULL; /* renamed: nothing to remove */
+        }
+    }
+    cache_free(c);
+    return rc;
+}
+
+RBC_API rbc_result RBC_CALL rbc_cache_finish(rbc_cache_id id) {
+    return cache_end(id, "rbc_cache_finish", 1);
+}
+
+RBC_API rbc_result RBC_CALL rbc_cache_destroy(rbc_cache_id id) {
+    return cache_end(id, "rbc_cache_destroy", 0);
+}

@@ -1,0 +1,15 @@
+/* errors.h -- the calling thread's last error message, and logging to a world's hook. */
+#ifndef RBC_PLUGIN_ERRORS_H
+#define RBC_PLUGIN_ERRORS_H
+#include <stddef.h>
+
+#include "rbcloth.h"
+
+#define RBC_ERROR_CAP 1024
+
+/* Set the thread's message (printf format) and return code. */
+rbc_result rbc_set_error(rbc_result code, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+/* The thread's message buffer, for code that formats into it directly. */
+char *rbc_error_buffer(void);
+#endif

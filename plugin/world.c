@@ -1,0 +1,654 @@
+/* world.c -- the ABI's worlds, cloths and colliders over core/: id tables, def
+ * validation, error messages and logging. Every function validates all of its input
+ * before it changes anything, so a failing call leaves the world as it was. */
+#include <math.h>
+#include <pthread.h>
+#include <stdarg.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "errors.h"
+#include "handles.h"
+#include "rbcloth.h"
+#include "solver.h"
+
+#define RBC_MAX_WORLDS 1024u
+#define RBC_MAX_THREADS 64u
+
+typedef struct slot {
+    uint32_t gen;  /* generation of the live object, or of the last one */
+    void *ptr;     /* NULL when free */
+} slot;
+
+typedef struct slot_table {
+    slot *slots;
+    uint32_t count, cap;
+} slot_table;
+
+typedef struct rbc_world {
+    rbc_solver solver;
+    rbc_allocator alloc;
+    rbc_world_def def;
+    uint32_t id;
+    slot_table cloths;
+    slot_table colliders; /* ptr holds (uintptr_t)1; the collider lives in the solver */
+} rbc_world;
+
+/* The world registry. Create and destroy take the lock; a lookup reads one slot,
+ * which only the world's own (single) user thread may change. */
+static pthread_mutex_t g_worlds_lock = PTHREAD_MUTEX_INITIALIZER;
+static struct {
+    _Atomic uint32_t gen;
+    _Atomic(rbc_world *) ptr;
+} g_worlds[RBC_MAX_WORLDS];
+
+/* ------------------------------------------------------------------------- */
+/* Helpers                                                                   */
+/* ------------------------------------------------------------------------- */
+
+static void world_log(rbc_world *w, rbc_log_level level, const char *msg) {
+    if (w && w->def.log && level <= w->def.log_level) w->def.log(w->def.log_user, level, msg);
+}
+
+/* Set the error, send it to the world's log hook (if any) and return the code. */
+static rbc_result world_error(rbc_world *w, rbc_result code, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+static rbc_result world_error(rbc_world *w, rbc_result code, const char *fmt, ...) {
+    char *buf = rbc_error_buffer();
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(buf, RBC_ERROR_CAP, fmt, ap);
+    va_end(ap);
+    world_log(w, RBC_LOG_ERROR, buf);
+    return code;
+}
+
+static int finite3(const float *v) { return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]); }
+
+/* Copy a def of a released size into a defaults-filled struct. */
+static rbc_result read_def(void *dst, size_t dst_size, const void *src, const char *fn,
+                           const char *what) {
+    if (!src) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: %s is NULL", fn, what);
+    uint32_t size;
+    memcpy(&size, src, sizeof size);
+    /* ABI 1.0 has one released size of each def; later minors append sizes here. */
+    if (size != dst_size)
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                             "%s: %s->struct_size is %u, which matches no released version "
+                             "(this library knows %zu); set it to sizeof(%s)",
+                             fn, what, size, dst_size, what);
+    memcpy(dst, src, size);
+    return RBC_OK;
+}
+
+static rbc_result lookup_world(rbc_world_id id, const char *fn, rbc_world **out) {
+    *out = NULL;
+    if (id == 0) return rbc_set_error(RBC_ERR_STALE_HANDLE, "%s: world id is 0 (null)", fn);
+    if (rbc_id_kind(id) != RBC_KIND_WORLD)
+        return rbc_set_error(RBC_ERR_STALE_HANDLE, "%s: id 0x%08x is a %s id, not a world id", fn,
+                             id, rbc_kind_name(rbc_id_kind(id)));
+    uint32_t slot_i = rbc_id_slot(id);
+    if (slot_i >= RBC_MAX_WORLDS)
+        return rbc_set_error(RBC_ERR_STALE_HANDLE, "%s: world id 0x%08x names no world", fn, id);
+    rbc_world *w = atomic_load(&g_worlds[slot_i].ptr);
+    if (!w || atomic_load(&g_worlds[slot_i].gen) != rbc_id_gen(id))
+        return rbc_set_error(RBC_ERR_STALE_HANDLE,
+                             "%s: world id 0x%08x is stale (destroyed, or never created)", fn, id);
+    *out = w;
+    return RBC_OK;
+}
+
+static rbc_result lookup_slot(rbc_world *w, slot_table *t, uint32_t kind, uint32_t id,
+                              const char *fn, uint32_t *out_slot) {
+    const char *kname = rbc_kind_name(kind);
+    if (id == 0) return world_error(w, RBC_ERR_STALE_HANDLE, "%s: %s id is 0 (null)", fn, kname);
+    if (rbc_id_kind(id) != kind)
+        return world_error(w, RBC_ERR_STALE_HANDLE, "%s: id 0x%08x is a %s id, not a %s id", fn,
+                           id, rbc_kind_name(rbc_id_kind(id)), kname);
+    uint32_t s = rbc_id_slot(id);
+    if (s >= t->count || !t->slots[s].ptr || t->slots[s].gen != rbc_id_gen(id))
+        return world_error(w, RBC_ERR_STALE_HANDLE,
+                           "%s: %s id 0x%08x is stale in world 0x%08x (destroyed, or from "
+                           "another world)",
+                           fn, kname, id, w->id);
+    *out_slot = s;
+    return RBC_OK;
+}
+
+/* Reserve a free slot (growing the table); does not mark it used. */
+static rbc_result slot_reserve(rbc_world *w, slot_table *t, const char *fn, const char *what,
+                               uint32_t *out) {
+    for (uint32_t s = 0; s < t->count; ++s)
+        if (!t->slots[s].ptr) {
+            *out = s;
+            return RBC_OK;
+        }
+    if (t->count == RBC_MAX_SLOTS)
+        return world_error(w, RBC_ERR_CAPACITY, "%s: the world already holds %u %ss", fn,
+                           RBC_MAX_SLOTS, what);
+    if (t->count == t->cap) {
+        uint32_t cap = t->cap ? t->cap * 2 : 8;
+        slot *ns = rbc_mem_alloc(&w->alloc, sizeof(slot) * cap);
+        if (!ns) return world_error(w, RBC_ERR_OUT_OF_MEMORY, "%s: out of memory", fn);
+        if (t->count) memcpy(ns, t->slots, sizeof(slot) * t->count);
+        rbc_mem_free(&w->alloc, t->slots, sizeof(slot) * t->cap);
+        t->slots = ns;
+        t->cap = cap;
+    }
+    *out = t->count;
+    return RBC_OK;
+}
+
+static uint32_t slot_commit(slot_table *t, uint32_t s, void *ptr, uint32_t kind) {
+    if (s == t->count) {
+        t->count++;
+        t->slots[s].gen = 0;
+    }
+    t->slots[s].gen = rbc_gen_next(t->slots[s].gen);
+    t->slots[s].ptr = ptr;
+    return rbc_id_make(kind, t->slots[s].gen, s);
+}
+
+/* ------------------------------------------------------------------------- */
+/* Defaults                                                                  */
+/* ------------------------------------------------------------------------- */
+
+RBC_API rbc_world_def RBC_CALL rbc_world_def_default(void) {
+    rbc_world_def d;
+    memset(&d, 0, sizeof d);
+    d.struct_size = sizeof d;
+    d.gravity[1] = -9.81f;
+    d.substeps = 1;
+    d.nonlinear_iterations = 1;
+    d.linear_iterations = 11;
+    d.backend = RBC_BACKEND_AUTO;
+    d.thread_count = 0;
+    d.log_level = RBC_LOG_WARNING;
+    return d;
+}
+
+RBC_API rbc_cloth_def RBC_CALL rbc_cloth_def_default(void) {
+    rbc_cloth_def d;
+    memset(&d, 0, sizeof d);
+    d.struct_size = sizeof d;
+    d.vertex_mass = 1e-4f;
+    d.stiffness = 1000.0f;
+    return d;
+}
+
+RBC_API rbc_collider_def RBC_CALL rbc_collider_def_default(void) {
+    rbc_collider_def d;
+    memset(&d, 0, sizeof d);
+    d.struct_size = sizeof d;
+    d.shape = RBC_SHAPE_PLANE;
+    d.radius = 0.5f;
+    d.rotation[3] = 1.0f;
+    return d;
+}
+
+/* ------------------------------------------------------------------------- */
+/* World                                                                     */
+/* ------------------------------------------------------------------------- */
+
+static rbc_result check_iterations(rbc_world *w, const char *fn, uint32_t substeps,
+                                   uint32_t nonlinear, uint32_t linear) {
+    if (substeps < 1 || substeps > 1024)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: substeps is %u; range 1..1024", fn,
+                           substeps);
+    if (nonlinear < 1 || nonlinear > 1024)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: nonlinear_iterations is %u; range 1..1024", fn, nonlinear);
+    if (linear < 1 || linear > 4096)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: linear_iterations is %u; range 1..4096", fn, linear);
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
+                                             rbc_world_id *out_world) {
+    static const char fn[] = "rbc_world_create";
+    if (!out_world) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: out_world is NULL", fn);
+    *out_world = 0;
+    rbc_world_def def = rbc_world_def_default();
+    rbc_result rc = read_def(&def, sizeof def, user_def, fn, "rbc_world_def");
+    if (rc) return rc;
+    if (!finite3(def.gravity))
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: gravity (%g, %g, %g) is not finite",
+                             fn, (double)def.gravity[0], (double)def.gravity[1],
+                             (double)def.gravity[2]);
+    if ((rc = check_iterations(NULL, fn, def.substeps, def.nonlinear_iterations,
+                               def.linear_iterations)))
+        return rc;
+    if (def.backend != RBC_BACKEND_AUTO && def.backend != RBC_BACKEND_CPU &&
+        def.backend != RBC_BACKEND_CUDA)
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: backend %d is not an rbc_backend",
+                             fn, (int)def.backend);
+    if (def.backend == RBC_BACKEND_CUDA)
+        return rbc_set_error(RBC_ERR_BACKEND_UNAVAILABLE,
+                             "%s: this build of librbcloth has no CUDA backend; use "
+                             "RBC_BACKEND_CPU or RBC_BACKEND_AUTO",
+                             fn);
+    if (def.thread_count > RBC_MAX_THREADS)
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: thread_count is %u; at most %u", fn,
+                             def.thread_count, RBC_MAX_THREADS);
+    if (def.log_level < RBC_LOG_ERROR || def.log_level > RBC_LOG_DEBUG)
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: log_level %d is not an rbc_log_level",
+                             fn, (int)def.log_level);
+    if ((def.alloc == NULL) != (def.free == NULL))
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                             "%s: give both alloc and free hooks, or neither", fn);
+
+    rbc_allocator alloc = rbc_allocator_default();
+    if (def.alloc) {
+        alloc.alloc = (void *(*)(void *, size_t, size_t))def.alloc;
+        alloc.free = (void (*)(void *, void *, size_t))def.free;
+        alloc.user = def.alloc_user;
+    }
+    uint32_t threads = def.thread_count;
+    if (threads == 0) {
+        threads = rbc_cpu_count();
+        if (threads > RBC_MAX_THREADS) threads = RBC_MAX_THREADS;
+    }
+
+    pthread_mutex_lock(&g_worlds_lock);
+    uint32_t s = RBC_MAX_WORLDS;
+    for (uint32_t k = 0; k < RBC_MAX_WORLDS; ++k)
+        if (!atomic_load(&g_worlds[k].ptr)) {
+            s = k;
+            break;
+        }
+    if (s == RBC_MAX_WORLDS) {
+        pthread_mutex_unlock(&g_worlds_lock);
+        return rbc_set_error(RBC_ERR_CAPACITY, "%s: %u worlds exist already", fn, RBC_MAX_WORLDS);
+    }
+    rbc_world *w = rbc_mem_alloc(&alloc, sizeof *w);
+    if (!w) {
+        pthread_mutex_unlock(&g_worlds_lock);
+        return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: out of memory", fn);
+    }
+    w->alloc = alloc;
+    w->def = def;
+    if (rbc_solver_init(&w->solver, &alloc, threads) != RBC_OK) {
+        rbc_mem_free(&alloc, w, sizeof *w);
+        pthread_mutex_unlock(&g_worlds_lock);
+        return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: could not start %u worker threads", fn,
+                             threads);
+    }
+    memcpy(w->solver.gravity, def.gravity, sizeof def.gravity);
+    w->solver.substeps = def.substeps;
+    w->solver.nonlinear_iterations = def.nonlinear_iterations;
+    w->solver.linear_iterations = def.linear_iterations;
+    uint32_t gen = rbc_gen_next(atomic_load(&g_worlds[s].gen));
+    w->id = rbc_id_make(RBC_KIND_WORLD, gen, s);
+    w->solver.public_world_id = w->id;
+    atomic_store(&g_worlds[s].gen, gen);
+    atomic_store(&g_worlds[s].ptr, w);
+    pthread_mutex_unlock(&g_worlds_lock);
+    *out_world = w->id;
+    char msg[128];
+    snprintf(msg, sizeof msg, "world 0x%08x created: CPU backend, %u threads", w->id, threads);
+    world_log(w, RBC_LOG_INFO, msg);
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_world_destroy(rbc_world_id id) {
+    pthread_mutex_lock(&g_worlds_lock);
+    rbc_world *w;
+    rbc_result rc = lookup_world(id, "rbc_world_destroy", &w);
+    if (rc) {
+        pthread_mutex_unlock(&g_worlds_lock);
+        return rc;
+    }
+    atomic_store(&g_worlds[rbc_id_slot(id)].ptr, NULL);
+    pthread_mutex_unlock(&g_worlds_lock);
+    rbc_allocator alloc = w->alloc;
+    rbc_solver_fini(&w->solver); /* destroys every cloth */
+    rbc_mem_free(&alloc, w->cloths.slots, sizeof(slot) * w->cloths.cap);
+    rbc_mem_free(&alloc, w->colliders.slots, sizeof(slot) * w->colliders.cap);
+    rbc_mem_free(&alloc, w, sizeof *w);
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_world_step(rbc_world_id id, float dt) {
+    static const char fn[] = "rbc_world_step";
+    rbc_world *w;
+    rbc_result rc = lookup_world(id, fn, &w);
+    if (rc) return rc;
+    if (!(isfinite(dt) && dt > 0.0f))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: dt is %g s; it must be finite and > 0",
+                           fn, (double)dt);
+    char msg[RBC_ERROR_CAP - 64];
+    rc = rbc_solver_step(&w->solver, dt, msg, sizeof msg);
+    if (rc) return world_error(w, rc, "%s: world 0x%08x: %s", fn, w->id, msg);
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_world_set_iterations(rbc_world_id id, uint32_t substeps,
+                                                     uint32_t nonlinear, uint32_t linear) {
+    static const char fn[] = "rbc_world_set_iterations";
+    rbc_world *w;
+    rbc_result rc = lookup_world(id, fn, &w);
+    if (rc) return rc;
+    if ((rc = check_iterations(w, fn, substeps, nonlinear, linear))) return rc;
+    w->solver.substeps = substeps;
+    w->solver.nonlinear_iterations = nonlinear;
+    w->solver.linear_iterations = linear;
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_world_set_gravity(rbc_world_id id, const float gravity[3]) {
+    static const char fn[] = "rbc_world_set_gravity";
+    rbc_world *w;
+    rbc_result rc = lookup_world(id, fn, &w);
+    if (rc) return rc;
+    if (!gravity) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: gravity is NULL", fn);
+    if (!finite3(gravity))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: gravity (%g, %g, %g) is not finite",
+                           fn, (double)gravity[0], (double)gravity[1], (double)gravity[2]);
+    memcpy(w->solver.gravity, gravity, 3 * sizeof(float));
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats *out) {
+    static const char fn[] = "rbc_world_get_stats";
+    rbc_world *w;
+    rbc_result rc = lookup_world(id, fn, &w);
+    if (rc) return rc;
+    if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: stats is NULL", fn);
+    if (out->struct_size != sizeof(rbc_world_stats))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: stats->struct_size is %u, which matches no released version "
+                           "(this library knows %zu)",
+                           fn, out->struct_size, sizeof(rbc_world_stats));
+    const rbc_solver *s = &w->solver;
+    rbc_world_stats st;
+    memset(&st, 0, sizeof st);
+    st.struct_size = out->struct_size;
+    st.cloth_count = s->cloth_count;
+    st.collider_count = s->collider_count;
+    st.thread_count = rbc_pool_size(s->pool);
+    st.backend = RBC_BACKEND_CPU;
+    st.step_count = s->step_count;
+    for (uint32_t k = 0; k < s->cloth_count; ++k) {
+        const rbc_cloth_state *c = s->cloths[k];
+        st.particle_count += c->topo.n;
+        st.spring_count += c->topo.ns;
+        if (c->topo.ncolors > st.color_count) st.color_count = c->topo.ncolors;
+        double e, strain;
+        rbc_cloth_state_error(c, &e, &strain);
+        st.error_eq7 += e;
+        if (strain > st.max_strain) st.max_strain = strain;
+    }
+    if (s->step_count) {
+        st.substeps = s->substeps;
+        st.nonlinear_iterations = s->substeps * s->nonlinear_iterations;
+        st.linear_iterations = st.nonlinear_iterations * s->linear_iterations;
+    }
+    st.step_ms = s->last.step;
+    st.integrate_ms = s->last.integrate;
+    st.local_ms = s->last.local;
+    st.global_ms = s->last.global;
+    st.collide_ms = s->last.collide;
+    st.callback_ms = s->last.callback;
+    st.other_ms = s->last.other;
+    memcpy(out, &st, sizeof st);
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_world_set_collision_callback(rbc_world_id id, rbc_collision_fn fn_,
+                                                             void *user) {
+    static const char fn[] = "rbc_world_set_collision_callback";
+    rbc_world *w;
+    rbc_result rc = lookup_world(id, fn, &w);
+    if (rc) return rc;
+    rc = rbc_solver_set_callback(&w->solver, fn_, user);
+    if (rc) return world_error(w, rc, "%s: out of memory for the callback's buffers", fn);
+    return RBC_OK;
+}
+
+/* ------------------------------------------------------------------------- */
+/* Cloth                                                                     */
+/* ------------------------------------------------------------------------- */
+
+RBC_API rbc_result RBC_CALL rbc_cloth_create(rbc_world_id wid, const rbc_cloth_def *user_def,
+                                             rbc_cloth_id *out_cloth) {
+    static const char fn[] = "rbc_cloth_create";
+    rbc_world *w;
+    rbc_result rc = lookup_world(wid, fn, &w);
+    if (rc) return rc;
+    if (!out_cloth) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: out_cloth is NULL", fn);
+    *out_cloth = 0;
+    rbc_cloth_def def = rbc_cloth_def_default();
+    if ((rc = read_def(&def, sizeof def, user_def, fn, "rbc_cloth_def"))) {
+        world_log(w, RBC_LOG_ERROR, rbc_last_error());
+        return rc;
+    }
+    if (!(isfinite(def.damping) && def.damping >= 0.0f))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: cloth def: damping is %g 1/s; it must be finite and >= 0", fn,
+                           (double)def.damping);
+    uint32_t s = 0;
+    if ((rc = slot_reserve(w, &w->cloths, fn, "cloth", &s))) return rc;
+
+    rbc_mesh_input in;
+    memset(&in, 0, sizeof in);
+    in.vertex_count = def.vertex_count;
+    in.positions = def.positions;
+    in.quad_count = def.quad_count;
+    in.quads = def.quads;
+    in.spring_count = def.spring_count;
+    in.springs = def.springs;
+    in.masses = def.masses;
+    in.density = def.density;
+    in.vertex_mass = def.vertex_mass;
+    in.stiffness = def.stiffness;
+    in.pin_count = def.pin_count;
+    in.pins = def.pins;
+    char msg[RBC_ERROR_CAP - 64];
+    rbc_cloth_state *c;
+    rc = rbc_cloth_state_create(&w->solver, &in, def.damping, &c, msg, sizeof msg);
+    if (rc) return world_error(w, rc, "%s: cloth def: %s", fn, msg);
+    if ((rc = rbc_solver_add_cloth(&w->solver, c))) {
+        rbc_cloth_state_destroy(&w->solver, c);
+        return world_error(w, rc, "%s: out of memory", fn);
+    }
+    c->public_id = slot_commit(&w->cloths, s, c, RBC_KIND_CLOTH);
+    *out_cloth = c->public_id;
+    return RBC_OK;
+}
+
+static rbc_result lookup_cloth(rbc_world_id wid, rbc_cloth_id cid, const char *fn,
+                               rbc_world **ow, rbc_cloth_state **oc) {
+    rbc_result rc = lookup_world(wid, fn, ow);
+    if (rc) return rc;
+    uint32_t s = 0;
+    if ((rc = lookup_slot(*ow, &(*ow)->cloths, RBC_KIND_CLOTH, cid, fn, &s))) return rc;
+    *oc = (*ow)->cloths.slots[s].ptr;
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_cloth_destroy(rbc_world_id wid, rbc_cloth_id cid) {
+    rbc_world *w;
+    rbc_cloth_state *c;
+    rbc_result rc = lookup_cloth(wid, cid, "rbc_cloth_destroy", &w, &c);
+    if (rc) return rc;
+    rbc_solver_remove_cloth(&w->solver, c);
+    rbc_cloth_state_destroy(&w->solver, c);
+    w->cloths.slots[rbc_id_slot(cid)].ptr = NULL;
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_cloth_get_vertex_count(rbc_world_id wid, rbc_cloth_id cid,
+                                                       uint32_t *out_count) {
+    static const char fn[] = "rbc_cloth_get_vertex_count";
+    rbc_world *w;
+    rbc_cloth_state *c;
+    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    if (rc) return rc;
+    if (!out_count) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: out_count is NULL", fn);
+    *out_count = c->topo.n;
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_cloth_get_topology(rbc_world_id wid, rbc_cloth_id cid,
+                                                   uint32_t *out_spring_count,
+                                                   uint32_t *out_color_count) {
+    rbc_world *w;
+    rbc_cloth_state *c;
+    rbc_result rc = lookup_cloth(wid, cid, "rbc_cloth_get_topology", &w, &c);
+    if (rc) return rc;
+    if (out_spring_count) *out_spring_count = c->topo.ns;
+    if (out_color_count) *out_color_count = c->topo.ncolors;
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_cloth_read_positions(rbc_world_id wid, rbc_cloth_id cid,
+                                                     float *xyz, size_t capacity,
+                                                     size_t *out_written) {
+    static const char fn[] = "rbc_cloth_read_positions";
+    rbc_world *w;
+    rbc_cloth_state *c;
+    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    if (rc) return rc;
+    size_t need = 3 * (size_t)c->topo.n;
+    if (!xyz) {
+        if (out_written) *out_written = need;
+        return RBC_OK;
+    }
+    if (capacity < need)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: cloth 0x%08x has %u vertices and needs %zu floats; capacity is %zu",
+                           fn, cid, c->topo.n, need, capacity);
+    rbc_cloth_state_read(c, xyz);
+    if (out_written) *out_written = need;
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_cloth_set_pin(rbc_world_id wid, rbc_cloth_id cid, uint32_t vertex,
+                                              const float *target) {
+    static const char fn[] = "rbc_cloth_set_pin";
+    rbc_world *w;
+    rbc_cloth_state *c;
+    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    if (rc) return rc;
+    if (vertex >= c->topo.n)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: cloth 0x%08x: vertex %u is out of range (vertex count %u)", fn,
+                           cid, vertex, c->topo.n);
+    if (target && !finite3(target))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: cloth 0x%08x: vertex %u: target (%g, %g, %g) is not finite", fn,
+                           cid, vertex, (double)target[0], (double)target[1], (double)target[2]);
+    rc = rbc_cloth_state_set_pin(&w->solver, c, vertex, target);
+    if (rc) return world_error(w, rc, "%s: out of memory", fn);
+    return RBC_OK;
+}
+
+/* ------------------------------------------------------------------------- */
+/* Colliders                                                                 */
+/* ------------------------------------------------------------------------- */
+
+static rbc_result check_transform(rbc_world *w, const char *fn, const float *pos,
+                                  const float *rot) {
+    if (!pos || !rot)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: position or rotation is NULL", fn);
+    if (!finite3(pos))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: position (%g, %g, %g) is not finite",
+                           fn, (double)pos[0], (double)pos[1], (double)pos[2]);
+    double n2 = (double)rot[0] * rot[0] + (double)rot[1] * rot[1] + (double)rot[2] * rot[2] +
+                (double)rot[3] * rot[3];
+    /* Unit within float rounding of a normalised quaternion (a few ulp, 1e-4 leaves
+     * room for hosts that normalise in float and then compose). */
+    if (!(isfinite(n2) && fabs(n2 - 1.0) <= 1e-4))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: rotation (%g, %g, %g, %g) is not a unit quaternion (norm^2 %g)",
+                           fn, (double)rot[0], (double)rot[1], (double)rot[2], (double)rot[3],
+                           n2);
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_collider_create(rbc_world_id wid, const rbc_collider_def *user_def,
+                                                rbc_collider_id *out) {
+    static const char fn[] = "rbc_collider_create";
+    rbc_world *w;
+    rbc_result rc = lookup_world(wid, fn, &w);
+    if (rc) return rc;
+    if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: out_collider is NULL", fn);
+    *out = 0;
+    rbc_collider_def def = rbc_collider_def_default();
+    if ((rc = read_def(&def, sizeof def, user_def, fn, "rbc_collider_def"))) {
+        world_log(w, RBC_LOG_ERROR, rbc_last_error());
+        return rc;
+    }
+    if (def.shape != RBC_SHAPE_PLANE && def.shape != RBC_SHAPE_SPHERE)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: collider def: shape %d is not an rbc_shape", fn, (int)def.shape);
+    if (def.shape == RBC_SHAPE_SPHERE && !(isfinite(def.radius) && def.radius > 0.0f))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: collider def: sphere radius is %g m; it must be finite and > 0",
+                           fn, (double)def.radius);
+    if (!(isfinite(def.thickness) && def.thickness >= 0.0f))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: collider def: thickness is %g m; it must be finite and >= 0", fn,
+                           (double)def.thickness);
+    if ((rc = check_transform(w, fn, def.position, def.rotation))) return rc;
+    uint32_t s = 0;
+    if ((rc = slot_reserve(w, &w->colliders, fn, "collider", &s))) return rc;
+    rbc_collider_state cs;
+    memset(&cs, 0, sizeof cs);
+    cs.shape = def.shape;
+    cs.radius = def.radius;
+    cs.thickness = def.thickness;
+    memcpy(cs.position, def.position, sizeof cs.position);
+    memcpy(cs.rotation, def.rotation, sizeof cs.rotation);
+    /* The id is known before insertion: slot s's next generation. */
+    uint32_t gen = rbc_gen_next(s < w->colliders.count ? w->colliders.slots[s].gen : 0);
+    cs.public_id = rbc_id_make(RBC_KIND_COLLIDER, gen, s);
+    if ((rc = rbc_solver_add_collider(&w->solver, &cs)))
+        return world_error(w, rc, "%s: out of memory", fn);
+    *out = slot_commit(&w->colliders, s, (void *)(uintptr_t)1, RBC_KIND_COLLIDER);
+    return RBC_OK;
+}
+
+static rbc_result lookup_collider(rbc_world_id wid, rbc_collider_id cid, const char *fn,
+                                  rbc_world **ow, uint32_t *index) {
+    rbc_result rc = lookup_world(wid, fn, ow);
+    if (rc) return rc;
+    uint32_t s = 0;
+    if ((rc = lookup_slot(*ow, &(*ow)->colliders, RBC_KIND_COLLIDER, cid, fn, &s))) return rc;
+    rbc_solver *sol = &(*ow)->solver;
+    for (uint32_t k = 0; k < sol->collider_count; ++k)
+        if (sol->colliders[k].public_id == cid) {
+            *index = k;
+            return RBC_OK;
+        }
+    return world_error(*ow, RBC_ERR_STALE_HANDLE, "%s: collider 0x%08x is not in the world", fn,
+                       cid);
+}
+
+RBC_API rbc_result RBC_CALL rbc_collider_set_transform(rbc_world_id wid, rbc_collider_id cid,
+                                                       const float position[3],
+                                                       const float rotation[4]) {
+    static const char fn[] = "rbc_collider_set_transform";
+    rbc_world *w;
+    uint32_t k = 0;
+    rbc_result rc = lookup_collider(wid, cid, fn, &w, &k);
+    if (rc) return rc;
+    if ((rc = check_transform(w, fn, position, rotation))) return rc;
+    rbc_collider_state *c = &w->solver.colliders[k];
+    memcpy(c->position, position, sizeof c->position);
+    memcpy(c->rotation, rotation, sizeof c->rotation);
+    rbc_collider_update_frame(c);
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_collider_destroy(rbc_world_id wid, rbc_collider_id cid) {
+    rbc_world *w;
+    uint32_t k = 0;
+    rbc_result rc = lookup_collider(wid, cid, "rbc_collider_destroy", &w, &k);
+    if (rc) return rc;
+    rbc_solver_remove_collider(&w->solver, k);
+    w->colliders.slots[rbc_id_slot(cid)].ptr = NULL;
+    return RBC_OK;
+}
