@@ -1,0 +1,961 @@
+/* scene.c -- sample scenes: JSON loading and validation, and creation of the world
+ * through the plugin's function table (see scene.h; format in scenes/README.md).
+ *
+ * Validation is strict: unknown or duplicate keys, wrong types, out-of-range numbers
+ * and bad indices are errors naming the file and the key path, so a typo in a scene
+ * is reported instead of silently falling back to a default.
+ */
+#include "scene.h"
+
+#include <cJSON.h>
+#include <errno.h>
+#include <float.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ------------------------------------------------------------------------- */
+/* The built-in default scene: keep identical to scenes/hanging_cloth.json     */
+/* (tests/scene checks that both parse to the same scene).                    */
+/* ------------------------------------------------------------------------- */
+
+static const char default_scene_json[] =
+    "{\n"
+    "  \"name\": \"hanging_cloth\",\n"
+    "  \"description\": \"The paper's hanging cloth: 100 x 100 particles 1/99 m apart (1 m "
+    "square, 19,800 structural springs), horizontal at rest, pinned at vertices 0 and 99, "
+    "falling under gravity. 1e-4 kg per vertex, k = 1000 N/m, h = 2 ms, 11 linear "
+    "iterations, no damping.\",\n"
+    "  \"frames\": 240,\n"
+    "  \"dt\": 0.002,\n"
+    "  \"world\": {\n"
+    "    \"gravity\": [0, -9.81, 0],\n"
+    "    \"substeps\": 1,\n"
+    "    \"nonlinear_iterations\": 1,\n"
+    "    \"linear_iterations\": 11,\n"
+    "    \"threads\": 0,\n"
+    "    \"backend\": \"auto\"\n"
+    "  },\n"
+    "  \"cloths\": [\n"
+    "    {\n"
+    "      \"name\": \"cloth\",\n"
+    "      \"grid\": {\"nx\": 100, \"ny\": 100, \"spacing\": 0.010101010101010102, "
+    "\"origin\": [0, 0, 0], \"plane\": \"xz\"},\n"
+    "      \"vertex_mass\": 1e-4,\n"
+    "      \"stiffness\": 1000,\n"
+    "      \"damping\": 0,\n"
+    "      \"pins\": [0, 99]\n"
+    "    }\n"
+    "  ],\n"
+    "  \"colliders\": []\n"
+    "}\n";
+
+const char *rbc_scene_default_json(void) { return default_scene_json; }
+
+/* ------------------------------------------------------------------------- */
+/* Limits (sanity bounds; the plugin checks its own ranges again)             */
+/* ------------------------------------------------------------------------- */
+
+#define SCENE_MAX_FILE_BYTES (1u << 30)
+#define SCENE_MAX_NAME 64
+#define SCENE_MAX_FRAMES 10000000u
+#define SCENE_MAX_CLOTHS 1024u
+#define SCENE_MAX_COLLIDERS 1024u
+#define SCENE_MAX_GRID_SIDE 65536u
+#define SCENE_MAX_THREADS 1024u
+/* Iteration ranges of rbc_world_def. */
+#define SCENE_MAX_SUBSTEPS 1024u
+#define SCENE_MAX_NONLINEAR 1024u
+#define SCENE_MAX_LINEAR 4096u
+/* Key paths such as "colliders[12].rotation" fit easily. */
+#define KEY_MAX 128
+
+/* ------------------------------------------------------------------------- */
+/* Messages                                                                  */
+/* ------------------------------------------------------------------------- */
+
+typedef struct parser {
+    const char *source;
+    char *err;
+    size_t err_size;
+} parser;
+
+static void vformat(char *dst, size_t size, const char *fmt, va_list ap) {
+    if (size > 0)
+        vsnprintf(dst, size, fmt, ap);
+}
+
+static void format(char *dst, size_t size, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    vformat(dst, size, fmt, ap);
+    va_end(ap);
+}
+
+/* "SOURCE: KEY: message". Always returns -1 so callers can `return fail(...)`. */
+static int fail(parser *p, const char *key, const char *fmt, ...) {
+    if (p->err_size == 0)
+        return -1;
+    int n = snprintf(p->err, p->err_size, "%s: %s: ", p->source, key);
+    if (n >= 0 && (size_t)n < p->err_size) {
+        va_list ap;
+        va_start(ap, fmt);
+        vformat(p->err + n, p->err_size - (size_t)n, fmt, ap);
+        va_end(ap);
+    }
+    return -1;
+}
+
+/* Key paths are cut (ending in "...") rather than overrun; KEY_MAX is ample for
+ * every path the format allows. */
+static void key_mark_cut(char out[KEY_MAX], int written) {
+    if (written < 0 || written >= KEY_MAX)
+        memcpy(out + KEY_MAX - 4, "...", 4);
+}
+
+static void key_join(char out[KEY_MAX], const char *parent, const char *name) {
+    int n = parent[0] ? snprintf(out, KEY_MAX, "%s.%s", parent, name)
+                      : snprintf(out, KEY_MAX, "%s", name);
+    key_mark_cut(out, n);
+}
+
+static void key_index(char out[KEY_MAX], const char *parent, size_t index) {
+    key_mark_cut(out, snprintf(out, KEY_MAX, "%s[%zu]", parent, index));
+}
+
+static const char *json_type(const cJSON *item) {
+    if (cJSON_IsNull(item)) return "null";
+    if (cJSON_IsBool(item)) return "a boolean";
+    if (cJSON_IsNumber(item)) return "a number";
+    if (cJSON_IsString(item)) return "a string";
+    if (cJSON_IsArray(item)) return "an array";
+    if (cJSON_IsObject(item)) return "an object";
+    return "an invalid value";
+}
+
+/* ------------------------------------------------------------------------- */
+/* Typed readers                                                             */
+/* ------------------------------------------------------------------------- */
+
+/* Reject keys not in `allowed` (NULL-terminated) and keys given twice. */
+static int check_keys(parser *p, const cJSON *obj, const char *key,
+                      const char *const *allowed) {
+    for (const cJSON *child = obj->child; child; child = child->next) {
+        char child_key[KEY_MAX];
+        key_join(child_key, key, child->string);
+        int known = 0;
+        for (const char *const *a = allowed; *a; ++a)
+            known |= strcmp(*a, child->string) == 0;
+        if (!known) {
+            char list[512] = "";
+            size_t used = 0;
+            for (const char *const *a = allowed; *a && used < sizeof list; ++a) {
+                int n = snprintf(list + used, sizeof list - used, "%s%s",
+                                 a == allowed ? "" : ", ", *a);
+                if (n < 0)
+                    break;
+                used += (size_t)n;
+            }
+            return fail(p, child_key, "unknown key (expected one of: %s)", list);
+        }
+        for (const cJSON *prev = obj->child; prev != child; prev = prev->next)
+            if (strcmp(prev->string, child->string) == 0)
+                return fail(p, child_key, "key given twice");
+    }
+    return 0;
+}
+
+static int expect_object(parser *p, const cJSON *item, const char *key) {
+    if (!cJSON_IsObject(item))
+        return fail(p, key, "must be an object, got %s", json_type(item));
+    return 0;
+}
+
+/* *out = obj[name] or NULL. Fails if required and missing. */
+static int member(parser *p, const cJSON *obj, const char *obj_key, const char *name,
+                  int required, const cJSON **out) {
+    *out = cJSON_GetObjectItemCaseSensitive(obj, name);
+    if (!*out && required) {
+        char key[KEY_MAX];
+        key_join(key, obj_key, name);
+        return fail(p, key, "required key is missing");
+    }
+    return 0;
+}
+
+static int read_u32(parser *p, const cJSON *item, const char *key, uint32_t min, uint32_t max,
+                    uint32_t *out) {
+    if (!cJSON_IsNumber(item))
+        return fail(p, key, "must be an integer in [%u, %u], got %s", min, max,
+                    json_type(item));
+    double v = item->valuedouble;
+    if (!isfinite(v) || v != floor(v))
+        return fail(p, key, "must be an integer in [%u, %u], got %g", min, max, v);
+    if (v < (double)min || v > (double)max)
+        return fail(p, key, "must be an integer in [%u, %u], got %.0f", min, max, v);
+    *out = (uint32_t)v;
+    return 0;
+}
+
+typedef enum number_range {
+    RANGE_ANY,
+    RANGE_POSITIVE,
+    RANGE_NON_NEGATIVE
+} number_range;
+
+/* A number that is finite as a float (and > 0 as a float for RANGE_POSITIVE). */
+static int read_number(parser *p, const cJSON *item, const char *key, number_range range,
+                       double *out) {
+    static const char *const what[] = {"a number", "a number > 0", "a number >= 0"};
+    if (!cJSON_IsNumber(item))
+        return fail(p, key, "must be %s, got %s", what[range], json_type(item));
+    double v = item->valuedouble;
+    if (!isfinite(v) || fabs(v) > FLT_MAX)
+        return fail(p, key, "must be %s that fits a float, got %g", what[range], v);
+    if ((range == RANGE_POSITIVE && !((float)v > 0.0f)) || (range == RANGE_NON_NEGATIVE && v < 0.0))
+        return fail(p, key, "must be %s, got %g", what[range], v);
+    *out = v;
+    return 0;
+}
+
+static int read_float(parser *p, const cJSON *item, const char *key, number_range range,
+                      float *out) {
+    double v;
+    if (read_number(p, item, key, range, &v))
+        return -1;
+    *out = (float)v;
+    return 0;
+}
+
+/* An array of exactly n numbers, each finite as a float. */
+static int read_vector(parser *p, const cJSON *item, const char *key, int n, double *out) {
+    if (!cJSON_IsArray(item) || cJSON_GetArraySize(item) != n)
+        return fail(p, key, "must be an array of %d numbers, got %s%s", n, json_type(item),
+                    cJSON_IsArray(item) ? " of another length" : "");
+    int i = 0;
+    for (const cJSON *e = item->child; e; e = e->next, ++i) {
+        char element_key[KEY_MAX];
+        key_index(element_key, key, (size_t)i);
+        if (read_number(p, e, element_key, RANGE_ANY, &out[i]))
+            return -1;
+    }
+    return 0;
+}
+
+static int read_vector_f(parser *p, const cJSON *item, const char *key, int n, float *out) {
+    double v[4];
+    if (n > 4 || read_vector(p, item, key, n, v))
+        return -1;
+    for (int i = 0; i < n; ++i)
+        out[i] = (float)v[i];
+    return 0;
+}
+
+static int read_string(parser *p, const cJSON *item, const char *key, const char **out) {
+    if (!cJSON_IsString(item))
+        return fail(p, key, "must be a string, got %s", json_type(item));
+    *out = item->valuestring;
+    return 0;
+}
+
+/* A string that is one of `choices` (NULL-terminated); *out = its index. */
+static int read_choice(parser *p, const cJSON *item, const char *key,
+                       const char *const *choices, int *out) {
+    const char *s = NULL;
+    if (read_string(p, item, key, &s))
+        return -1;
+    for (int i = 0; choices[i]; ++i) {
+        if (strcmp(s, choices[i]) == 0) {
+            *out = i;
+            return 0;
+        }
+    }
+    char list[256] = "";
+    size_t used = 0;
+    for (int i = 0; choices[i] && used < sizeof list; ++i) {
+        int n = snprintf(list + used, sizeof list - used, "%s\"%s\"", i ? ", " : "", choices[i]);
+        if (n < 0)
+            break;
+        used += (size_t)n;
+    }
+    return fail(p, key, "must be one of %s, got \"%s\"", list, s);
+}
+
+/* Names become parts of output file names: keep them portable. */
+static int read_name(parser *p, const cJSON *item, const char *key, char **out) {
+    const char *s = NULL;
+    if (read_string(p, item, key, &s))
+        return -1;
+    size_t len = strlen(s);
+    int ok = len > 0 && len <= SCENE_MAX_NAME && s[0] != '.';
+    for (size_t i = 0; ok && i < len; ++i) {
+        char c = s[i];
+        ok = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+             c == '_' || c == '-' || c == '.';
+    }
+    if (!ok)
+        return fail(p, key,
+                    "must be 1 to %d characters of [A-Za-z0-9_.-] not starting with '.' "
+                    "(it is used in file names), got \"%s\"",
+                    SCENE_MAX_NAME, s);
+    *out = strdup(s);
+    if (!*out)
+        return fail(p, key, "out of memory");
+    return 0;
+}
+
+/* An array of 1..max elements; *out_count receives the length. */
+static int read_array(parser *p, const cJSON *item, const char *key, uint32_t min,
+                      uint32_t max, uint32_t *out_count) {
+    if (!cJSON_IsArray(item))
+        return fail(p, key, "must be an array, got %s", json_type(item));
+    int n = cJSON_GetArraySize(item);
+    if (n < 0 || (uint32_t)n < min || (uint32_t)n > max)
+        return fail(p, key, "must have %u to %u elements, got %d", min, max, n);
+    *out_count = (uint32_t)n;
+    return 0;
+}
+
+/* ------------------------------------------------------------------------- */
+/* Sections                                                                  */
+/* ------------------------------------------------------------------------- */
+
+static const char *const backend_names[] = {"auto", "cpu", "cuda", NULL};
+static const rbc_backend backend_values[] = {RBC_BACKEND_AUTO, RBC_BACKEND_CPU,
+                                             RBC_BACKEND_CUDA};
+
+static int parse_world(parser *p, const cJSON *obj, rbc_scene_world *w) {
+    static const char *const keys[] = {"gravity", "substeps", "nonlinear_iterations",
+                                       "linear_iterations", "threads", "backend", NULL};
+    const char *key = "world";
+    const cJSON *item;
+    char k[KEY_MAX];
+    if (expect_object(p, obj, key) || check_keys(p, obj, key, keys))
+        return -1;
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "gravity")) &&
+        (key_join(k, key, "gravity"), read_vector_f(p, item, k, 3, w->gravity)))
+        return -1;
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "substeps")) &&
+        (key_join(k, key, "substeps"), read_u32(p, item, k, 1, SCENE_MAX_SUBSTEPS, &w->substeps)))
+        return -1;
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "nonlinear_iterations")) &&
+        (key_join(k, key, "nonlinear_iterations"),
+         read_u32(p, item, k, 1, SCENE_MAX_NONLINEAR, &w->nonlinear_iterations)))
+        return -1;
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "linear_iterations")) &&
+        (key_join(k, key, "linear_iterations"),
+         read_u32(p, item, k, 1, SCENE_MAX_LINEAR, &w->linear_iterations)))
+        return -1;
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "threads")) &&
+        (key_join(k, key, "threads"), read_u32(p, item, k, 0, SCENE_MAX_THREADS, &w->thread_count)))
+        return -1;
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "backend"))) {
+        int choice;
+        key_join(k, key, "backend");
+        if (read_choice(p, item, k, backend_names, &choice))
+            return -1;
+        w->backend = backend_values[choice];
+    }
+    return 0;
+}
+
+static int parse_grid(parser *p, const cJSON *obj, const char *key, rbc_scene_cloth *c) {
+    static const char *const keys[] = {"nx", "ny", "spacing", "origin", "plane", NULL};
+    static const char *const planes[] = {"xz", "xy", NULL};
+    const cJSON *nx, *ny, *spacing, *origin, *plane;
+    char k[KEY_MAX];
+    rbc_grid_def *g = &c->grid;
+    if (expect_object(p, obj, key) || check_keys(p, obj, key, keys) ||
+        member(p, obj, key, "nx", 1, &nx) || member(p, obj, key, "ny", 1, &ny) ||
+        member(p, obj, key, "spacing", 1, &spacing) || member(p, obj, key, "origin", 0, &origin) ||
+        member(p, obj, key, "plane", 0, &plane))
+        return -1;
+    if ((key_join(k, key, "nx"), read_u32(p, nx, k, 2, SCENE_MAX_GRID_SIDE, &g->nx)) ||
+        (key_join(k, key, "ny"), read_u32(p, ny, k, 2, SCENE_MAX_GRID_SIDE, &g->ny)) ||
+        (key_join(k, key, "spacing"), read_number(p, spacing, k, RANGE_POSITIVE, &g->spacing)))
+        return -1;
+    g->origin[0] = g->origin[1] = g->origin[2] = 0.0;
+    if (origin && (key_join(k, key, "origin"), read_vector(p, origin, k, 3, g->origin)))
+        return -1;
+    g->plane = RBC_GRID_PLANE_XZ;
+    if (plane) {
+        int choice;
+        key_join(k, key, "plane");
+        if (read_choice(p, plane, k, planes, &choice))
+            return -1;
+        g->plane = choice == 0 ? RBC_GRID_PLANE_XZ : RBC_GRID_PLANE_XY;
+    }
+    if ((uint64_t)g->nx * g->ny > RBC_GRID_MAX_VERTICES)
+        return fail(p, key, "nx * ny = %llu vertices, more than the limit of %u",
+                    (unsigned long long)g->nx * g->ny, RBC_GRID_MAX_VERTICES);
+
+    rbc_grid_status status = rbc_grid_build(g, &c->positions, &c->vertex_count, &c->quads,
+                                            &c->quad_count);
+    if (status == RBC_GRID_OUT_OF_MEMORY)
+        return fail(p, key, "out of memory building a %u x %u grid", g->nx, g->ny);
+    if (status != RBC_GRID_OK)
+        return fail(p, key, "the grid reaches coordinates that do not fit a float");
+    c->from_grid = 1;
+    return 0;
+}
+
+static int parse_inline_mesh(parser *p, const cJSON *vertices, const cJSON *quads,
+                             const char *cloth_key, rbc_scene_cloth *c) {
+    char key[KEY_MAX], k[KEY_MAX];
+    uint32_t n;
+
+    key_join(key, cloth_key, "vertices");
+    if (read_array(p, vertices, key, 1, RBC_GRID_MAX_VERTICES, &n))
+        return -1;
+    c->positions = malloc((size_t)n * 3 * sizeof *c->positions);
+    if (!c->positions)
+        return fail(p, key, "out of memory");
+    c->vertex_count = n;
+    uint32_t i = 0;
+    for (const cJSON *v = vertices->child; v; v = v->next, ++i) {
+        key_index(k, key, i);
+        if (read_vector_f(p, v, k, 3, c->positions + 3 * (size_t)i))
+            return -1;
+    }
+
+    key_join(key, cloth_key, "quads");
+    if (read_array(p, quads, key, 1, UINT32_MAX / 4, &n))
+        return -1;
+    c->quads = malloc((size_t)n * 4 * sizeof *c->quads);
+    if (!c->quads)
+        return fail(p, key, "out of memory");
+    c->quad_count = n;
+    i = 0;
+    for (const cJSON *q = quads->child; q; q = q->next, ++i) {
+        key_index(k, key, i);
+        if (!cJSON_IsArray(q) || cJSON_GetArraySize(q) != 4)
+            return fail(p, k, "must be an array of 4 vertex indices, got %s%s", json_type(q),
+                        cJSON_IsArray(q) ? " of another length" : "");
+        uint32_t *dst = c->quads + 4 * (size_t)i;
+        int corner = 0;
+        for (const cJSON *e = q->child; e; e = e->next, ++corner) {
+            char ek[KEY_MAX];
+            key_index(ek, k, (size_t)corner);
+            if (read_u32(p, e, ek, 0, c->vertex_count - 1, &dst[corner]))
+                return -1;
+            for (int prev = 0; prev < corner; ++prev)
+                if (dst[prev] == dst[corner])
+                    return fail(p, k, "degenerate quad: vertex %u appears twice", dst[corner]);
+        }
+    }
+    c->from_grid = 0;
+    return 0;
+}
+
+static int parse_pins(parser *p, const cJSON *item, const char *key, rbc_scene_cloth *c) {
+    uint32_t n;
+    if (read_array(p, item, key, 0, c->vertex_count, &n))
+        return -1;
+    if (n == 0)
+        return 0;
+    c->pins = malloc((size_t)n * sizeof *c->pins);
+    unsigned char *pinned = calloc(c->vertex_count, 1);
+    if (!c->pins || !pinned) {
+        free(pinned);
+        return fail(p, key, "out of memory");
+    }
+    c->pin_count = n;
+    uint32_t i = 0;
+    int rc = 0;
+    for (const cJSON *e = item->child; e && rc == 0; e = e->next, ++i) {
+        char k[KEY_MAX];
+        key_index(k, key, i);
+        if (!cJSON_IsNumber(e) || e->valuedouble != floor(e->valuedouble) ||
+            e->valuedouble < 0.0) {
+            rc = cJSON_IsNumber(e)
+                     ? fail(p, k, "must be a vertex index (an integer >= 0), got %g", e->valuedouble)
+                     : fail(p, k, "must be a vertex index (an integer >= 0), got %s", json_type(e));
+        } else if (e->valuedouble >= (double)c->vertex_count) {
+            rc = fail(p, k, "vertex index %.0f is out of range (the cloth has %u vertices)",
+                      e->valuedouble, c->vertex_count);
+        } else {
+            uint32_t v = (uint32_t)e->valuedouble;
+            if (pinned[v])
+                rc = fail(p, k, "vertex %u is pinned twice", v);
+            pinned[v] = 1;
+            c->pins[i] = v;
+        }
+    }
+    free(pinned);
+    return rc;
+}
+
+static int parse_cloth(parser *p, const cJSON *obj, const char *key, uint32_t index,
+                       rbc_scene_cloth *c) {
+    static const char *const keys[] = {"name", "grid", "vertices", "quads", "vertex_mass",
+                                       "stiffness", "damping", "pins", NULL};
+    const cJSON *name, *grid, *vertices, *quads, *mass, *stiffness, *damping, *pins;
+    char k[KEY_MAX];
+    if (expect_object(p, obj, key) || check_keys(p, obj, key, keys) ||
+        member(p, obj, key, "name", 0, &name) || member(p, obj, key, "grid", 0, &grid) ||
+        member(p, obj, key, "vertices", 0, &vertices) || member(p, obj, key, "quads", 0, &quads) ||
+        member(p, obj, key, "vertex_mass", 0, &mass) ||
+        member(p, obj, key, "stiffness", 0, &stiffness) ||
+        member(p, obj, key, "damping", 0, &damping) || member(p, obj, key, "pins", 0, &pins))
+        return -1;
+
+    if (name) {
+        key_join(k, key, "name");
+        if (read_name(p, name, k, &c->name))
+            return -1;
+    } else {
+        char fallback[32];
+        snprintf(fallback, sizeof fallback, "cloth%u", index);
+        c->name = strdup(fallback);
+        if (!c->name)
+            return fail(p, key, "out of memory");
+    }
+
+    if (grid && (vertices || quads))
+        return fail(p, key, "give either \"grid\" or \"vertices\" and \"quads\", not both");
+    if (grid) {
+        key_join(k, key, "grid");
+        if (parse_grid(p, grid, k, c))
+            return -1;
+    } else if (vertices || quads) {
+        if (!vertices || !quads) {
+            key_join(k, key, vertices ? "quads" : "vertices");
+            return fail(p, k, "required key is missing (\"vertices\" and \"quads\" go together)");
+        }
+        if (parse_inline_mesh(p, vertices, quads, key, c))
+            return -1;
+    } else {
+        key_join(k, key, "grid");
+        return fail(p, k, "required key is missing (give \"grid\", or \"vertices\" and \"quads\")");
+    }
+
+    /* Defaults of rbc_cloth_def. */
+    c->vertex_mass = 1e-4f;
+    c->stiffness = 1000.0f;
+    c->damping = 0.0f;
+    if ((mass && (key_join(k, key, "vertex_mass"),
+                  read_float(p, mass, k, RANGE_POSITIVE, &c->vertex_mass))) ||
+        (stiffness && (key_join(k, key, "stiffness"),
+                       read_float(p, stiffness, k, RANGE_POSITIVE, &c->stiffness))) ||
+        (damping && (key_join(k, key, "damping"),
+                     read_float(p, damping, k, RANGE_NON_NEGATIVE, &c->damping))))
+        return -1;
+    if (pins && (key_join(k, key, "pins"), parse_pins(p, pins, k, c)))
+        return -1;
+    return 0;
+}
+
+static int parse_collider(parser *p, const cJSON *obj, const char *key, rbc_scene_collider *c) {
+    static const char *const keys[] = {"shape", "radius", "thickness", "position", "rotation",
+                                       NULL};
+    static const char *const shapes[] = {"sphere", "plane", NULL};
+    const cJSON *shape, *radius, *thickness, *position, *rotation;
+    char k[KEY_MAX];
+    int choice;
+    if (expect_object(p, obj, key) || check_keys(p, obj, key, keys) ||
+        member(p, obj, key, "shape", 1, &shape) || member(p, obj, key, "radius", 0, &radius) ||
+        member(p, obj, key, "thickness", 0, &thickness) ||
+        member(p, obj, key, "position", 0, &position) ||
+        member(p, obj, key, "rotation", 0, &rotation))
+        return -1;
+    key_join(k, key, "shape");
+    if (read_choice(p, shape, k, shapes, &choice))
+        return -1;
+    c->shape = choice == 0 ? RBC_SHAPE_SPHERE : RBC_SHAPE_PLANE;
+
+    c->radius = 0.0f;
+    key_join(k, key, "radius");
+    if (c->shape == RBC_SHAPE_SPHERE) {
+        if (!radius)
+            return fail(p, k, "required key is missing (spheres need a radius)");
+        if (read_float(p, radius, k, RANGE_POSITIVE, &c->radius))
+            return -1;
+    } else if (radius) {
+        return fail(p, k, "only spheres have a radius (a plane is y = 0 of its frame)");
+    }
+
+    c->thickness = 0.0f;
+    if (thickness &&
+        (key_join(k, key, "thickness"), read_float(p, thickness, k, RANGE_NON_NEGATIVE, &c->thickness)))
+        return -1;
+    c->position[0] = c->position[1] = c->position[2] = 0.0f;
+    if (position && (key_join(k, key, "position"), read_vector_f(p, position, k, 3, c->position)))
+        return -1;
+    c->rotation[0] = c->rotation[1] = c->rotation[2] = 0.0f;
+    c->rotation[3] = 1.0f;
+    if (rotation) {
+        double q[4];
+        key_join(k, key, "rotation");
+        if (read_vector(p, rotation, k, 4, q))
+            return -1;
+        double norm = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+        /* Accept what a human types with a few digits, then normalise exactly. */
+        if (!(fabs(norm - 1.0) <= 1e-3))
+            return fail(p, k, "must be a unit quaternion [x, y, z, w], got one of length %g", norm);
+        for (int i = 0; i < 4; ++i)
+            c->rotation[i] = (float)(q[i] / norm);
+    }
+    return 0;
+}
+
+static int parse_root(parser *p, const cJSON *root, rbc_scene *s) {
+    static const char *const keys[] = {"name", "description", "frames", "dt", "world",
+                                       "cloths", "colliders", NULL};
+    const cJSON *name, *description, *frames, *dt, *world, *cloths, *colliders;
+    if (!cJSON_IsObject(root))
+        return fail(p, "(top level)", "must be an object, got %s", json_type(root));
+    if (check_keys(p, root, "", keys) || member(p, root, "", "name", 1, &name) ||
+        member(p, root, "", "description", 0, &description) ||
+        member(p, root, "", "frames", 1, &frames) || member(p, root, "", "dt", 1, &dt) ||
+        member(p, root, "", "world", 0, &world) || member(p, root, "", "cloths", 1, &cloths) ||
+        member(p, root, "", "colliders", 0, &colliders))
+        return -1;
+
+    if (read_name(p, name, "name", &s->name))
+        return -1;
+    if (description) {
+        const char *text = NULL;
+        if (read_string(p, description, "description", &text))
+            return -1;
+        if (!(s->description = strdup(text)))
+            return fail(p, "description", "out of memory");
+    }
+    if (read_u32(p, frames, "frames", 1, SCENE_MAX_FRAMES, &s->frames) ||
+        read_float(p, dt, "dt", RANGE_POSITIVE, &s->dt))
+        return -1;
+
+    /* Defaults of rbc_world_def. */
+    s->world.gravity[0] = 0.0f;
+    s->world.gravity[1] = -9.81f;
+    s->world.gravity[2] = 0.0f;
+    s->world.substeps = 1;
+    s->world.nonlinear_iterations = 1;
+    s->world.linear_iterations = 11;
+    s->world.thread_count = 0;
+    s->world.backend = RBC_BACKEND_AUTO;
+    if (world && parse_world(p, world, &s->world))
+        return -1;
+
+    uint32_t n;
+    if (read_array(p, cloths, "cloths", 1, SCENE_MAX_CLOTHS, &n))
+        return -1;
+    if (!(s->cloths = calloc(n, sizeof *s->cloths)))
+        return fail(p, "cloths", "out of memory");
+    s->cloth_count = n;
+    uint32_t i = 0;
+    for (const cJSON *c = cloths->child; c; c = c->next, ++i) {
+        char k[KEY_MAX];
+        key_index(k, "cloths", i);
+        if (parse_cloth(p, c, k, i, &s->cloths[i]))
+            return -1;
+        for (uint32_t j = 0; j < i; ++j)
+            if (strcmp(s->cloths[j].name, s->cloths[i].name) == 0)
+                return fail(p, k, "cloth name \"%s\" is already used by cloths[%u]",
+                            s->cloths[i].name, j);
+    }
+
+    if (colliders) {
+        if (read_array(p, colliders, "colliders", 0, SCENE_MAX_COLLIDERS, &n))
+            return -1;
+        if (n > 0 && !(s->colliders = calloc(n, sizeof *s->colliders)))
+            return fail(p, "colliders", "out of memory");
+        s->collider_count = n;
+        i = 0;
+        for (const cJSON *c = colliders->child; c; c = c->next, ++i) {
+            char k[KEY_MAX];
+            key_index(k, "colliders", i);
+            if (parse_collider(p, c, k, &s->colliders[i]))
+                return -1;
+        }
+    }
+    return 0;
+}
+
+/* ------------------------------------------------------------------------- */
+/* Loading                                                                   */
+/* ------------------------------------------------------------------------- */
+
+static int is_json_space(char c) { return c == ' ' || c == '\t' || c == '\n' || c == '\r'; }
+
+/* "SOURCE:LINE:COLUMN: invalid JSON near '...'" for a syntax error cJSON reports at
+ * `at`. cJSON often points at the whitespace after the offending token: step back
+ * onto that token, so the position names what is wrong. */
+static int syntax_error(parser *p, const char *text, const char *at) {
+    if (!at || at < text)
+        at = text;
+    const char *rest = at;
+    while (*rest && is_json_space(*rest))
+        ++rest;
+    int at_end = *rest == '\0';
+    if (at_end)
+        at = rest;
+    else
+        while (at > text && is_json_space(*at))
+            --at;
+    unsigned line = 1, column = 1;
+    for (const char *c = text; c < at; ++c) {
+        if (*c == '\n') {
+            ++line;
+            column = 1;
+        } else {
+            ++column;
+        }
+    }
+    if (at_end) {
+        format(p->err, p->err_size, "%s:%u:%u: invalid JSON: unexpected end of input", p->source,
+               line, column);
+        return -1;
+    }
+    char near[24];
+    size_t n = 0;
+    while (n + 1 < sizeof near && at[n] && at[n] != '\n' && at[n] != '\r')
+        ++n;
+    memcpy(near, at, n);
+    near[n] = '\0';
+    format(p->err, p->err_size, "%s:%u:%u: invalid JSON near '%s'", p->source, line, column,
+           near);
+    return -1;
+}
+
+/* Parse a NUL-terminated text. */
+static int parse_text(const char *text, const char *source, rbc_scene *out, char *err,
+                      size_t err_size) {
+    parser p = {source ? source : "(scene)", err, err_size};
+    const char *end = NULL;
+    cJSON *root = cJSON_ParseWithOpts(text, &end, 1);
+    if (!root)
+        return syntax_error(&p, text, end);
+    rbc_scene scene;
+    memset(&scene, 0, sizeof scene);
+    int rc = parse_root(&p, root, &scene);
+    cJSON_Delete(root);
+    if (rc) {
+        rbc_scene_free(&scene);
+        return -1;
+    }
+    *out = scene;
+    return 0;
+}
+
+int rbc_scene_parse(const char *json, size_t length, const char *source, rbc_scene *out,
+                    char *err, size_t err_size) {
+    parser p = {source ? source : "(scene)", err, err_size};
+    if (err_size > 0)
+        err[0] = '\0';
+    if (!out)
+        return fail(&p, "(arguments)", "no scene to fill");
+    memset(out, 0, sizeof *out);
+    if (!json)
+        return fail(&p, "(arguments)", "no JSON text");
+    /* cJSON wants a NUL-terminated text to reject trailing garbage; a NUL inside
+     * the text would end it early, so refuse one. */
+    if (memchr(json, '\0', length))
+        return fail(&p, "(file)", "contains a NUL byte; a scene is UTF-8 JSON text");
+    char *text = malloc(length + 1);
+    if (!text)
+        return fail(&p, "(file)", "out of memory");
+    memcpy(text, json, length);
+    text[length] = '\0';
+    int rc = parse_text(text, p.source, out, err, err_size);
+    free(text);
+    return rc;
+}
+
+int rbc_scene_load_file(const char *path, rbc_scene *out, char *err, size_t err_size) {
+    if (err_size > 0)
+        err[0] = '\0';
+    if (out)
+        memset(out, 0, sizeof *out);
+    if (!path) {
+        format(err, err_size, "(scene): no file name given");
+        return -1;
+    }
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        format(err, err_size, "%s: cannot open: %s", path, strerror(errno));
+        return -1;
+    }
+    /* Read in growing chunks: works for pipes and /dev/stdin as for files. */
+    size_t size = 0, capacity = 1 << 16;
+    char *data = malloc(capacity);
+    int failed = data == NULL;
+    while (!failed) {
+        if (size == capacity) {
+            char *bigger = capacity < SCENE_MAX_FILE_BYTES ? realloc(data, capacity * 2) : NULL;
+            if (!bigger) {
+                failed = 1;
+                break;
+            }
+            data = bigger;
+            capacity *= 2;
+        }
+        size_t got = fread(data + size, 1, capacity - size, f);
+        size += got;
+        if (got == 0)
+            break;
+    }
+    int read_error = ferror(f);
+    int saved_errno = errno;
+    fclose(f);
+    if (failed) {
+        free(data);
+        format(err, err_size, "%s: out of memory reading the file (or larger than %u bytes)",
+               path, SCENE_MAX_FILE_BYTES);
+        return -1;
+    }
+    if (read_error) {
+        free(data);
+        format(err, err_size, "%s: cannot read: %s", path, strerror(saved_errno));
+        return -1;
+    }
+    int rc = rbc_scene_parse(data, size, path, out, err, err_size);
+    free(data);
+    return rc;
+}
+
+int rbc_scene_load_default(rbc_scene *out, char *err, size_t err_size) {
+    return rbc_scene_parse(default_scene_json, sizeof default_scene_json - 1,
+                           RBC_SCENE_DEFAULT_SOURCE, out, err, err_size);
+}
+
+void rbc_scene_free(rbc_scene *scene) {
+    if (!scene)
+        return;
+    for (uint32_t i = 0; scene->cloths && i < scene->cloth_count; ++i) {
+        rbc_scene_cloth *c = &scene->cloths[i];
+        free(c->name);
+        free(c->positions);
+        free(c->quads);
+        free(c->pins);
+    }
+    free(scene->cloths);
+    free(scene->colliders);
+    free(scene->name);
+    free(scene->description);
+    memset(scene, 0, sizeof *scene);
+}
+
+/* ------------------------------------------------------------------------- */
+/* Creation through the function table                                       */
+/* ------------------------------------------------------------------------- */
+
+/* err = "<last error> (<context>)", read before anything else can replace it. */
+static rbc_result api_fail(const rbc_api_v1 *api, rbc_result result, char *err, size_t err_size,
+                           const char *context_fmt, ...) {
+    char context[160];
+    va_list ap;
+    va_start(ap, context_fmt);
+    vformat(context, sizeof context, context_fmt, ap);
+    va_end(ap);
+    const char *message = api->last_error ? api->last_error() : NULL;
+    if (!message || !message[0])
+        message = api->result_string(result);
+    format(err, err_size, "%s (%s)", message, context);
+    return result;
+}
+
+rbc_result rbc_scene_instantiate(const rbc_api_v1 *api, const rbc_scene *scene,
+                                 rbc_log_fn log, void *log_user, rbc_scene_instance *out,
+                                 char *err, size_t err_size) {
+    if (err_size > 0)
+        err[0] = '\0';
+    if (out)
+        memset(out, 0, sizeof *out);
+    if (!api || !scene || !out) {
+        format(err, err_size, "rbc_scene_instantiate: api, scene and out must not be NULL");
+        return RBC_ERR_INVALID_ARGUMENT;
+    }
+
+    rbc_scene_instance inst;
+    memset(&inst, 0, sizeof inst);
+    inst.cloths = calloc(scene->cloth_count ? scene->cloth_count : 1, sizeof *inst.cloths);
+    inst.colliders = calloc(scene->collider_count ? scene->collider_count : 1,
+                            sizeof *inst.colliders);
+    if (!inst.cloths || !inst.colliders) {
+        rbc_scene_instance_destroy(api, &inst);
+        format(err, err_size, "out of memory (creating scene \"%s\")", scene->name);
+        return RBC_ERR_OUT_OF_MEMORY;
+    }
+
+    /* Start from the library's defaults; struct_size is always our own: a newer
+     * library reads only the fields this host knows. */
+    rbc_world_def wd = api->world_def_default();
+    wd.struct_size = sizeof wd;
+    memcpy(wd.gravity, scene->world.gravity, sizeof wd.gravity);
+    wd.substeps = scene->world.substeps;
+    wd.nonlinear_iterations = scene->world.nonlinear_iterations;
+    wd.linear_iterations = scene->world.linear_iterations;
+    wd.thread_count = scene->world.thread_count;
+    wd.backend = scene->world.backend;
+    if (log) {
+        wd.log = log;
+        wd.log_user = log_user;
+        wd.log_level = RBC_LOG_WARNING;
+    }
+    rbc_result r = api->world_create(&wd, &inst.world);
+    if (r != RBC_OK) {
+        api_fail(api, r, err, err_size, "creating the world of scene \"%s\"", scene->name);
+        rbc_scene_instance_destroy(api, &inst);
+        return r;
+    }
+
+    for (uint32_t i = 0; i < scene->cloth_count; ++i) {
+        const rbc_scene_cloth *c = &scene->cloths[i];
+        rbc_cloth_def cd = api->cloth_def_default();
+        cd.struct_size = sizeof cd;
+        cd.vertex_count = c->vertex_count;
+        cd.positions = c->positions;
+        cd.quad_count = c->quad_count;
+        cd.quads = c->quads;
+        cd.spring_count = 0;
+        cd.springs = NULL;
+        cd.masses = NULL;
+        cd.density = 0.0f;
+        cd.vertex_mass = c->vertex_mass;
+        cd.stiffness = c->stiffness;
+        cd.damping = c->damping;
+        cd.pin_count = c->pin_count;
+        cd.pins = c->pins;
+        r = api->cloth_create(inst.world, &cd, &inst.cloths[i]);
+        if (r != RBC_OK) {
+            api_fail(api, r, err, err_size, "creating cloths[%u] \"%s\"", i, c->name);
+            rbc_scene_instance_destroy(api, &inst);
+            return r;
+        }
+        inst.cloth_count = i + 1;
+    }
+
+    for (uint32_t i = 0; i < scene->collider_count; ++i) {
+        const rbc_scene_collider *c = &scene->colliders[i];
+        rbc_collider_def cd = api->collider_def_default();
+        cd.struct_size = sizeof cd;
+        cd.shape = c->shape;
+        cd.radius = c->shape == RBC_SHAPE_SPHERE ? c->radius : cd.radius;
+        cd.thickness = c->thickness;
+        memcpy(cd.position, c->position, sizeof cd.position);
+        memcpy(cd.rotation, c->rotation, sizeof cd.rotation);
+        r = api->collider_create(inst.world, &cd, &inst.colliders[i]);
+        if (r != RBC_OK) {
+            api_fail(api, r, err, err_size, "creating colliders[%u]", i);
+            rbc_scene_instance_destroy(api, &inst);
+            return r;
+        }
+        inst.collider_count = i + 1;
+    }
+
+    *out = inst;
+    return RBC_OK;
+}
+
+void rbc_scene_instance_destroy(const rbc_api_v1 *api, rbc_scene_instance *instance) {
+    if (!instance)
+        return;
+    /* Destroying the world destroys its cloths and colliders. */
+    if (api && instance->world)
+        api->world_destroy(instance->world);
+    free(instance->cloths);
+    free(instance->colliders);
+    memset(instance, 0, sizeof *instance);
+}
