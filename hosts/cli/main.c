@@ -1,0 +1,192 @@
+/* main.c -- the rbcloth command line: `run`, `info` and `--help`.
+ *
+ * The plugin is loaded with dlopen (see plugin.c) and used only through its
+ * function table, as any host would. Exit codes: 0 success, 1 runtime failure,
+ * 2 usage error.
+ */
+#include <errno.h>
+#include <limits.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "plugin.h"
+#include "run.h"
+
+enum { EXIT_OK = 0, EXIT_RUNTIME = 1, EXIT_USAGE = 2 };
+
+static const char usage_text[] =
+    "Usage: rbcloth COMMAND [ARGS]\n"
+    "\n"
+    "A real-time quad mass-spring cloth solver (librbcloth) on the command line.\n"
+    "\n"
+    "Commands:\n"
+    "  run [SCENE.json] [OPTIONS]  simulate a scene (the built-in 100 x 100 hanging\n"
+    "                              cloth when SCENE is omitted) and write into DIR:\n"
+    "                              NAME.obj (rest mesh), NAME.pc2 (point cache of every\n"
+    "                              frame) and NAME.json (summary); with several cloths\n"
+    "                              NAME_CLOTH.obj and NAME_CLOTH.pc2 per cloth\n"
+    "  info                        print the plugin's path, ABI version and version\n"
+    "\n"
+    "Options of run:\n"
+    "  --out DIR         output directory, created if missing (default: out)\n"
+    "  --frames N        frames to simulate (one step of the scene's dt each)\n"
+    "  --threads N       worker threads; 0 = one per core\n"
+    "  --substeps N      substeps per frame (1..1024)\n"
+    "  --iterations N    linear Red-Black Gauss-Seidel iterations (1..4096)\n"
+    "  --quiet           no progress bar and no table of timings\n"
+    "\n"
+    "  -h, --help        show this help\n"
+    "\n"
+    "The plugin is $RBC_PLUGIN if set, else ../lib/librbcloth.so next to this\n"
+    "executable, else librbcloth.so from the library search path.\n"
+    "Exit status: 0 success, 1 runtime failure, 2 usage error.\n";
+
+static int usage_error(const char *fmt, const char *arg) {
+    fputs("rbcloth: ", stderr);
+    fprintf(stderr, fmt, arg);
+    fputs("\nTry 'rbcloth --help'.\n", stderr);
+    return EXIT_USAGE;
+}
+
+static int is_help(const char *arg) {
+    return strcmp(arg, "-h") == 0 || strcmp(arg, "--help") == 0;
+}
+
+/* A decimal integer in [min, max], the whole string. */
+static int parse_long(const char *text, long min, long max, long *out) {
+    if (!text || !text[0])
+        return -1;
+    char *end;
+    errno = 0;
+    long v = strtol(text, &end, 10);
+    if (errno || *end || v < min || v > max)
+        return -1;
+    *out = v;
+    return 0;
+}
+
+typedef struct int_option {
+    const char *name;
+    long min, max;
+    long *target;
+} int_option;
+
+static int parse_run_args(int argc, char **argv, cli_run_options *o) {
+    int_option ints[] = {
+        {"--frames", 1, 10000000, &o->frames},
+        {"--threads", 0, 1024, &o->threads},
+        {"--substeps", 1, 1024, &o->substeps},
+        {"--iterations", 1, 4096, &o->iterations},
+    };
+    for (int i = 0; i < argc; ++i) {
+        const char *arg = argv[i];
+        if (strcmp(arg, "--quiet") == 0 || strcmp(arg, "-q") == 0) {
+            o->quiet = 1;
+            continue;
+        }
+        if (arg[0] != '-') {
+            if (o->scene_path)
+                return usage_error("run takes one scene file, got a second: '%s'", arg);
+            o->scene_path = arg;
+            continue;
+        }
+        /* "--name value" or "--name=value" */
+        const char *eq = strchr(arg, '=');
+        size_t name_len = eq ? (size_t)(eq - arg) : strlen(arg);
+        const char *value = eq ? eq + 1 : NULL;
+        int matched = 0;
+        if (name_len == strlen("--out") && strncmp(arg, "--out", name_len) == 0) {
+            if (!value && i + 1 < argc)
+                value = argv[++i];
+            if (!value || !value[0])
+                return usage_error("%s needs a directory", "--out");
+            o->out_dir = value;
+            continue;
+        }
+        for (size_t k = 0; k < sizeof ints / sizeof ints[0]; ++k) {
+            if (name_len != strlen(ints[k].name) || strncmp(arg, ints[k].name, name_len) != 0)
+                continue;
+            matched = 1;
+            if (!value && i + 1 < argc)
+                value = argv[++i];
+            if (parse_long(value, ints[k].min, ints[k].max, ints[k].target)) {
+                fprintf(stderr, "rbcloth: %s needs an integer in [%ld, %ld], got '%s'\n",
+                        ints[k].name, ints[k].min, ints[k].max, value ? value : "");
+                fputs("Try 'rbcloth --help'.\n", stderr);
+                return EXIT_USAGE;
+            }
+        }
+        if (!matched)
+            return usage_error("unknown option '%s' for run", arg);
+    }
+    return EXIT_OK;
+}
+
+static int command_run(int argc, char **argv) {
+    cli_run_options options = {
+        .scene_path = NULL,
+        .out_dir = "out",
+        .frames = -1,
+        .threads = -1,
+        .substeps = -1,
+        .iterations = -1,
+        .quiet = 0,
+    };
+    for (int i = 0; i < argc; ++i) {
+        if (is_help(argv[i])) {
+            fputs(usage_text, stdout);
+            return EXIT_OK;
+        }
+    }
+    int rc = parse_run_args(argc, argv, &options);
+    if (rc != EXIT_OK)
+        return rc;
+
+    cli_plugin plugin;
+    char err[4096 + 512];
+    if (cli_plugin_open(&plugin, err, sizeof err)) {
+        fprintf(stderr, "rbcloth: %s\n", err);
+        return EXIT_RUNTIME;
+    }
+    rc = cli_run(&plugin, &options);
+    cli_plugin_close(&plugin);
+    return rc;
+}
+
+static int command_info(int argc, char **argv) {
+    if (argc > 0)
+        return is_help(argv[0]) ? (fputs(usage_text, stdout), EXIT_OK)
+                                : usage_error("info takes no arguments, got '%s'", argv[0]);
+    cli_plugin plugin;
+    char err[4096 + 512];
+    if (cli_plugin_open(&plugin, err, sizeof err)) {
+        fprintf(stderr, "rbcloth: %s\n", err);
+        return EXIT_RUNTIME;
+    }
+    const rbc_api_v1 *api = plugin.api;
+    uint32_t abi = api->abi_version_fn();
+    printf("plugin:  %s (found by %s)\n", plugin.path, plugin.found_by);
+    printf("ABI:     %u.%u (this host: %d.%d)\n", abi >> 16, abi & 0xFFFFu, RBC_ABI_VERSION_MAJOR,
+           RBC_ABI_VERSION_MINOR);
+    printf("version: %s\n", api->version_string());
+    cli_plugin_close(&plugin);
+    return EXIT_OK;
+}
+
+int main(int argc, char **argv) {
+    if (argc < 2) {
+        fputs(usage_text, stderr);
+        return EXIT_USAGE;
+    }
+    const char *command = argv[1];
+    if (is_help(command) || strcmp(command, "help") == 0) {
+        fputs(usage_text, stdout);
+        return EXIT_OK;
+    }
+    if (strcmp(command, "run") == 0)
+        return command_run(argc - 2, argv + 2);
+    if (strcmp(command, "info") == 0)
+        return command_info(argc - 2, argv + 2);
+    return usage_error("unknown command '%s'", command);
+}

@@ -1,0 +1,476 @@
+/* run.c -- `rbcloth run`: simulate a scene through the plugin's function table and
+ * write, per cloth, the rest mesh (OBJ) and every frame's positions (PC2), then a
+ * JSON summary of the run.
+ */
+#include "run.h"
+
+#include <cJSON.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "fsutil.h"
+#include "scene.h"
+#include "timings.h"
+
+/* ------------------------------------------------------------------------- */
+/* Messages and progress                                                     */
+/* ------------------------------------------------------------------------- */
+
+/* Whether a progress line is on stderr (log messages clear it first). */
+static int progress_visible = 0;
+
+static void progress_clear(void) {
+    if (progress_visible) {
+        fputs("\r\033[K", stderr);
+        progress_visible = 0;
+    }
+}
+
+static void progress_draw(uint32_t done, uint32_t total, double step_ms) {
+    enum { WIDTH = 32 };
+    char bar[WIDTH + 1];
+    uint32_t filled = (uint32_t)((uint64_t)done * WIDTH / (total ? total : 1));
+    for (uint32_t i = 0; i < WIDTH; ++i)
+        bar[i] = i < filled ? '#' : '.';
+    bar[WIDTH] = '\0';
+    fprintf(stderr, "\r[%s] %u/%u frames, %.3f ms/step", bar, done, total, step_ms);
+    fflush(stderr);
+    progress_visible = 1;
+}
+
+static double now_seconds(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* The plugin's log hook: on the thread that called rbc_world_step, i.e. ours. */
+static void RBC_CALL log_to_stderr(void *user, rbc_log_level level, const char *message) {
+    static const char *const names[] = {"error", "warning", "info", "debug"};
+    const char *name = level >= 0 && level <= RBC_LOG_DEBUG ? names[level] : "log";
+    progress_clear();
+    fprintf(stderr, "rbcloth: plugin %s: %s\n", name, message ? message : "");
+}
+
+/* "rbcloth: <result string>: <message>", exit code 1. */
+static int report(const rbc_api_v1 *api, rbc_result result, const char *message) {
+    progress_clear();
+    fprintf(stderr, "rbcloth: %s: %s\n", api->result_string(result), message);
+    return 1;
+}
+
+static int report_api(const rbc_api_v1 *api, rbc_result result) {
+    return report(api, result, api->last_error());
+}
+
+static const char *backend_name(rbc_backend backend) {
+    switch (backend) {
+    case RBC_BACKEND_AUTO: return "auto";
+    case RBC_BACKEND_CPU: return "cpu";
+    case RBC_BACKEND_CUDA: return "cuda";
+    default: return "unknown";
+    }
+}
+
+/* A float as the shortest decimal that reads back to the same float (0.002f ->
+ * 0.002, not 0.00200000009), for a readable summary. */
+static double float_as_decimal(float value) {
+    char text[32];
+    for (int digits = 1; digits <= 9; ++digits) {
+        snprintf(text, sizeof text, "%.*g", digits, (double)value);
+        double decimal = strtod(text, NULL);
+        if ((float)decimal == value)
+            return decimal;
+    }
+    return (double)value;
+}
+
+/* ------------------------------------------------------------------------- */
+/* State of one run                                                          */
+/* ------------------------------------------------------------------------- */
+
+typedef struct cloth_output {
+    char *obj_path;
+    char *pc2_path;
+    rbc_cache_id cache;
+    uint32_t spring_count;
+    uint32_t color_count;
+} cloth_output;
+
+typedef struct run_state {
+    const cli_plugin *plugin;
+    const rbc_api_v1 *api;
+    const cli_run_options *options;
+    rbc_scene scene;
+    rbc_scene_instance instance;
+    cloth_output *outputs;
+    char *summary_path;
+    float *positions;
+    size_t positions_capacity;
+    cli_timings timings;
+    rbc_world_stats stats;
+    uint32_t frames_done;
+    double wall_seconds;
+} run_state;
+
+static void run_state_free(run_state *s) {
+    for (uint32_t i = 0; s->outputs && i < s->scene.cloth_count; ++i) {
+        if (s->outputs[i].cache)
+            s->api->cache_destroy(s->outputs[i].cache); /* removes the temporary file */
+        free(s->outputs[i].obj_path);
+        free(s->outputs[i].pc2_path);
+    }
+    free(s->outputs);
+    free(s->summary_path);
+    free(s->positions);
+    cli_timings_free(&s->timings);
+    rbc_scene_instance_destroy(s->api, &s->instance);
+    rbc_scene_free(&s->scene);
+}
+
+static int out_of_memory(const run_state *s) {
+    return report(s->api, RBC_ERR_OUT_OF_MEMORY, "out of memory in the rbcloth host");
+}
+
+/* ------------------------------------------------------------------------- */
+/* Steps of a run                                                            */
+/* ------------------------------------------------------------------------- */
+
+static int load_scene(run_state *s) {
+    char err[RBC_SCENE_ERROR_MAX];
+    const cli_run_options *o = s->options;
+    int rc = o->scene_path ? rbc_scene_load_file(o->scene_path, &s->scene, err, sizeof err)
+                           : rbc_scene_load_default(&s->scene, err, sizeof err);
+    if (rc) {
+        fprintf(stderr, "rbcloth: %s\n", err);
+        return 1;
+    }
+    /* The command line wins over the scene (ranges checked by the caller). */
+    if (o->frames >= 0)
+        s->scene.frames = (uint32_t)o->frames;
+    if (o->threads >= 0)
+        s->scene.world.thread_count = (uint32_t)o->threads;
+    if (o->substeps >= 0)
+        s->scene.world.substeps = (uint32_t)o->substeps;
+    if (o->iterations >= 0)
+        s->scene.world.linear_iterations = (uint32_t)o->iterations;
+    return 0;
+}
+
+/* One cloth: NAME.obj/.pc2; several: NAME_CLOTH.obj/.pc2. */
+static int plan_outputs(run_state *s) {
+    char err[512];
+    const char *dir = s->options->out_dir;
+    if (fs_mkdir_p(dir, err, sizeof err)) {
+        fprintf(stderr, "rbcloth: %s\n", err);
+        return 1;
+    }
+    s->outputs = calloc(s->scene.cloth_count, sizeof *s->outputs);
+    s->summary_path = fs_path(dir, s->scene.name, ".json");
+    if (!s->outputs || !s->summary_path)
+        return out_of_memory(s);
+    for (uint32_t i = 0; i < s->scene.cloth_count; ++i) {
+        char *stem;
+        if (s->scene.cloth_count == 1) {
+            stem = strdup(s->scene.name);
+        } else {
+            size_t size = strlen(s->scene.name) + 1 + strlen(s->scene.cloths[i].name) + 1;
+            stem = malloc(size);
+            if (stem)
+                snprintf(stem, size, "%s_%s", s->scene.name, s->scene.cloths[i].name);
+        }
+        if (!stem)
+            return out_of_memory(s);
+        s->outputs[i].obj_path = fs_path(dir, stem, ".obj");
+        s->outputs[i].pc2_path = fs_path(dir, stem, ".pc2");
+        free(stem);
+        if (!s->outputs[i].obj_path || !s->outputs[i].pc2_path)
+            return out_of_memory(s);
+    }
+    return 0;
+}
+
+static int create_world(run_state *s) {
+    const rbc_api_v1 *api = s->api;
+    char err[RBC_SCENE_ERROR_MAX];
+    rbc_result r = rbc_scene_instantiate(api, &s->scene, log_to_stderr, NULL, &s->instance, err,
+                                         sizeof err);
+    if (r != RBC_OK)
+        return report(api, r, err);
+
+    uint32_t max_vertices = 0;
+    for (uint32_t i = 0; i < s->scene.cloth_count; ++i) {
+        cloth_output *o = &s->outputs[i];
+        r = api->cloth_get_topology(s->instance.world, s->instance.cloths[i], &o->spring_count,
+                                    &o->color_count);
+        if (r != RBC_OK)
+            return report_api(api, r);
+        if (s->scene.cloths[i].vertex_count > max_vertices)
+            max_vertices = s->scene.cloths[i].vertex_count;
+    }
+    s->positions_capacity = (size_t)max_vertices * 3;
+    s->positions = malloc(s->positions_capacity * sizeof *s->positions);
+    if (!s->positions || cli_timings_init(&s->timings, s->scene.frames))
+        return out_of_memory(s);
+    return 0;
+}
+
+/* Rest meshes, then one open cache per cloth. */
+static int start_outputs(run_state *s) {
+    const rbc_api_v1 *api = s->api;
+    for (uint32_t i = 0; i < s->scene.cloth_count; ++i) {
+        const rbc_scene_cloth *c = &s->scene.cloths[i];
+        cloth_output *o = &s->outputs[i];
+        rbc_result r = api->write_obj(o->obj_path, c->positions, c->vertex_count, c->quads,
+                                      c->quad_count);
+        if (r != RBC_OK)
+            return report_api(api, r);
+
+        rbc_cache_def cd = api->cache_def_default();
+        cd.struct_size = sizeof cd;
+        cd.format = RBC_CACHE_PC2;
+        cd.path = o->pc2_path;
+        cd.point_count = c->vertex_count;
+        /* Sample k holds the positions after k + 1 steps: frame 0 is the rest pose
+         * of the OBJ, the cache starts at frame 1. */
+        cd.start_frame = 1.0f;
+        cd.sample_rate = 1.0f;
+        r = api->cache_create(&cd, &o->cache);
+        if (r != RBC_OK)
+            return report_api(api, r);
+    }
+    return 0;
+}
+
+static int simulate(run_state *s) {
+    const rbc_api_v1 *api = s->api;
+    const int show_progress = !s->options->quiet && isatty(STDERR_FILENO);
+    const uint32_t frames = s->scene.frames;
+    double start = now_seconds(), last_draw = 0.0;
+
+    for (uint32_t frame = 0; frame < frames; ++frame) {
+        rbc_result r = api->world_step(s->instance.world, s->scene.dt);
+        if (r != RBC_OK)
+            return report_api(api, r);
+        memset(&s->stats, 0, sizeof s->stats);
+        s->stats.struct_size = sizeof s->stats;
+        r = api->world_get_stats(s->instance.world, &s->stats);
+        if (r != RBC_OK)
+            return report_api(api, r);
+        cli_timings_add(&s->timings, &s->stats);
+
+        for (uint32_t i = 0; i < s->scene.cloth_count; ++i) {
+            size_t written = 0;
+            r = api->cloth_read_positions(s->instance.world, s->instance.cloths[i], s->positions,
+                                          s->positions_capacity, &written);
+            if (r != RBC_OK)
+                return report_api(api, r);
+            if (written != (size_t)s->scene.cloths[i].vertex_count * 3) {
+                char message[160];
+                snprintf(message, sizeof message,
+                         "cloth %s: read %zu floats of positions, expected %zu",
+                         s->scene.cloths[i].name, written,
+                         (size_t)s->scene.cloths[i].vertex_count * 3);
+                return report(api, RBC_ERR_INVALID_ARGUMENT, message);
+            }
+            r = api->cache_write_frame(s->outputs[i].cache, s->positions);
+            if (r != RBC_OK)
+                return report_api(api, r);
+        }
+        s->frames_done = frame + 1;
+
+        double now = now_seconds();
+        if (show_progress && (now - last_draw >= 0.1 || frame + 1 == frames)) {
+            progress_draw(frame + 1, frames, s->stats.step_ms);
+            last_draw = now;
+        }
+    }
+    s->wall_seconds = now_seconds() - start;
+    progress_clear();
+
+    for (uint32_t i = 0; i < s->scene.cloth_count; ++i) {
+        rbc_result r = api->cache_finish(s->outputs[i].cache);
+        s->outputs[i].cache = 0; /* finish destroys the writer, whatever its result */
+        if (r != RBC_OK)
+            return report_api(api, r);
+    }
+    return 0;
+}
+
+/* ------------------------------------------------------------------------- */
+/* Summary                                                                   */
+/* ------------------------------------------------------------------------- */
+
+/* cJSON's Add* return NULL when out of memory: remember it instead of checking
+ * each call. */
+typedef struct json_builder {
+    int failed;
+} json_builder;
+
+static cJSON *jcheck(json_builder *b, cJSON *item) {
+    if (!item)
+        b->failed = 1;
+    return item;
+}
+
+static void jnum(json_builder *b, cJSON *obj, const char *name, double value) {
+    jcheck(b, obj ? cJSON_AddNumberToObject(obj, name, value) : NULL);
+}
+
+static void jstr(json_builder *b, cJSON *obj, const char *name, const char *value) {
+    jcheck(b, obj ? (value ? cJSON_AddStringToObject(obj, name, value)
+                           : cJSON_AddNullToObject(obj, name))
+                  : NULL);
+}
+
+static void jarray_str(json_builder *b, cJSON *array, const char *value) {
+    cJSON *item = jcheck(b, cJSON_CreateString(value));
+    if (item && array && !cJSON_AddItemToArray(array, item)) {
+        cJSON_Delete(item);
+        b->failed = 1;
+    } else if (item && !array) {
+        cJSON_Delete(item);
+    }
+}
+
+static cJSON *build_summary(const run_state *s, json_builder *b) {
+    const rbc_scene *sc = &s->scene;
+    const rbc_world_stats *st = &s->stats;
+    const rbc_api_v1 *api = s->api;
+    cJSON *root = jcheck(b, cJSON_CreateObject());
+    if (!root)
+        return NULL;
+
+    jstr(b, root, "scene", sc->name);
+    jstr(b, root, "scene_file", s->options->scene_path); /* null: the built-in default */
+    cJSON *plugin = jcheck(b, cJSON_AddObjectToObject(root, "plugin"));
+    char abi[32];
+    uint32_t v = api->abi_version_fn();
+    snprintf(abi, sizeof abi, "%u.%u", v >> 16, v & 0xFFFFu);
+    jstr(b, plugin, "path", s->plugin->path);
+    jstr(b, plugin, "version", api->version_string());
+    jstr(b, plugin, "abi_version", abi);
+
+    jstr(b, root, "backend", backend_name(st->backend));
+    jnum(b, root, "particles", st->particle_count);
+    jnum(b, root, "springs", st->spring_count);
+    jnum(b, root, "colors", st->color_count);
+    jnum(b, root, "threads", st->thread_count);
+    jnum(b, root, "frames", s->frames_done);
+    jnum(b, root, "dt", float_as_decimal(sc->dt));
+    jnum(b, root, "substeps", sc->world.substeps);
+    jnum(b, root, "nonlinear_iterations", sc->world.nonlinear_iterations);
+    jnum(b, root, "linear_iterations", sc->world.linear_iterations);
+    jnum(b, root, "colliders", st->collider_count);
+
+    cJSON *cloths = jcheck(b, cJSON_AddArrayToObject(root, "cloths"));
+    for (uint32_t i = 0; cloths && i < sc->cloth_count; ++i) {
+        cJSON *c = jcheck(b, cJSON_CreateObject());
+        if (!c)
+            break;
+        if (!cJSON_AddItemToArray(cloths, c)) {
+            cJSON_Delete(c);
+            b->failed = 1;
+            break;
+        }
+        jstr(b, c, "name", sc->cloths[i].name);
+        jnum(b, c, "vertices", sc->cloths[i].vertex_count);
+        jnum(b, c, "quads", sc->cloths[i].quad_count);
+        jnum(b, c, "springs", s->outputs[i].spring_count);
+        jnum(b, c, "colors", s->outputs[i].color_count);
+        jnum(b, c, "pins", sc->cloths[i].pin_count);
+        jstr(b, c, "obj", s->outputs[i].obj_path);
+        jstr(b, c, "pc2", s->outputs[i].pc2_path);
+    }
+
+    cJSON *timing = jcheck(b, cJSON_AddObjectToObject(root, "ms_per_frame"));
+    for (int stage = 0; timing && stage < CLI_STAGE_COUNT; ++stage) {
+        double median, mean;
+        cli_timings_summary(&s->timings, (cli_stage)stage, &median, &mean);
+        cJSON *entry = jcheck(b, cJSON_AddObjectToObject(timing, cli_stage_names[stage]));
+        jnum(b, entry, "median", median);
+        jnum(b, entry, "mean", mean);
+    }
+    jnum(b, root, "wall_seconds", s->wall_seconds);
+
+    cJSON *final = jcheck(b, cJSON_AddObjectToObject(root, "final"));
+    jnum(b, final, "error_eq7", st->error_eq7);
+    jnum(b, final, "max_strain", st->max_strain);
+
+    cJSON *outputs = jcheck(b, cJSON_AddObjectToObject(root, "outputs"));
+    cJSON *objs = outputs ? jcheck(b, cJSON_AddArrayToObject(outputs, "obj")) : NULL;
+    cJSON *pc2s = outputs ? jcheck(b, cJSON_AddArrayToObject(outputs, "pc2")) : NULL;
+    for (uint32_t i = 0; i < sc->cloth_count; ++i) {
+        jarray_str(b, objs, s->outputs[i].obj_path);
+        jarray_str(b, pc2s, s->outputs[i].pc2_path);
+    }
+    jstr(b, outputs, "summary", s->summary_path);
+    return root;
+}
+
+static int write_summary(const run_state *s) {
+    json_builder b = {0};
+    cJSON *root = build_summary(s, &b);
+    char *text = root && !b.failed ? cJSON_Print(root) : NULL;
+    cJSON_Delete(root);
+    if (!text)
+        return out_of_memory(s);
+    char err[512];
+    size_t len = strlen(text);
+    text[len] = '\n'; /* cJSON_Print's NUL becomes the final newline */
+    int rc = fs_write_atomic(s->summary_path, text, len + 1, err, sizeof err);
+    cJSON_free(text);
+    if (rc)
+        return report(s->api, RBC_ERR_IO, err);
+    return 0;
+}
+
+static void print_table(const run_state *s) {
+    const rbc_scene *sc = &s->scene;
+    const rbc_world_stats *st = &s->stats;
+    printf("%s: %u frames of %g ms, %u particles, %u springs, %u colors, %s backend, %u "
+           "thread%s\n",
+           sc->name, s->frames_done, 1e3 * float_as_decimal(sc->dt), st->particle_count,
+           st->spring_count, st->color_count, backend_name(st->backend), st->thread_count,
+           st->thread_count == 1 ? "" : "s");
+    printf("  %-10s %12s %12s\n", "stage", "median ms", "mean ms");
+    for (int stage = 0; stage < CLI_STAGE_COUNT; ++stage) {
+        double median, mean;
+        cli_timings_summary(&s->timings, (cli_stage)stage, &median, &mean);
+        printf("  %-10s %12.4f %12.4f\n", cli_stage_names[stage], median, mean);
+    }
+    printf("  Eq. 7 error %.6e m^2, max strain %.4e\n", st->error_eq7, st->max_strain);
+    for (uint32_t i = 0; i < sc->cloth_count; ++i)
+        printf("  wrote %s, %s\n", s->outputs[i].obj_path, s->outputs[i].pc2_path);
+    printf("  wrote %s\n", s->summary_path);
+}
+
+/* ------------------------------------------------------------------------- */
+
+int cli_run(const cli_plugin *plugin, const cli_run_options *options) {
+    run_state s;
+    memset(&s, 0, sizeof s);
+    s.plugin = plugin;
+    s.api = plugin->api;
+    s.options = options;
+
+    int rc = load_scene(&s);
+    if (!rc)
+        rc = plan_outputs(&s);
+    if (!rc)
+        rc = create_world(&s);
+    if (!rc)
+        rc = start_outputs(&s);
+    if (!rc)
+        rc = simulate(&s);
+    if (!rc)
+        rc = write_summary(&s);
+    if (!rc && !options->quiet)
+        print_table(&s);
+    run_state_free(&s);
+    return rc;
+}

@@ -1,0 +1,26 @@
+/* run.h -- `rbcloth run`: simulate a scene and write its mesh, cache and summary. */
+#ifndef RBC_CLI_RUN_H
+#define RBC_CLI_RUN_H
+
+#include "plugin.h"
+
+typedef struct cli_run_options {
+    /// Scene file, or NULL for the built-in default scene.
+    const char *scene_path;
+    /// Output directory (created like mkdir -p).
+    const char *out_dir;
+    /// Overrides of the scene; -1 = keep the scene's value.
+    long frames;
+    long threads;
+    long substeps;
+    /// Linear (Red-Black Gauss-Seidel) iterations per non-linear iteration.
+    long iterations;
+    /// No progress bar and no table on stdout.
+    int quiet;
+} cli_run_options;
+
+/// Run the scene. Returns the process exit code: 0, or 1 after printing the reason
+/// on stderr.
+int cli_run(const cli_plugin *plugin, const cli_run_options *options);
+
+#endif
