@@ -48,9 +48,13 @@ static double now_seconds(void) {
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
-/* The plugin's log hook: on the thread that called rbc_world_step, i.e. ours. */
+/* The plugin's log hook, called on the thread that called rbc_world_step (ours).
+ * Error-level messages are skipped: every error is also returned by the failing
+ * call and reported once, by report_api, with its result code. */
 static void RBC_CALL log_to_stderr(void *user, rbc_log_level level, const char *message) {
     static const char *const names[] = {"error", "warning", "info", "debug"};
+    if (level == RBC_LOG_ERROR)
+        return;
     const char *name = level >= 0 && level <= RBC_LOG_DEBUG ? names[level] : "log";
     progress_clear();
     fprintf(stderr, "rbcloth: plugin %s: %s\n", name, message ? message : "");
