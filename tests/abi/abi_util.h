@@ -1,0 +1,236 @@
+/* abi_util.h -- helpers shared by the ABI tests in tests/abi: quad meshes built
+ * by the test itself (so the tests depend on nothing but abi/rbcloth.h), float
+ * ulp arithmetic for derived tolerances, and world snapshots for "a failing call
+ * leaves every existing object exactly as it was" checks.
+ *
+ * Everything here goes through the public functions of rbcloth.h only. The
+ * conformance test does not include this file (it must not reference any
+ * library symbol).
+ */
+#ifndef RBC_TEST_ABI_UTIL_H
+#define RBC_TEST_ABI_UTIL_H
+
+#include <float.h>
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "check.h"
+#include "rbcloth.h"
+
+/* ------------------------------------------------------------------------- */
+/* Meshes                                                                    */
+/* ------------------------------------------------------------------------- */
+
+/* A regular nx x ny grid in the horizontal plane y = y0: vertex (i, j) has index
+ * i + nx * j and sits at (x0 + i * spacing, y0, z0 + j * spacing). Quad (i, j)
+ * joins (i, j), (i+1, j), (i+1, j+1), (i, j+1) and has index i + (nx - 1) * j.
+ * Its structural springs: ny * (nx - 1) + nx * (ny - 1). */
+typedef struct test_grid {
+    uint32_t nx, ny;
+    uint32_t vertex_count;
+    uint32_t quad_count;
+    float *positions;
+    uint32_t *quads;
+} test_grid;
+
+static inline test_grid test_grid_make(uint32_t nx, uint32_t ny, float spacing, float x0,
+                                       float y0, float z0) {
+    test_grid g;
+    g.nx = nx;
+    g.ny = ny;
+    g.vertex_count = nx * ny;
+    g.quad_count = (nx - 1) * (ny - 1);
+    g.positions = (float *)malloc(sizeof(float) * 3 * g.vertex_count);
+    g.quads = (uint32_t *)malloc(sizeof(uint32_t) * 4 * (g.quad_count ? g.quad_count : 1));
+    if (!g.positions || !g.quads) {
+        fprintf(stderr, "test_grid_make: out of memory\n");
+        exit(2);
+    }
+    for (uint32_t j = 0; j < ny; j++)
+        for (uint32_t i = 0; i < nx; i++) {
+            uint32_t v = i + nx * j;
+            g.positions[3 * v + 0] = x0 + (float)i * spacing;
+            g.positions[3 * v + 1] = y0;
+            g.positions[3 * v + 2] = z0 + (float)j * spacing;
+        }
+    for (uint32_t j = 0; j + 1 < ny; j++)
+        for (uint32_t i = 0; i + 1 < nx; i++) {
+            uint32_t q = i + (nx - 1) * j;
+            g.quads[4 * q + 0] = i + nx * j;
+            g.quads[4 * q + 1] = (i + 1) + nx * j;
+            g.quads[4 * q + 2] = (i + 1) + nx * (j + 1);
+            g.quads[4 * q + 3] = i + nx * (j + 1);
+        }
+    return g;
+}
+
+static inline void test_grid_free(test_grid *g) {
+    free(g->positions);
+    free(g->quads);
+    g->positions = NULL;
+    g->quads = NULL;
+}
+
+static inline uint32_t test_grid_spring_count(const test_grid *g) {
+    return g->ny * (g->nx - 1) + g->nx * (g->ny - 1);
+}
+
+/* A cloth def for the grid with the given pins (may be NULL/0), default mass and
+ * stiffness unless changed afterwards. */
+static inline rbc_cloth_def test_grid_def(const test_grid *g, const uint32_t *pins,
+                                          uint32_t pin_count) {
+    rbc_cloth_def d = rbc_cloth_def_default();
+    d.vertex_count = g->vertex_count;
+    d.positions = g->positions;
+    d.quad_count = g->quad_count;
+    d.quads = g->quads;
+    d.pin_count = pin_count;
+    d.pins = pins;
+    return d;
+}
+
+/* ------------------------------------------------------------------------- */
+/* Float arithmetic                                                          */
+/* ------------------------------------------------------------------------- */
+
+/* The spacing of floats at magnitude |x| (ulp(x)); for x = 0 the smallest
+ * normal's spacing is irrelevant here, so FLT_MIN is returned. */
+static inline double test_ulp(double x) {
+    float a = fabsf((float)x);
+    if (a < FLT_MIN) return FLT_MIN;
+    return (double)nextafterf(a, INFINITY) - (double)a;
+}
+
+static inline int test_all_finite(const float *v, size_t n) {
+    for (size_t k = 0; k < n; k++)
+        if (!isfinite(v[k])) return 0;
+    return 1;
+}
+
+/* Does the decimal number n occur in s as a whole number (not as part of a longer
+ * run of digits)? Used to check that error messages name the offending index. */
+static inline int test_contains_number(const char *s, unsigned long n) {
+    char buf[32];
+    snprintf(buf, sizeof buf, "%lu", n);
+    size_t len = strlen(buf);
+    for (const char *p = s; (p = strstr(p, buf)) != NULL; p++) {
+        int before_ok = (p == s) || !(p[-1] >= '0' && p[-1] <= '9');
+        int after_ok = !(p[len] >= '0' && p[len] <= '9');
+        if (before_ok && after_ok) return 1;
+    }
+    return 0;
+}
+
+/* ------------------------------------------------------------------------- */
+/* Reading state                                                             */
+/* ------------------------------------------------------------------------- */
+
+/* Read all positions of a cloth into a malloc'd buffer (3 floats per vertex);
+ * *out_n receives the vertex count. Returns NULL (and prints why) on failure. */
+static inline float *test_read(rbc_world_id w, rbc_cloth_id c, uint32_t *out_n) {
+    uint32_t n = 0;
+    rbc_result r = rbc_cloth_get_vertex_count(w, c, &n);
+    if (r != RBC_OK || n == 0) {
+        fprintf(stderr, "test_read: get_vertex_count -> %s (%s)\n", rbc_result_string(r),
+                rbc_last_error());
+        return NULL;
+    }
+    float *xyz = (float *)malloc(sizeof(float) * 3 * n);
+    size_t written = 0;
+    r = rbc_cloth_read_positions(w, c, xyz, (size_t)3 * n, &written);
+    if (r != RBC_OK || written != (size_t)3 * n) {
+        fprintf(stderr, "test_read: read_positions -> %s, written %zu of %u (%s)\n",
+                rbc_result_string(r), written, 3 * n, rbc_last_error());
+        free(xyz);
+        return NULL;
+    }
+    if (out_n) *out_n = n;
+    return xyz;
+}
+
+static inline rbc_world_stats test_stats(rbc_world_id w) {
+    rbc_world_stats s;
+    memset(&s, 0, sizeof s);
+    s.struct_size = (uint32_t)sizeof s;
+    rbc_result r = rbc_world_get_stats(w, &s);
+    if (r != RBC_OK)
+        fprintf(stderr, "test_stats: get_stats -> %s (%s)\n", rbc_result_string(r),
+                rbc_last_error());
+    return s;
+}
+
+/* A snapshot of what a failing call must not change: the counts of the world's
+ * stats and the positions of the listed cloths, byte for byte. */
+#define TEST_SNAP_MAX_CLOTHS 4
+typedef struct test_snap {
+    rbc_world_id world;
+    uint32_t cloth_count, collider_count, particle_count, spring_count, color_count;
+    uint64_t step_count;
+    uint32_t n_cloths;
+    rbc_cloth_id cloths[TEST_SNAP_MAX_CLOTHS];
+    uint32_t n[TEST_SNAP_MAX_CLOTHS];
+    float *pos[TEST_SNAP_MAX_CLOTHS];
+} test_snap;
+
+static inline void test_snap_free(test_snap *s) {
+    for (uint32_t k = 0; k < s->n_cloths; k++) {
+        free(s->pos[k]);
+        s->pos[k] = NULL;
+    }
+    s->n_cloths = 0;
+}
+
+static inline test_snap test_snap_take(rbc_world_id w, const rbc_cloth_id *cloths,
+                                       uint32_t n_cloths) {
+    test_snap s;
+    memset(&s, 0, sizeof s);
+    s.world = w;
+    rbc_world_stats st = test_stats(w);
+    s.cloth_count = st.cloth_count;
+    s.collider_count = st.collider_count;
+    s.particle_count = st.particle_count;
+    s.spring_count = st.spring_count;
+    s.color_count = st.color_count;
+    s.step_count = st.step_count;
+    s.n_cloths = n_cloths;
+    for (uint32_t k = 0; k < n_cloths; k++) {
+        s.cloths[k] = cloths[k];
+        s.pos[k] = test_read(w, cloths[k], &s.n[k]);
+    }
+    return s;
+}
+
+/* Compare the world now with the snapshot; prints the differences with `line`
+ * (the caller's source line) and returns 1 if identical. */
+static inline int test_snap_same(const test_snap *s, int line) {
+    test_snap now = test_snap_take(s->world, s->cloths, s->n_cloths);
+    int same = 1;
+#define TEST_SNAP_FIELD(f)                                                            \
+    if (now.f != s->f) {                                                              \
+        fprintf(stderr, "  line %d: world changed: %s %llu -> %llu\n", line, #f,       \
+                (unsigned long long)s->f, (unsigned long long)now.f);                 \
+        same = 0;                                                                     \
+    }
+    TEST_SNAP_FIELD(cloth_count)
+    TEST_SNAP_FIELD(collider_count)
+    TEST_SNAP_FIELD(particle_count)
+    TEST_SNAP_FIELD(spring_count)
+    TEST_SNAP_FIELD(color_count)
+    TEST_SNAP_FIELD(step_count)
+#undef TEST_SNAP_FIELD
+    for (uint32_t k = 0; k < s->n_cloths; k++) {
+        if (!now.pos[k] || !s->pos[k] || now.n[k] != s->n[k] ||
+            memcmp(now.pos[k], s->pos[k], sizeof(float) * 3 * s->n[k]) != 0) {
+            fprintf(stderr, "  line %d: world changed: positions of cloth %u differ\n", line,
+                    (unsigned)s->cloths[k]);
+            same = 0;
+        }
+    }
+    test_snap_free(&now);
+    return same;
+}
+
+#endif
