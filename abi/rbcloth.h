@@ -16,7 +16,8 @@
  *    names the object, the index and what was wrong. A failing call leaves every
  *    existing object exactly as it was.
  *  - Defs (rbc_world_def, ...) start with uint32_t struct_size. Fill a def with its
- *    *_default() function, change what you need, and pass it. The library reads
+ *    *_def_init() function (or the *_def_default() inline), change what you need,
+ *    and pass it. The library reads
  *    only the fields that fit in struct_size, so a host compiled against an older
  *    header keeps working when fields are appended; a struct_size that matches no
  *    released version of the struct is refused with RBC_ERR_INVALID_ARGUMENT.
@@ -200,7 +201,7 @@ typedef int32_t (RBC_CALL *rbc_collision_fn)(void *user, rbc_world_id world, flo
 /* Defs                                                                      */
 /* ------------------------------------------------------------------------- */
 
-/// How a world is made. Get one from rbc_world_def_default().
+/// How a world is made. Fill one with rbc_world_def_init (or rbc_world_def_default).
 typedef struct rbc_world_def {
     /// sizeof(rbc_world_def) as compiled by the host.
     uint32_t struct_size;
@@ -232,7 +233,8 @@ typedef struct rbc_world_def {
     void *log_user;
 } rbc_world_def;
 
-/// How a cloth is made. Get one from rbc_cloth_def_default(). All arrays are copied.
+/// How a cloth is made. Fill one with rbc_cloth_def_init (or rbc_cloth_def_default).
+/// All arrays are copied.
 typedef struct rbc_cloth_def {
     /// sizeof(rbc_cloth_def) as compiled by the host.
     uint32_t struct_size;
@@ -268,7 +270,8 @@ typedef struct rbc_cloth_def {
     const uint32_t *pins;
 } rbc_cloth_def;
 
-/// How a collider is made. Get one from rbc_collider_def_default().
+/// How a collider is made. Fill one with rbc_collider_def_init (or
+/// rbc_collider_def_default).
 typedef struct rbc_collider_def {
     /// sizeof(rbc_collider_def) as compiled by the host.
     uint32_t struct_size;
@@ -284,7 +287,8 @@ typedef struct rbc_collider_def {
     float rotation[4];
 } rbc_collider_def;
 
-/// How a point cache is written. Get one from rbc_cache_def_default().
+/// How a point cache is written. Fill one with rbc_cache_def_init (or
+/// rbc_cache_def_default).
 typedef struct rbc_cache_def {
     /// sizeof(rbc_cache_def) as compiled by the host.
     uint32_t struct_size;
@@ -363,10 +367,37 @@ RBC_API const char *RBC_CALL rbc_result_string(rbc_result result);
 /// the next failing call on this thread.
 RBC_API const char *RBC_CALL rbc_last_error(void);
 
-RBC_API rbc_world_def RBC_CALL rbc_world_def_default(void);
-RBC_API rbc_cloth_def RBC_CALL rbc_cloth_def_default(void);
-RBC_API rbc_collider_def RBC_CALL rbc_collider_def_default(void);
-RBC_API rbc_cache_def RBC_CALL rbc_cache_def_default(void);
+/// Fill a def with the defaults documented on its fields. `struct_size` is
+/// sizeof(the def) as compiled by the host and must be a released size of it; only
+/// that many bytes are written (the def's own struct_size field is set to it), so a
+/// host built against an older header is never overrun by a newer library.
+RBC_API rbc_result RBC_CALL rbc_world_def_init(rbc_world_def *def, uint32_t struct_size);
+RBC_API rbc_result RBC_CALL rbc_cloth_def_init(rbc_cloth_def *def, uint32_t struct_size);
+RBC_API rbc_result RBC_CALL rbc_collider_def_init(rbc_collider_def *def, uint32_t struct_size);
+RBC_API rbc_result RBC_CALL rbc_cache_def_init(rbc_cache_def *def, uint32_t struct_size);
+
+/// C and C++ conveniences for hosts linked to the library: a def with defaults.
+/// (Hosts that load the library at run time call the *_def_init entries instead.)
+static inline rbc_world_def rbc_world_def_default(void) {
+    rbc_world_def d;
+    rbc_world_def_init(&d, (uint32_t)sizeof d);
+    return d;
+}
+static inline rbc_cloth_def rbc_cloth_def_default(void) {
+    rbc_cloth_def d;
+    rbc_cloth_def_init(&d, (uint32_t)sizeof d);
+    return d;
+}
+static inline rbc_collider_def rbc_collider_def_default(void) {
+    rbc_collider_def d;
+    rbc_collider_def_init(&d, (uint32_t)sizeof d);
+    return d;
+}
+static inline rbc_cache_def rbc_cache_def_default(void) {
+    rbc_cache_def d;
+    rbc_cache_def_init(&d, (uint32_t)sizeof d);
+    return d;
+}
 
 /// Create a world. *out_world receives its id.
 RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *def, rbc_world_id *out_world);
@@ -446,10 +477,10 @@ typedef struct rbc_api_v1 {
     const char *(RBC_CALL *version_string)(void);
     const char *(RBC_CALL *result_string)(rbc_result result);
     const char *(RBC_CALL *last_error)(void);
-    rbc_world_def (RBC_CALL *world_def_default)(void);
-    rbc_cloth_def (RBC_CALL *cloth_def_default)(void);
-    rbc_collider_def (RBC_CALL *collider_def_default)(void);
-    rbc_cache_def (RBC_CALL *cache_def_default)(void);
+    rbc_result (RBC_CALL *world_def_init)(rbc_world_def *def, uint32_t struct_size);
+    rbc_result (RBC_CALL *cloth_def_init)(rbc_cloth_def *def, uint32_t struct_size);
+    rbc_result (RBC_CALL *collider_def_init)(rbc_collider_def *def, uint32_t struct_size);
+    rbc_result (RBC_CALL *cache_def_init)(rbc_cache_def *def, uint32_t struct_size);
     rbc_result (RBC_CALL *world_create)(const rbc_world_def *def, rbc_world_id *out_world);
     rbc_result (RBC_CALL *world_destroy)(rbc_world_id world);
     rbc_result (RBC_CALL *world_step)(rbc_world_id world, float dt);

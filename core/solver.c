@@ -504,7 +504,7 @@ static void run_callback(step_ctx *ctx, uint32_t sub) {
             if (!(isfinite(hp[0]) && isfinite(hp[1]) && isfinite(hp[2]))) {
                 ctx->result = fail(ctx->err, ctx->errlen, RBC_ERR_CALLBACK,
                                    "the collision callback wrote a non-finite position for "
-                                   "cloth %u vertex %u at substep %u",
+                                   "cloth 0x%08x vertex %u at substep %u",
                                    c->public_id, v, sub);
                 return;
             }
@@ -637,7 +637,7 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
                 rbc_cloth_state *c = s->cloths[ctx->bad[th][0]];
                 uint32_t i = (uint32_t)ctx->bad[th][1];
                 ctx->result = fail(ctx->err, ctx->errlen, RBC_ERR_UNSTABLE,
-                                   "cloth %u: vertex %u became non-finite at substep %u of %u "
+                                   "cloth 0x%08x: vertex %u became non-finite at substep %u of %u "
                                    "(h = %g s, stiffness*h^2/mass up to %g); the world was "
                                    "restored to its state before the step",
                                    c->public_id, c->topo.to_host[i], sub, ctx->substeps,
@@ -691,6 +691,9 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     }
     ctx.t.step = now_ms() - start;
     s->last = ctx.t;
+    s->last_substeps = ctx.substeps;
+    s->last_nonlinear = ctx.substeps * s->nonlinear_iterations;
+    s->last_linear = s->last_nonlinear * s->linear_iterations;
     s->step_count++;
     return RBC_OK;
 }

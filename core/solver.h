@@ -72,6 +72,7 @@ typedef struct rbc_solver {
     rbc_collision_cloth *cb_list; /* [cloth_cap] */
 
     rbc_step_times last;        /* of the last successful step */
+    uint32_t last_substeps, last_nonlinear, last_linear; /* done by it (totals) */
     uint64_t step_count;
 } rbc_solver;
 

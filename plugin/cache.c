@@ -109,14 +109,15 @@ RBC_API rbc_result RBC_CALL rbc_write_obj(const char *path, const float *xyz,
     return RBC_OK;
 }
 
-RBC_API rbc_cache_def RBC_CALL rbc_cache_def_default(void) {
+RBC_API rbc_result RBC_CALL rbc_cache_def_init(rbc_cache_def *def, uint32_t struct_size) {
     rbc_cache_def d;
     memset(&d, 0, sizeof d);
     d.struct_size = sizeof d;
     d.format = RBC_CACHE_PC2;
     d.start_frame = 0.0f;
     d.sample_rate = 1.0f;
-    return d;
+    return rbc_def_init_common(def, struct_size, &d, sizeof d, "rbc_cache_def_init",
+                               "rbc_cache_def");
 }
 
 /* The PC2 header: char[12] "POINTCACHE2\0", int32 version 1, int32 points,

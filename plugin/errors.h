@@ -12,4 +12,8 @@ rbc_result rbc_set_error(rbc_result code, const char *fmt, ...)
     __attribute__((format(printf, 2, 3)));
 /* The thread's message buffer, for code that formats into it directly. */
 char *rbc_error_buffer(void);
+/* Fill a host's def: check struct_size against the released size and copy that
+ * many bytes of `defaults` (shared by the *_def_init functions). */
+rbc_result rbc_def_init_common(void *def, uint32_t struct_size, const void *defaults,
+                               size_t released_size, const char *fn, const char *what);
 #endif

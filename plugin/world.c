@@ -154,7 +154,7 @@ static uint32_t slot_commit(slot_table *t, uint32_t s, void *ptr, uint32_t kind)
 /* Defaults                                                                  */
 /* ------------------------------------------------------------------------- */
 
-RBC_API rbc_world_def RBC_CALL rbc_world_def_default(void) {
+static rbc_world_def world_def_defaults(void) {
     rbc_world_def d;
     memset(&d, 0, sizeof d);
     d.struct_size = sizeof d;
@@ -168,7 +168,7 @@ RBC_API rbc_world_def RBC_CALL rbc_world_def_default(void) {
     return d;
 }
 
-RBC_API rbc_cloth_def RBC_CALL rbc_cloth_def_default(void) {
+static rbc_cloth_def cloth_def_defaults(void) {
     rbc_cloth_def d;
     memset(&d, 0, sizeof d);
     d.struct_size = sizeof d;
@@ -177,7 +177,7 @@ RBC_API rbc_cloth_def RBC_CALL rbc_cloth_def_default(void) {
     return d;
 }
 
-RBC_API rbc_collider_def RBC_CALL rbc_collider_def_default(void) {
+static rbc_collider_def collider_def_defaults(void) {
     rbc_collider_def d;
     memset(&d, 0, sizeof d);
     d.struct_size = sizeof d;
@@ -185,6 +185,39 @@ RBC_API rbc_collider_def RBC_CALL rbc_collider_def_default(void) {
     d.radius = 0.5f;
     d.rotation[3] = 1.0f;
     return d;
+}
+
+/* Write the first struct_size bytes of the defaults into a host's def. */
+rbc_result rbc_def_init_common(void *def, uint32_t struct_size, const void *defaults,
+                               size_t released_size, const char *fn, const char *what) {
+    if (!def) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: def is NULL", fn);
+    /* ABI 1.0 has one released size of each def; later minors append sizes here. */
+    if (struct_size != released_size)
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                             "%s: struct_size is %u, which matches no released version of %s "
+                             "(this library knows %zu)",
+                             fn, struct_size, what, released_size);
+    memcpy(def, defaults, struct_size);
+    memcpy(def, &struct_size, sizeof struct_size);
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_world_def_init(rbc_world_def *def, uint32_t struct_size) {
+    rbc_world_def d = world_def_defaults();
+    return rbc_def_init_common(def, struct_size, &d, sizeof d, "rbc_world_def_init",
+                               "rbc_world_def");
+}
+
+RBC_API rbc_result RBC_CALL rbc_cloth_def_init(rbc_cloth_def *def, uint32_t struct_size) {
+    rbc_cloth_def d = cloth_def_defaults();
+    return rbc_def_init_common(def, struct_size, &d, sizeof d, "rbc_cloth_def_init",
+                               "rbc_cloth_def");
+}
+
+RBC_API rbc_result RBC_CALL rbc_collider_def_init(rbc_collider_def *def, uint32_t struct_size) {
+    rbc_collider_def d = collider_def_defaults();
+    return rbc_def_init_common(def, struct_size, &d, sizeof d, "rbc_collider_def_init",
+                               "rbc_collider_def");
 }
 
 /* ------------------------------------------------------------------------- */
@@ -210,7 +243,7 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     static const char fn[] = "rbc_world_create";
     if (!out_world) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: out_world is NULL", fn);
     *out_world = 0;
-    rbc_world_def def = rbc_world_def_default();
+    rbc_world_def def = world_def_defaults();
     rbc_result rc = read_def(&def, sizeof def, user_def, fn, "rbc_world_def");
     if (rc) return rc;
     if (!finite3(def.gravity))
@@ -380,11 +413,9 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
         st.error_eq7 += e;
         if (strain > st.max_strain) st.max_strain = strain;
     }
-    if (s->step_count) {
-        st.substeps = s->substeps;
-        st.nonlinear_iterations = s->substeps * s->nonlinear_iterations;
-        st.linear_iterations = st.nonlinear_iterations * s->linear_iterations;
-    }
+    st.substeps = s->last_substeps;
+    st.nonlinear_iterations = s->last_nonlinear;
+    st.linear_iterations = s->last_linear;
     st.step_ms = s->last.step;
     st.integrate_ms = s->last.integrate;
     st.local_ms = s->last.local;
@@ -419,7 +450,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create(rbc_world_id wid, const rbc_cloth_d
     if (rc) return rc;
     if (!out_cloth) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: out_cloth is NULL", fn);
     *out_cloth = 0;
-    rbc_cloth_def def = rbc_cloth_def_default();
+    rbc_cloth_def def = cloth_def_defaults();
     if ((rc = read_def(&def, sizeof def, user_def, fn, "rbc_cloth_def"))) {
         world_log(w, RBC_LOG_ERROR, rbc_last_error());
         return rc;
@@ -576,7 +607,7 @@ RBC_API rbc_result RBC_CALL rbc_collider_create(rbc_world_id wid, const rbc_coll
     if (rc) return rc;
     if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: out_collider is NULL", fn);
     *out = 0;
-    rbc_collider_def def = rbc_collider_def_default();
+    rbc_collider_def def = collider_def_defaults();
     if ((rc = read_def(&def, sizeof def, user_def, fn, "rbc_collider_def"))) {
         world_log(w, RBC_LOG_ERROR, rbc_last_error());
         return rc;

@@ -879,10 +879,15 @@ rbc_result rbc_scene_instantiate(const rbc_api_v1 *api, const rbc_scene *scene,
         return RBC_ERR_OUT_OF_MEMORY;
     }
 
-    /* Start from the library's defaults; struct_size is always our own: a newer
-     * library reads only the fields this host knows. */
-    rbc_world_def wd = api->world_def_default();
-    wd.struct_size = sizeof wd;
+    /* Start from the library's defaults, asked for at this host's struct size: a
+     * newer library writes and reads only the fields this host knows. */
+    rbc_world_def wd;
+    rbc_result r = api->world_def_init(&wd, (uint32_t)sizeof wd);
+    if (r != RBC_OK) {
+        api_fail(api, r, err, err_size, "initialising the world def of scene \"%s\"", scene->name);
+        rbc_scene_instance_destroy(api, &inst);
+        return r;
+    }
     memcpy(wd.gravity, scene->world.gravity, sizeof wd.gravity);
     wd.substeps = scene->world.substeps;
     wd.nonlinear_iterations = scene->world.nonlinear_iterations;
@@ -894,7 +899,7 @@ rbc_result rbc_scene_instantiate(const rbc_api_v1 *api, const rbc_scene *scene,
         wd.log_user = log_user;
         wd.log_level = RBC_LOG_WARNING;
     }
-    rbc_result r = api->world_create(&wd, &inst.world);
+    r = api->world_create(&wd, &inst.world);
     if (r != RBC_OK) {
         api_fail(api, r, err, err_size, "creating the world of scene \"%s\"", scene->name);
         rbc_scene_instance_destroy(api, &inst);
@@ -903,8 +908,9 @@ rbc_result rbc_scene_instantiate(const rbc_api_v1 *api, const rbc_scene *scene,
 
     for (uint32_t i = 0; i < scene->cloth_count; ++i) {
         const rbc_scene_cloth *c = &scene->cloths[i];
-        rbc_cloth_def cd = api->cloth_def_default();
-        cd.struct_size = sizeof cd;
+        rbc_cloth_def cd;
+        r = api->cloth_def_init(&cd, (uint32_t)sizeof cd);
+        if (r == RBC_OK) {
         cd.vertex_count = c->vertex_count;
         cd.positions = c->positions;
         cd.quad_count = c->quad_count;
@@ -919,6 +925,7 @@ rbc_result rbc_scene_instantiate(const rbc_api_v1 *api, const rbc_scene *scene,
         cd.pin_count = c->pin_count;
         cd.pins = c->pins;
         r = api->cloth_create(inst.world, &cd, &inst.cloths[i]);
+        }
         if (r != RBC_OK) {
             api_fail(api, r, err, err_size, "creating cloths[%u] \"%s\"", i, c->name);
             rbc_scene_instance_destroy(api, &inst);
@@ -929,14 +936,16 @@ rbc_result rbc_scene_instantiate(const rbc_api_v1 *api, const rbc_scene *scene,
 
     for (uint32_t i = 0; i < scene->collider_count; ++i) {
         const rbc_scene_collider *c = &scene->colliders[i];
-        rbc_collider_def cd = api->collider_def_default();
-        cd.struct_size = sizeof cd;
+        rbc_collider_def cd;
+        r = api->collider_def_init(&cd, (uint32_t)sizeof cd);
+        if (r == RBC_OK) {
         cd.shape = c->shape;
         cd.radius = c->shape == RBC_SHAPE_SPHERE ? c->radius : cd.radius;
         cd.thickness = c->thickness;
         memcpy(cd.position, c->position, sizeof cd.position);
         memcpy(cd.rotation, c->rotation, sizeof cd.rotation);
         r = api->collider_create(inst.world, &cd, &inst.colliders[i]);
+        }
         if (r != RBC_OK) {
             api_fail(api, r, err, err_size, "creating colliders[%u]", i);
             rbc_scene_instance_destroy(api, &inst);

@@ -234,8 +234,10 @@ static int start_outputs(run_state *s) {
         if (r != RBC_OK)
             return report_api(api, r);
 
-        rbc_cache_def cd = api->cache_def_default();
-        cd.struct_size = sizeof cd;
+        rbc_cache_def cd;
+        r = api->cache_def_init(&cd, (uint32_t)sizeof cd);
+        if (r != RBC_OK)
+            return report_api(api, r);
         cd.format = RBC_CACHE_PC2;
         cd.path = o->pc2_path;
         cd.point_count = c->vertex_count;

@@ -401,25 +401,27 @@ static const char *RBC_CALL fake_last_error(void) { return "cloth def: vertex 3 
 static const char *RBC_CALL fake_result_string(rbc_result r) {
     return r == RBC_ERR_BAD_MESH ? "RBC_ERR_BAD_MESH" : "other";
 }
-static rbc_world_def RBC_CALL fake_world_def_default(void) {
-    rbc_world_def d;
-    memset(&d, 0, sizeof d);
-    d.struct_size = 9999; /* as a newer library would: the host must put its own */
-    return d;
+/* The fakes record the size asked for: a host must ask at its own struct size. */
+static uint32_t fake_init_sizes[3];
+static rbc_result RBC_CALL fake_world_def_init(rbc_world_def *d, uint32_t size) {
+    fake_init_sizes[0] = size;
+    memset(d, 0, sizeof *d);
+    d->struct_size = size;
+    return RBC_OK;
 }
-static rbc_cloth_def RBC_CALL fake_cloth_def_default(void) {
-    rbc_cloth_def d;
-    memset(&d, 0, sizeof d);
-    d.struct_size = 9999;
-    d.density = 5.0f; /* must be reset: the scene gives per-vertex masses */
-    return d;
+static rbc_result RBC_CALL fake_cloth_def_init(rbc_cloth_def *d, uint32_t size) {
+    fake_init_sizes[1] = size;
+    memset(d, 0, sizeof *d);
+    d->struct_size = size;
+    d->density = 5.0f; /* must be reset: the scene gives per-vertex masses */
+    return RBC_OK;
 }
-static rbc_collider_def RBC_CALL fake_collider_def_default(void) {
-    rbc_collider_def d;
-    memset(&d, 0, sizeof d);
-    d.struct_size = 9999;
-    d.radius = 0.5f;
-    return d;
+static rbc_result RBC_CALL fake_collider_def_init(rbc_collider_def *d, uint32_t size) {
+    fake_init_sizes[2] = size;
+    memset(d, 0, sizeof *d);
+    d->struct_size = size;
+    d->radius = 0.5f;
+    return RBC_OK;
 }
 static rbc_result RBC_CALL fake_world_create(const rbc_world_def *def, rbc_world_id *out) {
     fake.world_def = *def;
@@ -455,9 +457,9 @@ static void test_instantiate(void) {
     api.abi_version = RBC_ABI_VERSION;
     api.last_error = fake_last_error;
     api.result_string = fake_result_string;
-    api.world_def_default = fake_world_def_default;
-    api.cloth_def_default = fake_cloth_def_default;
-    api.collider_def_default = fake_collider_def_default;
+    api.world_def_init = fake_world_def_init;
+    api.cloth_def_init = fake_cloth_def_init;
+    api.collider_def_init = fake_collider_def_init;
     api.world_create = fake_world_create;
     api.world_destroy = fake_world_destroy;
     api.cloth_create = fake_cloth_create;
@@ -486,6 +488,9 @@ static void test_instantiate(void) {
     CHECK(inst.cloths[0] == 101 && inst.cloths[1] == 102);
     CHECK(inst.colliders[0] == 201 && inst.colliders[1] == 202);
     CHECK_EQ(fake.world_def.struct_size, sizeof(rbc_world_def));
+    CHECK_EQ(fake_init_sizes[0], sizeof(rbc_world_def));
+    CHECK_EQ(fake_init_sizes[1], sizeof(rbc_cloth_def));
+    CHECK_EQ(fake_init_sizes[2], sizeof(rbc_collider_def));
     CHECK(fake.world_def.gravity[2] == -1.0f);
     CHECK_EQ(fake.world_def.substeps, 3);
     CHECK_EQ(fake.world_def.nonlinear_iterations, 2);
