@@ -286,6 +286,37 @@ static void test_struct_sizes(void) {
             CHECK(!file_exists(path) && !file_exists(tmp));
         }
     }
+    /* *_def_init: a struct_size that is no released size, or a NULL def, is
+     * refused and the host's buffer is left as it was (nothing written at all);
+     * the released size writes exactly that many bytes. */
+#define CHECK_DEF_INIT(T, fn, last_field)                                                 \
+    do {                                                                                  \
+        union { T d; unsigned char b[sizeof(T) + 16]; } u_;                               \
+        const uint32_t bad_[] = {0, 4, (uint32_t)offsetof(T, last_field),                 \
+                                 (uint32_t)sizeof(T) - 1, (uint32_t)sizeof(T) + 4};       \
+        for (size_t k_ = 0; k_ < sizeof bad_ / sizeof bad_[0]; k_++) {                    \
+            memset(&u_, 0xCD, sizeof u_);                                                 \
+            EXPECT(fn(&u_.d, bad_[k_]), RBC_ERR_INVALID_ARGUMENT);                        \
+            int untouched_ = 1;                                                           \
+            for (size_t i_ = 0; i_ < sizeof u_; i_++) untouched_ &= u_.b[i_] == 0xCD;     \
+            CHECK(untouched_);                                                            \
+            if (!untouched_) fprintf(stderr, "  %s(size %u) refused but wrote the def\n",  \
+                                     #fn, (unsigned)bad_[k_]);                            \
+        }                                                                                 \
+        EXPECT(fn(NULL, (uint32_t)sizeof(T)), RBC_ERR_INVALID_ARGUMENT);                  \
+        memset(&u_, 0xCD, sizeof u_);                                                     \
+        CHECK_EQ(fn(&u_.d, (uint32_t)sizeof(T)), RBC_OK);                                 \
+        CHECK_EQ(u_.d.struct_size, sizeof(T));                                            \
+        int tail_ = 1;                                                                    \
+        for (size_t i_ = sizeof(T); i_ < sizeof u_; i_++) tail_ &= u_.b[i_] == 0xCD;      \
+        CHECK(tail_);                                                                     \
+    } while (0)
+    CHECK_DEF_INIT(rbc_world_def, rbc_world_def_init, log_user);
+    CHECK_DEF_INIT(rbc_cloth_def, rbc_cloth_def_init, pins);
+    CHECK_DEF_INIT(rbc_collider_def, rbc_collider_def_init, rotation);
+    CHECK_DEF_INIT(rbc_cache_def, rbc_cache_def_init, sample_rate);
+#undef CHECK_DEF_INIT
+
     /* The defaults carry this header's sizes. */
     CHECK_EQ(rbc_world_def_default().struct_size, sizeof(rbc_world_def));
     CHECK_EQ(rbc_cloth_def_default().struct_size, sizeof(rbc_cloth_def));

@@ -1,8 +1,8 @@
 /* test_behaviour.c -- what a host can observe through abi/rbcloth.h when every
  * input is valid: free fall against the closed-form Verlet solution, pins,
  * damping, the built-in colliders, the collision callback, instability handling,
- * stats (counts and Eq. 7), the allocator and log hooks, and silence on
- * stdout/stderr.
+ * stats (counts and Eq. 7), the allocator and log hooks, silence on
+ * stdout/stderr, and the thread contract.
  *
  * Every tolerance is derived in a comment next to it from float rounding (ulp =
  * spacing of floats at the magnitude involved; FLT_EPSILON = ulp(1) = 2^-23) or
@@ -1336,6 +1336,79 @@ static void test_silence_and_log(void) {
 }
 
 /* ========================================================================= */
+/* (i) Thread contract: worlds on different threads; callbacks on the caller  */
+/* ========================================================================= */
+
+/* "Different worlds may be used concurrently from different threads" and "host
+ * callbacks are always called on the thread that called rbc_world_step". Two
+ * threads each build and step their own world (with worker threads of its own)
+ * at the same time; each world's callback must run on its stepping thread, and
+ * the results must equal those of the same scene run alone on the main thread
+ * (one solver thread per world, so the arithmetic is the same: bitwise). */
+typedef struct thread_job {
+    pthread_t self;
+    int wrong_thread;
+    int calls;
+    int failures;
+    float result[3 * 144];
+} thread_job;
+
+static int32_t thread_cb(void *user, rbc_world_id world, float dt,
+                         const rbc_collision_cloth *cloths, uint32_t cloth_count) {
+    thread_job *j = (thread_job *)user;
+    j->calls++;
+    if (!pthread_equal(pthread_self(), j->self)) j->wrong_thread++;
+    return 0;
+}
+
+static void run_scene(thread_job *j) {
+    j->self = pthread_self();
+    rbc_world_def d = rbc_world_def_default();
+    d.substeps = 2;
+    d.thread_count = 1;
+    rbc_world_id w = 0;
+    if (rbc_world_create(&d, &w) != RBC_OK) { j->failures++; return; }
+    test_grid g = test_grid_make(12, 12, 0.05f, 0.0f, 1.0f, 0.0f);
+    const uint32_t pins[2] = {0, 11};
+    rbc_cloth_def cd = test_grid_def(&g, pins, 2);
+    rbc_cloth_id c = 0;
+    if (rbc_cloth_create(w, &cd, &c) != RBC_OK) j->failures++;
+    if (rbc_world_set_collision_callback(w, thread_cb, j) != RBC_OK) j->failures++;
+    for (int k = 0; k < 200; k++)
+        if (rbc_world_step(w, 1.0f / 60.0f) != RBC_OK) j->failures++;
+    size_t written = 0;
+    if (rbc_cloth_read_positions(w, c, j->result, 3 * 144, &written) != RBC_OK || written != 3 * 144)
+        j->failures++;
+    rbc_world_destroy(w);
+    test_grid_free(&g);
+}
+
+static void *thread_main(void *arg) {
+    run_scene((thread_job *)arg);
+    return NULL;
+}
+
+static void test_threads(void) {
+    static thread_job ref, a, b;
+    memset(&ref, 0, sizeof ref);
+    memset(&a, 0, sizeof a);
+    memset(&b, 0, sizeof b);
+    run_scene(&ref);
+    pthread_t ta, tb;
+    CHECK_EQ(pthread_create(&ta, NULL, thread_main, &a), 0);
+    CHECK_EQ(pthread_create(&tb, NULL, thread_main, &b), 0);
+    pthread_join(ta, NULL);
+    pthread_join(tb, NULL);
+    CHECK_EQ(ref.failures + a.failures + b.failures, 0);
+    CHECK_EQ(a.calls, 400); /* 200 steps x 2 substeps */
+    CHECK_EQ(b.calls, 400);
+    CHECK_EQ(a.wrong_thread + b.wrong_thread + ref.wrong_thread, 0);
+    CHECK(memcmp(a.result, ref.result, sizeof ref.result) == 0);
+    CHECK(memcmp(b.result, ref.result, sizeof ref.result) == 0);
+    CHECK(test_all_finite(ref.result, 3 * 144));
+}
+
+/* ========================================================================= */
 
 int main(void) {
     MAIN_THREAD = pthread_self();
@@ -1350,5 +1423,6 @@ int main(void) {
     test_counting_allocator();
     test_failing_allocator();
     test_silence_and_log();
+    test_threads();
     return check_report("abi_behaviour");
 }

@@ -99,10 +99,37 @@ int main(int argc, char **argv) {
     CHECK(api->result_string(RBC_ERR_BAD_MESH) != NULL &&
           strcmp(api->result_string(RBC_ERR_BAD_MESH), "RBC_ERR_BAD_MESH") == 0);
     CHECK(api->last_error() != NULL);
-    CHECK_EQ(api->world_def_default().struct_size, sizeof(rbc_world_def));
-    CHECK_EQ(api->cloth_def_default().struct_size, sizeof(rbc_cloth_def));
-    CHECK_EQ(api->collider_def_default().struct_size, sizeof(rbc_collider_def));
-    CHECK_EQ(api->cache_def_default().struct_size, sizeof(rbc_cache_def));
+    /* The *_def_init entries write exactly the host's struct_size bytes: a marker
+     * placed right after the def survives, and struct_size is set. */
+    {
+        union { rbc_world_def d; unsigned char b[sizeof(rbc_world_def) + 16]; } uw;
+        union { rbc_cloth_def d; unsigned char b[sizeof(rbc_cloth_def) + 16]; } uc;
+        union { rbc_collider_def d; unsigned char b[sizeof(rbc_collider_def) + 16]; } uk;
+        union { rbc_cache_def d; unsigned char b[sizeof(rbc_cache_def) + 16]; } uh;
+        memset(&uw, 0xCD, sizeof uw);
+        memset(&uc, 0xCD, sizeof uc);
+        memset(&uk, 0xCD, sizeof uk);
+        memset(&uh, 0xCD, sizeof uh);
+        CHECK_EQ(api->world_def_init(&uw.d, sizeof(rbc_world_def)), RBC_OK);
+        CHECK_EQ(api->cloth_def_init(&uc.d, sizeof(rbc_cloth_def)), RBC_OK);
+        CHECK_EQ(api->collider_def_init(&uk.d, sizeof(rbc_collider_def)), RBC_OK);
+        CHECK_EQ(api->cache_def_init(&uh.d, sizeof(rbc_cache_def)), RBC_OK);
+        CHECK_EQ(uw.d.struct_size, sizeof(rbc_world_def));
+        CHECK_EQ(uc.d.struct_size, sizeof(rbc_cloth_def));
+        CHECK_EQ(uk.d.struct_size, sizeof(rbc_collider_def));
+        CHECK_EQ(uh.d.struct_size, sizeof(rbc_cache_def));
+        int overrun = 0;
+        for (size_t k = sizeof(rbc_world_def); k < sizeof uw; k++) overrun |= uw.b[k] != 0xCD;
+        for (size_t k = sizeof(rbc_cloth_def); k < sizeof uc; k++) overrun |= uc.b[k] != 0xCD;
+        for (size_t k = sizeof(rbc_collider_def); k < sizeof uk; k++) overrun |= uk.b[k] != 0xCD;
+        for (size_t k = sizeof(rbc_cache_def); k < sizeof uh; k++) overrun |= uh.b[k] != 0xCD;
+        CHECK(!overrun);
+        /* Documented defaults, spot-checked. */
+        CHECK(uw.d.gravity[1] == -9.81f && uw.d.substeps == 1 && uw.d.linear_iterations == 11);
+        CHECK(uc.d.stiffness == 1000.0f && uc.d.vertex_mass == 1e-4f && uc.d.damping == 0.0f);
+        CHECK(uk.d.shape == RBC_SHAPE_PLANE && uk.d.radius == 0.5f && uk.d.rotation[3] == 1.0f);
+        CHECK(uh.d.format == RBC_CACHE_PC2 && uh.d.sample_rate == 1.0f);
+    }
 
     /* A 10 x 10 cloth, 0.1 m spacing, horizontal at y = 1, pinned at the corners
      * 0 and 9 of its first row, plus a sphere below it; 50 frames of 1/60 s. */
@@ -126,10 +153,12 @@ int main(int argc, char **argv) {
         }
     const uint32_t pins[2] = {0, NX - 1};
 
-    rbc_world_def wd = api->world_def_default();
+    rbc_world_def wd;
+    CHECK_EQ(api->world_def_init(&wd, sizeof wd), RBC_OK);
     rbc_world_id w = 0;
     CHECK_EQ(api->world_create(&wd, &w), RBC_OK);
-    rbc_cloth_def cd = api->cloth_def_default();
+    rbc_cloth_def cd;
+    CHECK_EQ(api->cloth_def_init(&cd, sizeof cd), RBC_OK);
     cd.vertex_count = NV;
     cd.positions = pos;
     cd.quad_count = NQ;
@@ -138,7 +167,8 @@ int main(int argc, char **argv) {
     cd.pins = pins;
     rbc_cloth_id c = 0;
     CHECK_EQ(api->cloth_create(w, &cd, &c), RBC_OK);
-    rbc_collider_def kd = api->collider_def_default();
+    rbc_collider_def kd;
+    CHECK_EQ(api->collider_def_init(&kd, sizeof kd), RBC_OK);
     kd.shape = RBC_SHAPE_SPHERE;
     kd.radius = 0.2f;
     kd.position[0] = 0.45f;
