@@ -33,8 +33,10 @@
  *  - One world is used by one thread at a time (the host serialises calls on it).
  *    A world may run its own worker threads inside rbc_world_step; host callbacks
  *    are always called on the thread that called rbc_world_step.
+ *  - A point cache, like a world, is used by one thread at a time; different caches
+ *    may be used concurrently.
  *  - rbc_last_error() is per thread.
- *  - The functions without a world argument are thread-safe.
+ *  - The remaining functions without a world or cache argument are thread-safe.
  *
  * ABI versioning
  *  - RBC_ABI_VERSION_MAJOR changes only when an existing function, struct layout or

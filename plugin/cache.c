@@ -3,13 +3,13 @@
  * complete, so a reader never sees half a file. */
 #include <errno.h>
 #include <math.h>
-#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "errors.h"
 #include "handles.h"
+#include "registry.h"
 #include "rbcloth.h"
 
 #define RBC_MAX_CACHES 4096u
@@ -21,13 +21,9 @@ typedef struct cache {
     uint32_t frames;
 } cache;
 
-/* Caches are not tied to a world; the table is guarded by one lock (the functions
- * without a world argument are thread-safe). */
-static pthread_mutex_t g_cache_lock = PTHREAD_MUTEX_INITIALIZER;
-static struct {
-    uint32_t gen;
-    cache *ptr;
-} g_caches[RBC_MAX_CACHES];
+/* Cache ids (registry.h); a cache, like a world, is used by one thread at a time. */
+static rbc_reg_entry g_cache_entries[RBC_MAX_CACHES];
+static rbc_registry g_caches = RBC_REGISTRY_INIT(RBC_KIND_CACHE, RBC_MAX_CACHES, g_cache_entries);
 
 static char *dup_suffix(const char *s, const char *suffix) {
     size_t a = strlen(s), b = strlen(suffix);
@@ -188,51 +184,19 @@ RBC_API rbc_result RBC_CALL rbc_cache_create(const rbc_cache_def *user_def, rbc_
         cache_free(c);
         return rc;
     }
-    pthread_mutex_lock(&g_cache_lock);
-    uint32_t s = RBC_MAX_CACHES;
-    for (uint32_t k = 0; k < RBC_MAX_CACHES; ++k)
-        if (!g_caches[k].ptr) {
-            s = k;
-            break;
-        }
-    if (s == RBC_MAX_CACHES) {
-        pthread_mutex_unlock(&g_cache_lock);
+    if (rbc_reg_add(&g_caches, c, 0, out) != RBC_OK) {
         cache_free(c);
         return rbc_set_error(RBC_ERR_CAPACITY, "%s: %u caches are open already", fn,
                              RBC_MAX_CACHES);
     }
-    g_caches[s].gen = rbc_gen_next(g_caches[s].gen);
-    g_caches[s].ptr = c;
-    *out = rbc_id_make(RBC_KIND_CACHE, g_caches[s].gen, s);
-    pthread_mutex_unlock(&g_cache_lock);
     return RBC_OK;
-}
-
-/* With the lock held: the cache of `id`, or NULL with the error set. */
-static cache *cache_lookup(rbc_cache_id id, const char *fn) {
-    if (rbc_id_kind(id) != RBC_KIND_CACHE) {
-        rbc_set_error(RBC_ERR_STALE_HANDLE, "%s: id 0x%08x is %s, not a cache id", fn, id,
-                      id ? rbc_kind_name(rbc_id_kind(id)) : "null");
-        return NULL;
-    }
-    uint32_t s = rbc_id_slot(id);
-    if (s >= RBC_MAX_CACHES || !g_caches[s].ptr || g_caches[s].gen != rbc_id_gen(id)) {
-        rbc_set_error(RBC_ERR_STALE_HANDLE, "%s: cache id 0x%08x is stale", fn, id);
-        return NULL;
-    }
-    return g_caches[s].ptr;
 }
 
 RBC_API rbc_result RBC_CALL rbc_cache_write_frame(rbc_cache_id id, const float *xyz) {
     static const char fn[] = "rbc_cache_write_frame";
-    pthread_mutex_lock(&g_cache_lock);
-    cache *c = cache_lookup(id, fn);
-    rbc_result rc = RBC_ERR_STALE_HANDLE;
-    if (!c) goto out;
-    if (!xyz) {
-        rc = rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: xyz is NULL", fn);
-        goto out;
-    }
+    cache *c = rbc_reg_get(&g_caches, id, 0, fn);
+    if (!c) return RBC_ERR_STALE_HANDLE;
+    if (!xyz) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: xyz is NULL", fn);
     size_t count = 3 * (size_t)c->def.point_count;
     int ok;
     if (host_is_little_endian()) {
@@ -241,27 +205,17 @@ RBC_API rbc_result RBC_CALL rbc_cache_write_frame(rbc_cache_id id, const float *
         ok = 1;
         for (size_t k = 0; ok && k < count; ++k) ok = put_f32le(c->f, xyz[k]);
     }
-    if (!ok) {
-        rc = rbc_set_error(RBC_ERR_IO, "%s: writing frame %u to %s failed: %s", fn, c->frames,
-                           c->tmp_path, strerror(errno));
-        goto out;
-    }
+    if (!ok)
+        return rbc_set_error(RBC_ERR_IO, "%s: writing frame %u to %s failed: %s", fn, c->frames,
+                             c->tmp_path, strerror(errno));
     c->frames++;
-    rc = RBC_OK;
-out:
-    pthread_mutex_unlock(&g_cache_lock);
-    return rc;
+    return RBC_OK;
 }
 
 static rbc_result cache_end(rbc_cache_id id, const char *fn, int keep) {
-    pthread_mutex_lock(&g_cache_lock);
-    cache *c = cache_lookup(id, fn);
-    if (!c) {
-        pthread_mutex_unlock(&g_cache_lock);
-        return RBC_ERR_STALE_HANDLE;
-    }
-    g_caches[rbc_id_slot(id)].ptr = NULL;
-    pthread_mutex_unlock(&g_cache_lock);
+    cache *c = rbc_reg_get(&g_caches, id, 0, fn);
+    if (!c) return RBC_ERR_STALE_HANDLE;
+    rbc_reg_remove(&g_caches, id);
     rbc_result rc = RBC_OK;
     if (keep) {
         int ok = write_pc2_header(c) && fflush(c->f) == 0;

@@ -10,38 +10,29 @@
 
 #include "errors.h"
 #include "handles.h"
+#include "registry.h"
 #include "rbcloth.h"
 #include "solver.h"
 
 #define RBC_MAX_WORLDS 1024u
 #define RBC_MAX_THREADS 64u
 
-typedef struct slot {
-    uint32_t gen;  /* generation of the live object, or of the last one */
-    void *ptr;     /* NULL when free */
-} slot;
-
-typedef struct slot_table {
-    slot *slots;
-    uint32_t count, cap;
-} slot_table;
-
 typedef struct rbc_world {
     rbc_solver solver;
     rbc_allocator alloc;
     rbc_world_def def;
     uint32_t id;
-    slot_table cloths;
-    slot_table colliders; /* ptr holds (uintptr_t)1; the collider lives in the solver */
 } rbc_world;
 
-/* The world registry. Create and destroy take the lock; a lookup reads one slot,
- * which only the world's own (single) user thread may change. */
-static pthread_mutex_t g_worlds_lock = PTHREAD_MUTEX_INITIALIZER;
-static struct {
-    _Atomic uint32_t gen;
-    _Atomic(rbc_world *) ptr;
-} g_worlds[RBC_MAX_WORLDS];
+/* Ids of worlds, cloths and colliders (registry.h). Cloth and collider ids are
+ * unique across worlds, so a foreign id is told apart from a live one. */
+static rbc_reg_entry g_world_entries[RBC_MAX_WORLDS];
+static rbc_reg_entry g_cloth_entries[RBC_MAX_SLOTS];
+static rbc_reg_entry g_collider_entries[RBC_MAX_SLOTS];
+static rbc_registry g_worlds = RBC_REGISTRY_INIT(RBC_KIND_WORLD, RBC_MAX_WORLDS, g_world_entries);
+static rbc_registry g_cloths = RBC_REGISTRY_INIT(RBC_KIND_CLOTH, RBC_MAX_SLOTS, g_cloth_entries);
+static rbc_registry g_colliders =
+    RBC_REGISTRY_INIT(RBC_KIND_COLLIDER, RBC_MAX_SLOTS, g_collider_entries);
 
 /* ------------------------------------------------------------------------- */
 /* Helpers                                                                   */
@@ -83,71 +74,8 @@ static rbc_result read_def(void *dst, size_t dst_size, const void *src, const ch
 }
 
 static rbc_result lookup_world(rbc_world_id id, const char *fn, rbc_world **out) {
-    *out = NULL;
-    if (id == 0) return rbc_set_error(RBC_ERR_STALE_HANDLE, "%s: world id is 0 (null)", fn);
-    if (rbc_id_kind(id) != RBC_KIND_WORLD)
-        return rbc_set_error(RBC_ERR_STALE_HANDLE, "%s: id 0x%08x is a %s id, not a world id", fn,
-                             id, rbc_kind_name(rbc_id_kind(id)));
-    uint32_t slot_i = rbc_id_slot(id);
-    if (slot_i >= RBC_MAX_WORLDS)
-        return rbc_set_error(RBC_ERR_STALE_HANDLE, "%s: world id 0x%08x names no world", fn, id);
-    rbc_world *w = atomic_load(&g_worlds[slot_i].ptr);
-    if (!w || atomic_load(&g_worlds[slot_i].gen) != rbc_id_gen(id))
-        return rbc_set_error(RBC_ERR_STALE_HANDLE,
-                             "%s: world id 0x%08x is stale (destroyed, or never created)", fn, id);
-    *out = w;
-    return RBC_OK;
-}
-
-static rbc_result lookup_slot(rbc_world *w, slot_table *t, uint32_t kind, uint32_t id,
-                              const char *fn, uint32_t *out_slot) {
-    const char *kname = rbc_kind_name(kind);
-    if (id == 0) return world_error(w, RBC_ERR_STALE_HANDLE, "%s: %s id is 0 (null)", fn, kname);
-    if (rbc_id_kind(id) != kind)
-        return world_error(w, RBC_ERR_STALE_HANDLE, "%s: id 0x%08x is a %s id, not a %s id", fn,
-                           id, rbc_kind_name(rbc_id_kind(id)), kname);
-    uint32_t s = rbc_id_slot(id);
-    if (s >= t->count || !t->slots[s].ptr || t->slots[s].gen != rbc_id_gen(id))
-        return world_error(w, RBC_ERR_STALE_HANDLE,
-                           "%s: %s id 0x%08x is stale in world 0x%08x (destroyed, or from "
-                           "another world)",
-                           fn, kname, id, w->id);
-    *out_slot = s;
-    return RBC_OK;
-}
-
-/* Reserve a free slot (growing the table); does not mark it used. */
-static rbc_result slot_reserve(rbc_world *w, slot_table *t, const char *fn, const char *what,
-                               uint32_t *out) {
-    for (uint32_t s = 0; s < t->count; ++s)
-        if (!t->slots[s].ptr) {
-            *out = s;
-            return RBC_OK;
-        }
-    if (t->count == RBC_MAX_SLOTS)
-        return world_error(w, RBC_ERR_CAPACITY, "%s: the world already holds %u %ss", fn,
-                           RBC_MAX_SLOTS, what);
-    if (t->count == t->cap) {
-        uint32_t cap = t->cap ? t->cap * 2 : 8;
-        slot *ns = rbc_mem_alloc(&w->alloc, sizeof(slot) * cap);
-        if (!ns) return world_error(w, RBC_ERR_OUT_OF_MEMORY, "%s: out of memory", fn);
-        if (t->count) memcpy(ns, t->slots, sizeof(slot) * t->count);
-        rbc_mem_free(&w->alloc, t->slots, sizeof(slot) * t->cap);
-        t->slots = ns;
-        t->cap = cap;
-    }
-    *out = t->count;
-    return RBC_OK;
-}
-
-static uint32_t slot_commit(slot_table *t, uint32_t s, void *ptr, uint32_t kind) {
-    if (s == t->count) {
-        t->count++;
-        t->slots[s].gen = 0;
-    }
-    t->slots[s].gen = rbc_gen_next(t->slots[s].gen);
-    t->slots[s].ptr = ptr;
-    return rbc_id_make(kind, t->slots[s].gen, s);
+    *out = rbc_reg_get(&g_worlds, id, 0, fn);
+    return *out ? RBC_OK : RBC_ERR_STALE_HANDLE;
 }
 
 /* ------------------------------------------------------------------------- */
@@ -284,40 +212,25 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
         if (threads > RBC_MAX_THREADS) threads = RBC_MAX_THREADS;
     }
 
-    pthread_mutex_lock(&g_worlds_lock);
-    uint32_t s = RBC_MAX_WORLDS;
-    for (uint32_t k = 0; k < RBC_MAX_WORLDS; ++k)
-        if (!atomic_load(&g_worlds[k].ptr)) {
-            s = k;
-            break;
-        }
-    if (s == RBC_MAX_WORLDS) {
-        pthread_mutex_unlock(&g_worlds_lock);
-        return rbc_set_error(RBC_ERR_CAPACITY, "%s: %u worlds exist already", fn, RBC_MAX_WORLDS);
-    }
     rbc_world *w = rbc_mem_alloc(&alloc, sizeof *w);
-    if (!w) {
-        pthread_mutex_unlock(&g_worlds_lock);
-        return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: out of memory", fn);
-    }
+    if (!w) return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: out of memory", fn);
     w->alloc = alloc;
     w->def = def;
     if (rbc_solver_init(&w->solver, &alloc, threads) != RBC_OK) {
         rbc_mem_free(&alloc, w, sizeof *w);
-        pthread_mutex_unlock(&g_worlds_lock);
         return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: could not start %u worker threads", fn,
                              threads);
+    }
+    if (rbc_reg_add(&g_worlds, w, 0, &w->id) != RBC_OK) {
+        rbc_solver_fini(&w->solver);
+        rbc_mem_free(&alloc, w, sizeof *w);
+        return rbc_set_error(RBC_ERR_CAPACITY, "%s: %u worlds exist already", fn, RBC_MAX_WORLDS);
     }
     memcpy(w->solver.gravity, def.gravity, sizeof def.gravity);
     w->solver.substeps = def.substeps;
     w->solver.nonlinear_iterations = def.nonlinear_iterations;
     w->solver.linear_iterations = def.linear_iterations;
-    uint32_t gen = rbc_gen_next(atomic_load(&g_worlds[s].gen));
-    w->id = rbc_id_make(RBC_KIND_WORLD, gen, s);
     w->solver.public_world_id = w->id;
-    atomic_store(&g_worlds[s].gen, gen);
-    atomic_store(&g_worlds[s].ptr, w);
-    pthread_mutex_unlock(&g_worlds_lock);
     *out_world = w->id;
     char msg[128];
     snprintf(msg, sizeof msg, "world 0x%08x created: CPU backend, %u threads", w->id, threads);
@@ -326,19 +239,16 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
 }
 
 RBC_API rbc_result RBC_CALL rbc_world_destroy(rbc_world_id id) {
-    pthread_mutex_lock(&g_worlds_lock);
     rbc_world *w;
     rbc_result rc = lookup_world(id, "rbc_world_destroy", &w);
-    if (rc) {
-        pthread_mutex_unlock(&g_worlds_lock);
-        return rc;
-    }
-    atomic_store(&g_worlds[rbc_id_slot(id)].ptr, NULL);
-    pthread_mutex_unlock(&g_worlds_lock);
+    if (rc) return rc;
+    rbc_solver *sol = &w->solver;
+    for (uint32_t k = 0; k < sol->cloth_count; ++k) rbc_reg_remove(&g_cloths, sol->cloths[k]->public_id);
+    for (uint32_t k = 0; k < sol->collider_count; ++k)
+        rbc_reg_remove(&g_colliders, sol->colliders[k].public_id);
+    rbc_reg_remove(&g_worlds, id);
     rbc_allocator alloc = w->alloc;
-    rbc_solver_fini(&w->solver); /* destroys every cloth */
-    rbc_mem_free(&alloc, w->cloths.slots, sizeof(slot) * w->cloths.cap);
-    rbc_mem_free(&alloc, w->colliders.slots, sizeof(slot) * w->colliders.cap);
+    rbc_solver_fini(sol); /* destroys every cloth and collider */
     rbc_mem_free(&alloc, w, sizeof *w);
     return RBC_OK;
 }
@@ -459,9 +369,6 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create(rbc_world_id wid, const rbc_cloth_d
         return world_error(w, RBC_ERR_INVALID_ARGUMENT,
                            "%s: cloth def: damping is %g 1/s; it must be finite and >= 0", fn,
                            (double)def.damping);
-    uint32_t s = 0;
-    if ((rc = slot_reserve(w, &w->cloths, fn, "cloth", &s))) return rc;
-
     rbc_mesh_input in;
     memset(&in, 0, sizeof in);
     in.vertex_count = def.vertex_count;
@@ -480,11 +387,15 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create(rbc_world_id wid, const rbc_cloth_d
     rbc_cloth_state *c;
     rc = rbc_cloth_state_create(&w->solver, &in, def.damping, &c, msg, sizeof msg);
     if (rc) return world_error(w, rc, "%s: cloth def: %s", fn, msg);
+    if (rbc_reg_add(&g_cloths, c, w->id, &c->public_id) != RBC_OK) {
+        rbc_cloth_state_destroy(&w->solver, c);
+        return world_error(w, RBC_ERR_CAPACITY, "%s: %u cloths exist already", fn, RBC_MAX_SLOTS);
+    }
     if ((rc = rbc_solver_add_cloth(&w->solver, c))) {
+        rbc_reg_remove(&g_cloths, c->public_id);
         rbc_cloth_state_destroy(&w->solver, c);
         return world_error(w, rc, "%s: out of memory", fn);
     }
-    c->public_id = slot_commit(&w->cloths, s, c, RBC_KIND_CLOTH);
     *out_cloth = c->public_id;
     return RBC_OK;
 }
@@ -493,9 +404,11 @@ static rbc_result lookup_cloth(rbc_world_id wid, rbc_cloth_id cid, const char *f
                                rbc_world **ow, rbc_cloth_state **oc) {
     rbc_result rc = lookup_world(wid, fn, ow);
     if (rc) return rc;
-    uint32_t s = 0;
-    if ((rc = lookup_slot(*ow, &(*ow)->cloths, RBC_KIND_CLOTH, cid, fn, &s))) return rc;
-    *oc = (*ow)->cloths.slots[s].ptr;
+    *oc = rbc_reg_get(&g_cloths, cid, (*ow)->id, fn);
+    if (!*oc) {
+        world_log(*ow, RBC_LOG_ERROR, rbc_last_error());
+        return RBC_ERR_STALE_HANDLE;
+    }
     return RBC_OK;
 }
 
@@ -506,7 +419,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_destroy(rbc_world_id wid, rbc_cloth_id cid
     if (rc) return rc;
     rbc_solver_remove_cloth(&w->solver, c);
     rbc_cloth_state_destroy(&w->solver, c);
-    w->cloths.slots[rbc_id_slot(cid)].ptr = NULL;
+    rbc_reg_remove(&g_cloths, cid);
     return RBC_OK;
 }
 
@@ -624,8 +537,6 @@ RBC_API rbc_result RBC_CALL rbc_collider_create(rbc_world_id wid, const rbc_coll
                            "%s: collider def: thickness is %g m; it must be finite and >= 0", fn,
                            (double)def.thickness);
     if ((rc = check_transform(w, fn, def.position, def.rotation))) return rc;
-    uint32_t s = 0;
-    if ((rc = slot_reserve(w, &w->colliders, fn, "collider", &s))) return rc;
     rbc_collider_state cs;
     memset(&cs, 0, sizeof cs);
     cs.shape = def.shape;
@@ -633,12 +544,16 @@ RBC_API rbc_result RBC_CALL rbc_collider_create(rbc_world_id wid, const rbc_coll
     cs.thickness = def.thickness;
     memcpy(cs.position, def.position, sizeof cs.position);
     memcpy(cs.rotation, def.rotation, sizeof cs.rotation);
-    /* The id is known before insertion: slot s's next generation. */
-    uint32_t gen = rbc_gen_next(s < w->colliders.count ? w->colliders.slots[s].gen : 0);
-    cs.public_id = rbc_id_make(RBC_KIND_COLLIDER, gen, s);
-    if ((rc = rbc_solver_add_collider(&w->solver, &cs)))
+    /* The registry holds a marker; the collider itself lives in the solver's dense
+     * array, found by its id. */
+    if (rbc_reg_add(&g_colliders, (void *)(uintptr_t)1, w->id, &cs.public_id) != RBC_OK)
+        return world_error(w, RBC_ERR_CAPACITY, "%s: %u colliders exist already", fn,
+                           RBC_MAX_SLOTS);
+    if ((rc = rbc_solver_add_collider(&w->solver, &cs))) {
+        rbc_reg_remove(&g_colliders, cs.public_id);
         return world_error(w, rc, "%s: out of memory", fn);
-    *out = slot_commit(&w->colliders, s, (void *)(uintptr_t)1, RBC_KIND_COLLIDER);
+    }
+    *out = cs.public_id;
     return RBC_OK;
 }
 
@@ -646,8 +561,10 @@ static rbc_result lookup_collider(rbc_world_id wid, rbc_collider_id cid, const c
                                   rbc_world **ow, uint32_t *index) {
     rbc_result rc = lookup_world(wid, fn, ow);
     if (rc) return rc;
-    uint32_t s = 0;
-    if ((rc = lookup_slot(*ow, &(*ow)->colliders, RBC_KIND_COLLIDER, cid, fn, &s))) return rc;
+    if (!rbc_reg_get(&g_colliders, cid, (*ow)->id, fn)) {
+        world_log(*ow, RBC_LOG_ERROR, rbc_last_error());
+        return RBC_ERR_STALE_HANDLE;
+    }
     rbc_solver *sol = &(*ow)->solver;
     for (uint32_t k = 0; k < sol->collider_count; ++k)
         if (sol->colliders[k].public_id == cid) {
@@ -680,6 +597,6 @@ RBC_API rbc_result RBC_CALL rbc_collider_destroy(rbc_world_id wid, rbc_collider_
     rbc_result rc = lookup_collider(wid, cid, "rbc_collider_destroy", &w, &k);
     if (rc) return rc;
     rbc_solver_remove_collider(&w->solver, k);
-    w->colliders.slots[rbc_id_slot(cid)].ptr = NULL;
+    rbc_reg_remove(&g_colliders, cid);
     return RBC_OK;
 }
