@@ -25,7 +25,7 @@ test: build
 
 # Regenerate the committed ABI baseline after a deliberate ABI change.
 abi-baseline: build
-	abidw --no-corpus-path --headers-dir abi --out-file abi/rbcloth.abi $(BUILD)/lib/librbcloth.so
+	abidw --no-corpus-path --exported-interfaces-only --headers-dir abi --out-file abi/rbcloth.abi $(BUILD)/lib/librbcloth.so
 
 clean:
 	rm -rf $(BUILD) out

@@ -251,9 +251,12 @@ typedef struct rbc_cloth_def {
     const uint32_t *quads;
     /// Number of explicit extra springs.
     uint32_t spring_count;
-    /// Extra springs, 2 vertex indices each; duplicates of quad edges are merged.
+    /// Extra springs, 2 vertex indices each; duplicates of quad edges are merged. An
+    /// index out of range or a spring from a vertex to itself is RBC_ERR_BAD_MESH, as
+    /// are quads with an index out of range, a repeated vertex, coincident corners or
+    /// zero area, and a spring graph that two colors cannot separate.
     const uint32_t *springs;
-    /// Per-vertex masses, kg, or NULL to use `density` or `vertex_mass`.
+    /// Per-vertex masses, kg (finite, > 0), or NULL to use `density` or `vertex_mass`.
     const float *masses;
     /// Areal density, kg/m^2: if > 0 and `masses` is NULL, each quad's area is
     /// split equally among its four vertices. Default 0.
@@ -261,7 +264,8 @@ typedef struct rbc_cloth_def {
     /// Mass of every vertex, kg, when `masses` is NULL and `density` is 0.
     /// Default 1e-4.
     float vertex_mass;
-    /// Spring stiffness s of Eq. 4, N/m, for every spring. Default 1000.
+    /// Spring stiffness s of Eq. 4, N/m, for every spring; finite and > 0.
+    /// Default 1000.
     float stiffness;
     /// Velocity damping, 1/s: Alg. 2's f_damping as an acceleration -damping * v.
     /// Default 0. damping * substep length is clamped to 1 (critical).
@@ -269,6 +273,7 @@ typedef struct rbc_cloth_def {
     /// Number of pinned vertices.
     uint32_t pin_count;
     /// Vertices pinned at their initial positions (move them with rbc_cloth_set_pin).
+    /// An index out of range is RBC_ERR_INVALID_ARGUMENT.
     const uint32_t *pins;
 } rbc_cloth_def;
 
