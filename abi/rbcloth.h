@@ -42,6 +42,12 @@
  *  - RBC_ABI_VERSION_MAJOR changes only when an existing function, struct layout or
  *    meaning changes incompatibly; functions and struct fields are only appended
  *    within a major. rbc_get_api(major) returns the function table of that major.
+ *  - Each def and stats struct accepts the struct_size of every minor that had it:
+ *    RBC_*_SIZE_V1_0 name the 1.0 sizes; fields appended later take their defaults.
+ *  - 1.0: worlds, cloths (structural springs), plane/sphere colliders, callback,
+ *    OBJ/PC2 writers. 1.1: selectable global solvers and iteration control
+ *    (rbc_solver_def), shear and bend springs, multicolor coloring, residual and
+ *    PD objective in stats, cloth state get/set, color sizes.
  *  - The ABI version is not the library's release version (rbc_version_string).
  */
 #ifndef RBCLOTH_H
@@ -73,7 +79,7 @@ extern "C" {
 /// Major version of this ABI: incompatible changes bump it.
 #define RBC_ABI_VERSION_MAJOR 1
 /// Minor version of this ABI: appended functions or fields bump it.
-#define RBC_ABI_VERSION_MINOR 0
+#define RBC_ABI_VERSION_MINOR 1
 /// (major << 16) | minor, as returned by rbc_abi_version().
 #define RBC_ABI_VERSION ((RBC_ABI_VERSION_MAJOR << 16) | RBC_ABI_VERSION_MINOR)
 
@@ -165,6 +171,50 @@ enum {
     RBC_CACHE_FORMAT_FORCE32 = 0x7FFFFFFF
 };
 
+/// The solver of the global step (Eq. 6), per world. (1.1)
+typedef int32_t rbc_solver_kind;
+enum {
+    /// Gauss-Seidel in parallel sweeps, one per color (Red-Black for a bipartite
+    /// spring graph, more colors when shear/bend springs or odd cycles need them).
+    /// The default.
+    RBC_SOLVER_RBGS = 0,
+    /// Jacobi: every particle from the previous iterate, fully parallel.
+    RBC_SOLVER_JACOBI = 1,
+    /// Jacobi with Chebyshev semi-iterative acceleration (Wang 2015).
+    RBC_SOLVER_JACOBI_CHEBYSHEV = 2,
+    /// Serial lexicographic Gauss-Seidel in the host's vertex order on one thread
+    /// (the paper's CPU baseline).
+    RBC_SOLVER_GAUSS_SEIDEL = 3,
+    /// RBGS with successive over-relaxation by `omega`.
+    RBC_SOLVER_RBGS_SOR = 4,
+    /// RBGS with Chebyshev semi-iterative acceleration.
+    RBC_SOLVER_RBGS_CHEBYSHEV = 5,
+    /// Gauss-Seidel over the cloth's k-coloring: the same sweeps as RBC_SOLVER_RBGS,
+    /// named for graphs that need more than two colors.
+    RBC_SOLVER_MULTICOLOR_GS = 6,
+    /// The exact global step: a sparse Cholesky factorisation (CHOLMOD) of the
+    /// global matrix, made once and redone only when h, pins or topology change
+    /// (Liu 2013, Projective Dynamics). Linear iteration counts do not apply.
+    RBC_SOLVER_DIRECT = 7,
+    RBC_SOLVER_FORCE32 = 0x7FFFFFFF
+};
+
+/// When the linear iterations of a global step stop. (1.1)
+typedef int32_t rbc_iteration_mode;
+enum {
+    /// linear_iterations of the world (Alg. 1's fixed counts). The default.
+    RBC_ITERATE_FIXED = 0,
+    /// Until the relative residual of the global system falls below `tolerance`
+    /// (checked after every iteration; the check costs about half an iteration),
+    /// or max_linear_iterations.
+    RBC_ITERATE_TOLERANCE = 1,
+    /// As many iterations as fit in budget_ms per rbc_world_step (the paper's
+    /// Fig. 3/4 bottom rows), at least one per non-linear iteration, at most
+    /// max_linear_iterations.
+    RBC_ITERATE_BUDGET = 2,
+    RBC_ITERATE_FORCE32 = 0x7FFFFFFF
+};
+
 /* ------------------------------------------------------------------------- */
 /* Host hooks                                                                */
 /* ------------------------------------------------------------------------- */
@@ -203,6 +253,34 @@ typedef int32_t (RBC_CALL *rbc_collision_fn)(void *user, rbc_world_id world, flo
 /* Defs                                                                      */
 /* ------------------------------------------------------------------------- */
 
+/// How the global step is solved. Fill one with rbc_solver_def_init. (1.1)
+typedef struct rbc_solver_def {
+    /// sizeof(rbc_solver_def) as compiled by the host.
+    uint32_t struct_size;
+    /// An rbc_solver_kind. Default RBC_SOLVER_RBGS.
+    rbc_solver_kind solver;
+    /// SOR relaxation factor for RBC_SOLVER_RBGS_SOR, in (0, 2); 0 = the optimal
+    /// omega* = 2 / (1 + sqrt(1 - rho_J^2)) from the estimated Jacobi spectral radius
+    /// rho_J. Default 0.
+    float omega;
+    /// Jacobi spectral radius for the Chebyshev solvers, in (0, 1); 0 = estimated
+    /// by the library (power iteration on the global system, redone when h or the
+    /// topology change). Default 0.
+    float rho;
+    /// Plain iterations before Chebyshev acceleration starts (Wang 2015). Default 2.
+    uint32_t chebyshev_delay;
+    /// An rbc_iteration_mode. Default RBC_ITERATE_FIXED.
+    rbc_iteration_mode mode;
+    /// Relative residual |b - A p| / |b| to reach in RBC_ITERATE_TOLERANCE, > 0.
+    /// Default 1e-3.
+    float tolerance;
+    /// Milliseconds per rbc_world_step in RBC_ITERATE_BUDGET, > 0. Default 2.
+    float budget_ms;
+    /// Most linear iterations per non-linear iteration in the TOLERANCE and BUDGET
+    /// modes, 1..100000. Default 1000.
+    uint32_t max_linear_iterations;
+} rbc_solver_def;
+
 /// How a world is made. Fill one with rbc_world_def_init (or rbc_world_def_default).
 typedef struct rbc_world_def {
     /// sizeof(rbc_world_def) as compiled by the host.
@@ -233,7 +311,14 @@ typedef struct rbc_world_def {
     /// Optional log hook. Default NULL (messages are dropped).
     rbc_log_fn log;
     void *log_user;
+    /* --- 1.1 --- */
+    /// The global solver and iteration control, copied; NULL = the defaults of
+    /// rbc_solver_def_init. Default NULL.
+    const rbc_solver_def *solver;
 } rbc_world_def;
+
+/// sizeof(rbc_world_def) in ABI 1.0 (before `solver`).
+#define RBC_WORLD_DEF_SIZE_V1_0 ((uint32_t)offsetof(rbc_world_def, solver))
 
 /// How a cloth is made. Fill one with rbc_cloth_def_init (or rbc_cloth_def_default).
 /// All arrays are copied.
@@ -275,7 +360,18 @@ typedef struct rbc_cloth_def {
     /// Vertices pinned at their initial positions (move them with rbc_cloth_set_pin).
     /// An index out of range is RBC_ERR_INVALID_ARGUMENT.
     const uint32_t *pins;
+    /* --- 1.1 --- */
+    /// Stiffness of shear springs, N/m: one along each diagonal of every quad; 0 (the
+    /// default) adds none. Shear springs make the graph need 4 colors on a grid.
+    float shear_stiffness;
+    /// Stiffness of bend springs, N/m: one joining the far ends of every pair of
+    /// edges that are opposite at a vertex (skip-one springs: (i,j)-(i+2,j) on a
+    /// grid); 0 (the default) adds none.
+    float bend_stiffness;
 } rbc_cloth_def;
+
+/// sizeof(rbc_cloth_def) in ABI 1.0 (before `shear_stiffness`).
+#define RBC_CLOTH_DEF_SIZE_V1_0 ((uint32_t)offsetof(rbc_cloth_def, shear_stiffness))
 
 /// How a collider is made. Fill one with rbc_collider_def_init (or
 /// rbc_collider_def_default).
@@ -358,7 +454,26 @@ typedef struct rbc_world_stats {
     /// Largest relative spring violation | |p_i - p_j| / L_ij - 1 | now (0 for
     /// zero-length springs).
     double max_strain;
+    /* --- 1.1 --- */
+    /// The solver in use, an rbc_solver_kind.
+    rbc_solver_kind solver;
+    /// An rbc_iteration_mode.
+    rbc_iteration_mode iteration_mode;
+    /// Relative residual |b - A p| / |b| of the last substep's global linear system
+    /// (Eq. 6 over the free particles, with that substep's last local step) at the
+    /// current positions; 0 before the first step.
+    double linear_residual;
+    /// Projective Dynamics objective of the last substep at the current positions:
+    /// sum_i m_i / (2 h^2) |p_i - y_i|^2 + sum_s s / 2 (|p_a - p_b| - L)^2, joules.
+    double pd_objective;
+    /// Jacobi spectral radius in use (estimated or given; 0 if no solver needed it).
+    double spectral_radius;
+    /// SOR omega in use (RBGS_SOR), else 0.
+    double omega;
 } rbc_world_stats;
+
+/// sizeof(rbc_world_stats) in ABI 1.0 (before `solver`).
+#define RBC_WORLD_STATS_SIZE_V1_0 ((uint32_t)offsetof(rbc_world_stats, solver))
 
 /* ------------------------------------------------------------------------- */
 /* Functions                                                                 */
@@ -405,6 +520,7 @@ static inline rbc_cache_def rbc_cache_def_default(void) {
     rbc_cache_def_init(&d, (uint32_t)sizeof d);
     return d;
 }
+/* rbc_solver_def_default() is declared with the 1.1 functions below. */
 
 /// Create a world. *out_world receives its id.
 RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *def, rbc_world_id *out_world);
@@ -471,6 +587,30 @@ RBC_API rbc_result RBC_CALL rbc_cache_finish(rbc_cache_id cache);
 /// Abandon a cache: its temporary file is removed, the destination is untouched.
 RBC_API rbc_result RBC_CALL rbc_cache_destroy(rbc_cache_id cache);
 
+/* --- 1.1 --- */
+/// Fill a solver def with its defaults (see rbc_world_def_init for struct_size).
+RBC_API rbc_result RBC_CALL rbc_solver_def_init(rbc_solver_def *def, uint32_t struct_size);
+/// Change the global solver and iteration control for the next steps.
+RBC_API rbc_result RBC_CALL rbc_world_set_solver(rbc_world_id world, const rbc_solver_def *def);
+/// Read the solver settings in use (set def->struct_size first).
+RBC_API rbc_result RBC_CALL rbc_world_get_solver(rbc_world_id world, rbc_solver_def *def);
+/// Sizes of the cloth's color classes: sizes[c] = particles of color c, for
+/// c < min(capacity, colors); *out_color_count (if not NULL) = number of colors.
+RBC_API rbc_result RBC_CALL rbc_cloth_get_colors(rbc_world_id world, rbc_cloth_id cloth,
+                                                 uint32_t *sizes, uint32_t capacity,
+                                                 uint32_t *out_color_count);
+/// Copy positions and previous positions (the state Verlet integrates: velocity is
+/// (positions - previous) / h), x y z per vertex in the creation order; either
+/// pointer may be NULL. `capacity` is the number of floats each array holds.
+RBC_API rbc_result RBC_CALL rbc_cloth_get_state(rbc_world_id world, rbc_cloth_id cloth,
+                                                float *positions, float *previous,
+                                                size_t capacity);
+/// Replace positions and previous positions (NULL previous = the same as
+/// positions: at rest). Pinned vertices keep their pins. All values must be finite.
+RBC_API rbc_result RBC_CALL rbc_cloth_set_state(rbc_world_id world, rbc_cloth_id cloth,
+                                                const float *positions,
+                                                const float *previous);
+
 /* ------------------------------------------------------------------------- */
 /* Function table                                                            */
 /* ------------------------------------------------------------------------- */
@@ -523,7 +663,21 @@ typedef struct rbc_api_v1 {
     rbc_result (RBC_CALL *cache_write_frame)(rbc_cache_id cache, const float *xyz);
     rbc_result (RBC_CALL *cache_finish)(rbc_cache_id cache);
     rbc_result (RBC_CALL *cache_destroy)(rbc_cache_id cache);
+    /* --- 1.1 --- */
+    rbc_result (RBC_CALL *solver_def_init)(rbc_solver_def *def, uint32_t struct_size);
+    rbc_result (RBC_CALL *world_set_solver)(rbc_world_id world, const rbc_solver_def *def);
+    rbc_result (RBC_CALL *world_get_solver)(rbc_world_id world, rbc_solver_def *def);
+    rbc_result (RBC_CALL *cloth_get_colors)(rbc_world_id world, rbc_cloth_id cloth,
+                                            uint32_t *sizes, uint32_t capacity,
+                                            uint32_t *out_color_count);
+    rbc_result (RBC_CALL *cloth_get_state)(rbc_world_id world, rbc_cloth_id cloth,
+                                           float *positions, float *previous, size_t capacity);
+    rbc_result (RBC_CALL *cloth_set_state)(rbc_world_id world, rbc_cloth_id cloth,
+                                           const float *positions, const float *previous);
 } rbc_api_v1;
+
+/// sizeof(rbc_api_v1) in ABI 1.0 (a host built against 1.0 checks struct_size >= it).
+#define RBC_API_V1_SIZE_V1_0 ((uint32_t)offsetof(rbc_api_v1, solver_def_init))
 
 /// The function table of ABI major `abi_major`, or NULL if this library does not
 /// implement that major. The table is static: never free it.
@@ -531,6 +685,13 @@ RBC_API const void *RBC_CALL rbc_get_api(uint32_t abi_major);
 
 /// Signature of rbc_get_api, for dlsym / GetProcAddress.
 typedef const void *(RBC_CALL *rbc_get_api_fn)(uint32_t abi_major);
+
+/// C and C++ convenience, as the others: a solver def with defaults. (1.1)
+static inline rbc_solver_def rbc_solver_def_default(void) {
+    rbc_solver_def d;
+    rbc_solver_def_init(&d, (uint32_t)sizeof d);
+    return d;
+}
 
 #ifdef __cplusplus
 }
