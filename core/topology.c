@@ -1,10 +1,12 @@
-/* topology.c -- quad mesh -> particles and unique springs -> 2-coloring ->
- * color-contiguous particle order (Fig. 2 of the paper) -> CSR adjacency. */
+/* topology.c -- quad mesh -> particles and unique springs (structural, explicit,
+ * shear, bend) -> coloring -> color-contiguous particle order (Fig. 2 of the
+ * paper) -> CSR adjacency. */
 #include "topology.h"
 
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "../abi/rbcloth.h"
@@ -20,33 +22,15 @@ static int32_t fail(char *err, size_t errlen, int32_t code, const char *fmt, ...
     return code;
 }
 
-/* LSD radix sort of keys (i << 32 | j) with i, j < n, 16 bits a pass; the passes
- * over the upper 16 bits of each half are skipped when n <= 65536 (they are 0). */
-static void radix_sort_u64(uint64_t *keys, uint64_t *tmp, size_t count, uint32_t n,
-                           uint32_t *hist /* 65536 */) {
-    for (unsigned shift = 0; shift < 64; shift += 16) {
-        if ((shift == 16 || shift == 48) && n <= 65536) continue;
-        memset(hist, 0, 65536 * sizeof *hist);
-        for (size_t i = 0; i < count; ++i) hist[(keys[i] >> shift) & 0xFFFF]++;
-        uint32_t sum = 0;
-        for (size_t d = 0; d < 65536; ++d) {
-            uint32_t c = hist[d];
-            hist[d] = sum;
-            sum += c;
-        }
-        for (size_t i = 0; i < count; ++i) tmp[hist[(keys[i] >> shift) & 0xFFFF]++] = keys[i];
-        memcpy(keys, tmp, count * sizeof *keys);
-    }
-}
-
-static double dist3(const float *p, uint32_t a, uint32_t b) {
+static double dist3_sq(const float *p, uint32_t a, uint32_t b) {
     double dx = (double)p[3 * a] - p[3 * b], dy = (double)p[3 * a + 1] - p[3 * b + 1],
            dz = (double)p[3 * a + 2] - p[3 * b + 2];
-    return sqrt(dx * dx + dy * dy + dz * dz);
+    return dx * dx + dy * dy + dz * dz;
 }
 
-/* Area of a (possibly non-planar) quad: half the norm of the diagonals' cross product. */
-static double quad_area(const float *p, const uint32_t *q) {
+/* Squared norm of the cross product of a quad's diagonals, m^4: the area of a
+ * (possibly non-planar) quad is half its square root. */
+static double diag_cross_sq(const float *p, const uint32_t *q) {
     double d1[3], d2[3];
     for (int c = 0; c < 3; ++c) {
         d1[c] = (double)p[3 * q[2] + c] - p[3 * q[0] + c];
@@ -54,7 +38,7 @@ static double quad_area(const float *p, const uint32_t *q) {
     }
     double cx = d1[1] * d2[2] - d1[2] * d2[1], cy = d1[2] * d2[0] - d1[0] * d2[2],
            cz = d1[0] * d2[1] - d1[1] * d2[0];
-    return 0.5 * sqrt(cx * cx + cy * cy + cz * cz);
+    return cx * cx + cy * cy + cz * cz;
 }
 
 static int32_t validate(const rbc_mesh_input *in, char *err, size_t errlen) {
@@ -73,6 +57,14 @@ static int32_t validate(const rbc_mesh_input *in, char *err, size_t errlen) {
     if (!(isfinite(in->stiffness) && in->stiffness > 0.0f))
         return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                     "stiffness is %g N/m; it must be finite and > 0", (double)in->stiffness);
+    if (!(isfinite(in->shear_stiffness) && in->shear_stiffness >= 0.0f))
+        return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
+                    "shear_stiffness is %g N/m; it must be finite and >= 0",
+                    (double)in->shear_stiffness);
+    if (!(isfinite(in->bend_stiffness) && in->bend_stiffness >= 0.0f))
+        return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
+                    "bend_stiffness is %g N/m; it must be finite and >= 0",
+                    (double)in->bend_stiffness);
     for (uint32_t v = 0; v < n; ++v) {
         const float *p = in->positions + 3 * (size_t)v;
         if (!(isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2])))
@@ -92,22 +84,22 @@ static int32_t validate(const rbc_mesh_input *in, char *err, size_t errlen) {
                     return fail(err, errlen, RBC_ERR_BAD_MESH,
                                 "quad %u repeats vertex %u (corners %d and %d)", f, q[k], l, k);
         }
-        double longest = 0.0;
+        double longest2 = 0.0; /* squared, m^2: no square root per quad */
         for (int k = 0; k < 4; ++k) {
-            double len = dist3(in->positions, q[k], q[(k + 1) & 3]);
-            if (len == 0.0)
+            double len2 = dist3_sq(in->positions, q[k], q[(k + 1) & 3]);
+            if (len2 == 0.0)
                 return fail(err, errlen, RBC_ERR_BAD_MESH,
                             "quad %u is degenerate: vertices %u and %u coincide", f, q[k],
                             q[(k + 1) & 3]);
-            if (len > longest) longest = len;
+            if (len2 > longest2) longest2 = len2;
         }
         /* Zero area up to float rounding of the coordinates (relative 1e-6 of the
          * square of the longest edge): collinear or folded-flat corners. */
-        double area = quad_area(in->positions, q);
-        if (!(area > 1e-6 * longest * longest))
+        double area2 = 0.25 * diag_cross_sq(in->positions, q);
+        if (!(area2 > 1e-12 * longest2 * longest2))
             return fail(err, errlen, RBC_ERR_BAD_MESH,
-                        "quad %u is degenerate: area %g m^2 for an edge of %g m", f, area,
-                        longest);
+                        "quad %u is degenerate: area %g m^2 for an edge of %g m", f,
+                        sqrt(area2), sqrt(longest2));
     }
     for (uint32_t s = 0; s < in->spring_count; ++s) {
         uint32_t a = in->springs[2 * (size_t)s], b = in->springs[2 * (size_t)s + 1];
@@ -159,24 +151,195 @@ void rbc_topology_free(rbc_topology *t, const rbc_allocator *a) {
     memset(t, 0, sizeof *t);
 }
 
-/* Scratch used only while building. */
+#define NONE UINT32_MAX
+
+/* Scratch used only while building, released in one place. */
 typedef struct build_scratch {
-    uint64_t *keys, *tmp;
-    uint32_t *hist;
-    uint32_t *hadj_start, *hadj, *fill, *queue;
-    uint8_t *color;
-    size_t nkeys, n;
+    size_t n, nq, maxd, nbend_cap, nbend, nkeys;
+    uint32_t *vq_start;   /* [n+1] quad corners at each vertex: vq[vq_start[v] ..] */
+    uint32_t *vq;         /* [4 nq] corner as 4 f + k */
+    uint32_t *quad_nbr;   /* [4 nq] quad across edge k (corners k, k+1), or NONE */
+    uint64_t *bend;       /* [nbend_cap] bend springs, host (lo << 32 | hi) */
+    uint64_t *items;      /* [2 maxd] fan scratch */
+    uint32_t *fan;        /* [10 maxd] fan scratch */
+    uint32_t *bstart;     /* [n+1] spring keys bucketed by their lower host vertex */
+    uint32_t *fill;       /* [n] */
+    uint64_t *entries;    /* [nkeys] (upper host vertex << 32 | stiffness bits) */
+    uint8_t *color;       /* [n] */
 } build_scratch;
 
 static void scratch_free(build_scratch *s, const rbc_allocator *a) {
-    rbc_mem_free(a, s->keys, rbc_mul_size(s->nkeys, 8));
-    rbc_mem_free(a, s->tmp, rbc_mul_size(s->nkeys, 8));
-    rbc_mem_free(a, s->hist, 65536 * 4);
-    rbc_mem_free(a, s->hadj_start, rbc_mul_size(s->n + 1, 4));
-    rbc_mem_free(a, s->hadj, rbc_mul_size(s->nkeys, 8));
+    rbc_mem_free(a, s->vq_start, rbc_mul_size(s->n + 1, 4));
+    rbc_mem_free(a, s->vq, rbc_mul_size(s->nq, 16));
+    rbc_mem_free(a, s->quad_nbr, rbc_mul_size(s->nq, 16));
+    rbc_mem_free(a, s->bend, rbc_mul_size(s->nbend_cap, 8));
+    rbc_mem_free(a, s->items, rbc_mul_size(s->maxd, 16));
+    rbc_mem_free(a, s->fan, rbc_mul_size(s->maxd, 40));
+    rbc_mem_free(a, s->bstart, rbc_mul_size(s->n + 1, 4));
     rbc_mem_free(a, s->fill, rbc_mul_size(s->n, 4));
-    rbc_mem_free(a, s->queue, rbc_mul_size(s->n, 4));
+    rbc_mem_free(a, s->entries, rbc_mul_size(s->nkeys, 8));
     rbc_mem_free(a, s->color, s->n);
+    memset(s, 0, sizeof *s);
+}
+
+static int cmp_u64(const void *x, const void *y) {
+    uint64_t a = *(const uint64_t *)x, b = *(const uint64_t *)y;
+    return a < b ? -1 : a > b;
+}
+
+/* The few keys of one vertex: insertion sort for the usual handful, qsort beyond
+ * (a fan of hundreds of quads stays O(d log d)). */
+static void sort_u64(uint64_t *v, size_t m) {
+    if (m > 32) {
+        qsort(v, m, sizeof *v, cmp_u64);
+        return;
+    }
+    for (size_t i = 1; i < m; ++i) {
+        uint64_t x = v[i];
+        size_t j = i;
+        for (; j && v[j - 1] > x; --j) v[j] = v[j - 1];
+        v[j] = x;
+    }
+}
+
+static uint32_t float_bits(float x) {
+    uint32_t u;
+    memcpy(&u, &x, sizeof u);
+    return u;
+}
+
+static float bits_float(uint32_t u) {
+    float x;
+    memcpy(&x, &u, sizeof x);
+    return x;
+}
+
+/* Corners at each vertex (CSR), and the largest count. */
+static void build_vertex_quads(const rbc_mesh_input *in, build_scratch *s) {
+    const uint32_t n = in->vertex_count;
+    for (size_t c = 0; c < 4 * (size_t)in->quad_count; ++c) s->vq_start[in->quads[c] + 1]++;
+    s->maxd = 1;
+    for (uint32_t v = 0; v < n; ++v) {
+        if (s->vq_start[v + 1] > s->maxd) s->maxd = s->vq_start[v + 1];
+        s->vq_start[v + 1] += s->vq_start[v];
+    }
+    memcpy(s->fill, s->vq_start, (size_t)n * 4);
+    for (size_t c = 0; c < 4 * (size_t)in->quad_count; ++c)
+        s->vq[s->fill[in->quads[c]]++] = (uint32_t)c;
+}
+
+/* Going around each vertex b. Each quad at b is a link between its two edges at b
+ * (to the corners after and before b); each edge (b, x) is a node with as many
+ * links as quads share it: 1 on the boundary, 2 inside, 3+ where the mesh is
+ * non-manifold. Going around b through its quads is walking this small graph.
+ *
+ * Records, when asked, the quad across every manifold edge (s->quad_nbr) and the
+ * bend springs (s->bend): for every node f with two links, the nodes e and g at the
+ * far ends of its links are two quads apart on that side; they make a spring unless
+ * one of e, f, g is non-manifold (the walk stops there), e = g, or the other side is
+ * a single quad (e's other link reaches g: a valence-3 fan). Around an interior
+ * valence-4 vertex e and g are two apart both ways: the pair is kept from the middle
+ * with the lower node number only. */
+static void walk_fans(const rbc_mesh_input *in, build_scratch *s, int want_nbr, int want_bend) {
+    const uint32_t n = in->vertex_count;
+    const uint32_t *Q = in->quads;
+    const size_t m2 = 2 * s->maxd;
+    uint64_t *items = s->items;            /* (x << 32 | item), item = 2 link + side */
+    uint32_t *node_of = s->fan;            /* [item] the node of its edge */
+    uint32_t *node_x = s->fan + m2;        /* [node] the far vertex x of edge (b, x) */
+    uint32_t *node_cnt = s->fan + 2 * m2;  /* [node] links (quads) at that edge */
+    uint32_t *node_it = s->fan + 3 * m2;   /* [2 node] its first two items */
+    size_t nbend = 0;
+    for (uint32_t b = 0; b < n; ++b) {
+        const uint32_t s0 = s->vq_start[b], d = s->vq_start[b + 1] - s0;
+        for (uint32_t l = 0; l < d; ++l) {
+            uint32_t c = s->vq[s0 + l], k = c & 3;
+            const uint32_t *q = Q + (c & ~3u);
+            items[2 * l] = (uint64_t)q[(k + 1) & 3] << 32 | (2 * l);
+            items[2 * l + 1] = (uint64_t)q[(k + 3) & 3] << 32 | (2 * l + 1);
+        }
+        sort_u64(items, 2 * (size_t)d);
+        uint32_t nn = 0;
+        for (uint32_t t = 0; t < 2 * d; ++t) {
+            uint32_t x = (uint32_t)(items[t] >> 32), it = (uint32_t)items[t];
+            if (nn == 0 || node_x[nn - 1] != x) {
+                node_x[nn] = x;
+                node_cnt[nn++] = 0;
+            }
+            uint32_t g = nn - 1;
+            if (node_cnt[g] < 2) node_it[2 * g + node_cnt[g]] = it;
+            node_cnt[g]++;
+            node_of[it] = g;
+        }
+        if (want_nbr)
+            for (uint32_t g = 0; g < nn; ++g) {
+                if (node_cnt[g] != 2 || node_x[g] < b) continue; /* once per edge */
+                uint32_t c1 = s->vq[s0 + (node_it[2 * g] >> 1)];
+                uint32_t c2 = s->vq[s0 + (node_it[2 * g + 1] >> 1)];
+                /* Side 0 (after b) is edge k of the quad, side 1 edge k-1. */
+                uint32_t e1 = (node_it[2 * g] & 1) ? (c1 + 3) & 3 : c1 & 3;
+                uint32_t e2 = (node_it[2 * g + 1] & 1) ? (c2 + 3) & 3 : c2 & 3;
+                s->quad_nbr[(c1 & ~3u) + e1] = c2 >> 2;
+                s->quad_nbr[(c2 & ~3u) + e2] = c1 >> 2;
+            }
+        if (want_bend)
+            for (uint32_t f = 0; f < nn; ++f) {
+                if (node_cnt[f] != 2) continue;
+                const uint32_t i1 = node_it[2 * f], i2 = node_it[2 * f + 1];
+                const uint32_t e = node_of[i1 ^ 1], g = node_of[i2 ^ 1];
+                if (e == g || node_cnt[e] > 2 || node_cnt[g] > 2) continue;
+                if (node_cnt[e] == 2) {
+                    uint32_t io = (node_it[2 * e] >> 1) == (i1 >> 1) ? node_it[2 * e + 1]
+                                                                      : node_it[2 * e];
+                    uint32_t h = node_of[io ^ 1];
+                    if (h == g) continue; /* the other side is a single quad */
+                    if (node_cnt[h] == 2) {
+                        uint32_t ho = (node_it[2 * h] >> 1) == (io >> 1) ? node_it[2 * h + 1]
+                                                                          : node_it[2 * h];
+                        if (node_of[ho ^ 1] == g && h < f) continue; /* 4-fan: once */
+                    }
+                }
+                uint64_t xa = node_x[e], xc = node_x[g];
+                s->bend[nbend++] = xa < xc ? (xa << 32 | xc) : (xc << 32 | xa);
+            }
+    }
+    if (want_bend) s->nbend = nbend;
+}
+
+/* Every spring key once, with its stiffness: counted into the bucket of its lower
+ * host vertex (scatter 0), then written there (scatter 1). */
+static void put_key(build_scratch *s, uint32_t i, uint32_t j, uint32_t kbits, int scatter) {
+    if (i > j) {
+        uint32_t t = i;
+        i = j;
+        j = t;
+    }
+    if (scatter) s->entries[s->fill[i]++] = (uint64_t)j << 32 | kbits;
+    else s->bstart[i + 1]++;
+}
+
+static void emit_keys(const rbc_mesh_input *in, build_scratch *s, int scatter) {
+    const uint32_t ks = float_bits(in->stiffness);
+    for (uint32_t f = 0; f < in->quad_count; ++f) {
+        const uint32_t *q = in->quads + 4 * (size_t)f;
+        for (int k = 0; k < 4; ++k) /* an edge of two quads from the lower one only */
+            if (!s->quad_nbr || s->quad_nbr[4 * (size_t)f + k] == NONE ||
+                s->quad_nbr[4 * (size_t)f + k] > f)
+                put_key(s, q[k], q[(k + 1) & 3], ks, scatter);
+    }
+    for (uint32_t e = 0; e < in->spring_count; ++e)
+        put_key(s, in->springs[2 * (size_t)e], in->springs[2 * (size_t)e + 1], ks, scatter);
+    if (in->shear_stiffness > 0.0f) {
+        const uint32_t kh = float_bits(in->shear_stiffness);
+        for (uint32_t f = 0; f < in->quad_count; ++f) {
+            const uint32_t *q = in->quads + 4 * (size_t)f;
+            put_key(s, q[0], q[2], kh, scatter);
+            put_key(s, q[1], q[3], kh, scatter);
+        }
+    }
+    const uint32_t kb = float_bits(in->bend_stiffness);
+    for (size_t k = 0; k < s->nbend; ++k)
+        put_key(s, (uint32_t)(s->bend[k] >> 32), (uint32_t)s->bend[k], kb, scatter);
 }
 
 int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc_topology *out,
@@ -185,77 +348,75 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
     int32_t rc = validate(in, err, errlen);
     if (rc != RBC_OK) return rc;
 
-    const uint32_t n = in->vertex_count;
+    const uint32_t n = in->vertex_count, nq = in->quad_count;
     const float *P = in->positions;
+    const int want_bend = in->bend_stiffness > 0.0f && nq > 0;
+    rbc_topology *t = out;
     build_scratch s;
     memset(&s, 0, sizeof s);
     s.n = n;
-    s.nkeys = 4 * (size_t)in->quad_count + in->spring_count;
-    s.keys = rbc_mem_alloc(a, rbc_mul_size(s.nkeys, 8));
-    s.tmp = rbc_mem_alloc(a, rbc_mul_size(s.nkeys, 8));
-    s.hist = rbc_mem_alloc(a, 65536 * 4);
-    s.hadj_start = rbc_mem_alloc(a, rbc_mul_size((size_t)n + 1, 4));
-    s.hadj = rbc_mem_alloc(a, rbc_mul_size(s.nkeys, 8));
+    s.nq = nq;
+
+    /* 1. The quads around each vertex. Walking them gives the bend springs (at most
+     * one per quad at a vertex, so 4 nq bound them) and the quad across each edge:
+     * the structural keys then skip shared edges the second time, and a multicolor
+     * coloring (likely with shear, bend or explicit springs) tries the lattice. */
+    const int want_nbr = nq > 0 && (in->shear_stiffness > 0.0f || want_bend || in->spring_count);
+    s.vq_start = rbc_mem_alloc(a, rbc_mul_size((size_t)n + 1, 4));
     s.fill = rbc_mem_alloc(a, rbc_mul_size(n, 4));
-    s.queue = rbc_mem_alloc(a, rbc_mul_size(n, 4));
     s.color = rbc_mem_alloc(a, n);
-    if (!s.keys || !s.tmp || !s.hist || !s.hadj_start || !s.hadj || !s.fill || !s.queue ||
-        !s.color) {
-        scratch_free(&s, a);
-        return fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory building the topology");
-    }
-
-    /* 1. Unique springs: every quad edge and extra spring as the key (min << 32 | max),
-     * sorted; duplicates (edges shared by two quads) collapse to one spring. */
-    size_t nk = 0;
-    for (uint32_t f = 0; f < in->quad_count; ++f) {
-        const uint32_t *q = in->quads + 4 * (size_t)f;
-        for (int k = 0; k < 4; ++k) {
-            uint64_t i = q[k], j = q[(k + 1) & 3];
-            s.keys[nk++] = i < j ? (i << 32 | j) : (j << 32 | i);
+    if (!s.vq_start || !s.fill || !s.color) goto oom;
+    if (want_nbr) {
+        s.vq = rbc_mem_alloc(a, rbc_mul_size(nq, 16));
+        s.quad_nbr = rbc_mem_alloc(a, rbc_mul_size(nq, 16));
+        if (!s.vq || !s.quad_nbr) goto oom;
+        memset(s.quad_nbr, 0xFF, (size_t)nq * 16);
+        build_vertex_quads(in, &s);
+        s.items = rbc_mem_alloc(a, rbc_mul_size(s.maxd, 16));
+        s.fan = rbc_mem_alloc(a, rbc_mul_size(s.maxd, 40));
+        if (!s.items || !s.fan) goto oom;
+        if (want_bend) {
+            s.nbend_cap = 4 * (size_t)nq;
+            if (!(s.bend = rbc_mem_alloc(a, rbc_mul_size(s.nbend_cap, 8)))) goto oom;
         }
+        walk_fans(in, &s, 1, want_bend);
     }
-    for (uint32_t e = 0; e < in->spring_count; ++e) {
-        uint64_t i = in->springs[2 * (size_t)e], j = in->springs[2 * (size_t)e + 1];
-        s.keys[nk++] = i < j ? (i << 32 | j) : (j << 32 | i);
-    }
-    radix_sort_u64(s.keys, s.tmp, nk, n, s.hist);
-    size_t ns = 0;
-    for (size_t k = 0; k < nk; ++k)
-        if (ns == 0 || s.keys[k] != s.keys[ns - 1]) s.keys[ns++] = s.keys[k];
-    if (ns > UINT32_MAX / 2) {
+
+    /* 2. Unique springs: every key bucketed by its lower host vertex (a counting
+     * sort, O(n + keys)), each bucket sorted by (upper vertex, stiffness bits) and
+     * cut to one entry per upper vertex: the last, whose stiffness is the largest
+     * (non-negative floats order as their bits). */
+    const size_t most_keys = 4 * (size_t)nq + in->spring_count + s.nbend +
+                             (in->shear_stiffness > 0.0f ? 2 * (size_t)nq : 0);
+    if (most_keys > UINT32_MAX / 2) { /* 32-bit counts and 2 ns adjacency slots */
         scratch_free(&s, a);
-        return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT, "too many springs (%zu)", ns);
+        return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
+                    "too many springs (up to %zu; at most %u)", most_keys, UINT32_MAX / 2);
     }
+    s.bstart = rbc_mem_alloc(a, rbc_mul_size((size_t)n + 1, 4));
+    if (!s.bstart) goto oom;
+    emit_keys(in, &s, 0);
+    for (uint32_t v = 0; v < n; ++v) s.bstart[v + 1] += s.bstart[v];
+    s.nkeys = s.bstart[n];
+    if (!(s.entries = rbc_mem_alloc(a, rbc_mul_size(s.nkeys, 8)))) goto oom;
+    memcpy(s.fill, s.bstart, (size_t)n * 4);
+    emit_keys(in, &s, 1);
+    uint32_t ns = 0;
+    for (uint32_t v = 0, r = 0; v < n; ++v) {
+        const uint32_t end = s.bstart[v + 1];
+        sort_u64(s.entries + r, end - r);
+        s.bstart[v] = ns;
+        for (; r < end; ++r)
+            if (r + 1 == end || (s.entries[r] >> 32) != (s.entries[r + 1] >> 32))
+                s.entries[ns++] = s.entries[r];
+    }
+    s.bstart[n] = ns;
 
-    /* 2. Host-order CSR of the spring graph, for coloring. */
-    for (size_t k = 0; k < ns; ++k) {
-        s.hadj_start[(uint32_t)(s.keys[k] >> 32) + 1]++;
-        s.hadj_start[(uint32_t)s.keys[k] + 1]++;
-    }
-    for (uint32_t v = 0; v < n; ++v) s.hadj_start[v + 1] += s.hadj_start[v];
-    memcpy(s.fill, s.hadj_start, (size_t)n * 4);
-    for (size_t k = 0; k < ns; ++k) {
-        uint32_t i = (uint32_t)(s.keys[k] >> 32), j = (uint32_t)s.keys[k];
-        s.hadj[s.fill[i]++] = j;
-        s.hadj[s.fill[j]++] = i;
-    }
-
-    /* 3. Red-black coloring. */
-    uint32_t bad_a = 0, bad_b = 0;
-    if (rbc_color_bipartite(n, s.hadj_start, s.hadj, s.color, s.queue, &bad_a, &bad_b) != 0) {
-        scratch_free(&s, a);
-        return fail(err, errlen, RBC_ERR_BAD_MESH,
-                    "the spring graph is not bipartite (an odd cycle closes at the spring "
-                    "between vertices %u and %u); two colors cannot separate it and "
-                    "multicolor solving is not supported in this release",
-                    bad_a, bad_b);
-    }
-
-    /* 4. Allocate the topology. */
-    rbc_topology *t = out;
+    /* 3. Allocate the topology; its adjacency arrays hold the host-order CSR of the
+     * spring graph for the coloring first (so no second copy is faulted in), the
+     * internal one after. */
     t->n = n;
-    t->ns = (uint32_t)ns;
+    t->ns = ns;
     int ok = 1;
     size_t bytes = 0;
 #define ALLOC_ONE(name, type, count)                                         \
@@ -270,16 +431,67 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
         return fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for %u particles", n);
     }
     t->bytes = bytes;
+    uint32_t *hadj_start = t->adj_start, *hadj = t->adj_nbr;
+    for (uint32_t v = 0; v < n; ++v)
+        for (uint32_t k = s.bstart[v]; k < s.bstart[v + 1]; ++k) {
+            hadj_start[v + 1]++;
+            hadj_start[(uint32_t)(s.entries[k] >> 32) + 1]++;
+        }
+    for (uint32_t v = 0; v < n; ++v) hadj_start[v + 1] += hadj_start[v];
+    memcpy(s.fill, hadj_start, (size_t)n * 4);
+    for (uint32_t v = 0; v < n; ++v)
+        for (uint32_t k = s.bstart[v]; k < s.bstart[v + 1]; ++k) {
+            uint32_t w = (uint32_t)(s.entries[k] >> 32);
+            hadj[s.fill[v]++] = w;
+            hadj[s.fill[w]++] = v;
+        }
 
-    /* 5. Color-contiguous order: red particles first, then black, each in host order
+    /* 4. Coloring: red-black when the graph is bipartite; otherwise multicolor
+     * (coloring.h), with the lattice try when the quads' neighbors are known. */
+    uint32_t bad_a = 0, bad_b = 0, ncolors = 0;
+    rbc_color_method method = RBC_COLOR_METHOD_BIPARTITE;
+    if (rbc_color_bipartite(n, hadj_start, hadj, s.color, s.fill, &bad_a, &bad_b) == 0) {
+        ncolors = 1;
+        for (uint32_t v = 0; v < n && ncolors == 1; ++v) ncolors += s.color[v];
+    } else {
+        if (nq && !s.quad_nbr) { /* structural springs only: an odd loop */
+            s.vq = rbc_mem_alloc(a, rbc_mul_size(nq, 16));
+            s.quad_nbr = rbc_mem_alloc(a, rbc_mul_size(nq, 16));
+            if (!s.vq || !s.quad_nbr) goto oom_topo;
+            memset(s.quad_nbr, 0xFF, (size_t)nq * 16);
+            build_vertex_quads(in, &s);
+            s.items = rbc_mem_alloc(a, rbc_mul_size(s.maxd, 16));
+            s.fan = rbc_mem_alloc(a, rbc_mul_size(s.maxd, 40));
+            if (!s.items || !s.fan) goto oom_topo;
+            walk_fans(in, &s, 1, 0);
+        }
+        rbc_color_input cg = {n, hadj_start, hadj, nq, in->quads, s.quad_nbr};
+        uint32_t bad = 0;
+        int cr = rbc_color_graph(&cg, RBC_MAX_COLORS, a, s.color, &ncolors, &bad, &method);
+        if (cr == RBC_COLOR_NO_MEMORY) goto oom_topo;
+        if (cr != 0) {
+            uint32_t deg = hadj_start[bad + 1] - hadj_start[bad];
+            rbc_topology_free(t, a);
+            scratch_free(&s, a);
+            return fail(err, errlen, RBC_ERR_BAD_MESH,
+                        "vertex %u: its %u springs reach vertices of all %d colors; the "
+                        "spring graph needs more than %d colors (too dense explicit springs?)",
+                        bad, deg, RBC_MAX_COLORS, RBC_MAX_COLORS);
+        }
+    }
+    memset(t->adj_start, 0, ((size_t)n + 1) * 4); /* the internal CSR is built in 8 */
+
+    /* 6. Color-contiguous order: color 0 first, then 1, ..., each in host order
      * (keeps a grid's rows together within a color for locality). */
-    uint32_t count[2] = {0, 0};
-    for (uint32_t v = 0; v < n; ++v) count[s.color[v]]++;
-    t->ncolors = count[1] ? 2 : 1;
+    uint32_t next[RBC_MAX_COLORS] = {0};
+    for (uint32_t v = 0; v < n; ++v) next[s.color[v]]++;
+    t->ncolors = ncolors;
+    t->color_method = (uint32_t)method;
     t->color_start[0] = 0;
-    t->color_start[1] = count[0];
-    t->color_start[2] = n;
-    uint32_t next[2] = {0, count[0]};
+    for (uint32_t c = 0; c < ncolors; ++c) {
+        t->color_start[c + 1] = t->color_start[c] + next[c];
+        next[c] = t->color_start[c];
+    }
     for (uint32_t v = 0; v < n; ++v) {
         uint32_t i = next[s.color[v]]++;
         t->to_internal[v] = i;
@@ -289,14 +501,14 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
         t->rest_z[i] = P[3 * (size_t)v + 2];
     }
 
-    /* 6. Masses: given, lumped from areal density (a quarter of each quad's area to
+    /* 7. Masses: given, lumped from areal density (a quarter of each quad's area to
      * each corner), or uniform. */
     if (in->masses) {
         for (uint32_t v = 0; v < n; ++v) t->mass[t->to_internal[v]] = in->masses[v];
     } else if (in->density > 0.0f) {
-        for (uint32_t f = 0; f < in->quad_count; ++f) {
+        for (uint32_t f = 0; f < nq; ++f) {
             const uint32_t *q = in->quads + 4 * (size_t)f;
-            float m = (float)(0.25 * in->density * quad_area(P, q));
+            float m = (float)(0.25 * in->density * (0.5 * sqrt(diag_cross_sq(P, q))));
             for (int k = 0; k < 4; ++k) t->mass[t->to_internal[q[k]]] += m;
         }
         for (uint32_t v = 0; v < n; ++v)
@@ -314,26 +526,29 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
     }
     for (uint32_t k = 0; k < in->pin_count; ++k) t->pinned_at_rest[t->to_internal[in->pins[k]]] = 1;
 
-    /* 7. Springs and the internal CSR adjacency with one slot per spring end. */
-    for (size_t k = 0; k < ns; ++k) {
-        uint32_t hi = (uint32_t)(s.keys[k] >> 32), hj = (uint32_t)s.keys[k];
-        uint32_t i = t->to_internal[hi], j = t->to_internal[hj];
-        t->sa[k] = i;
-        t->sb[k] = j;
-        double len = dist3(P, hi, hj);
-        t->rest_len[k] = (float)len;
-        t->stiff[k] = in->stiffness;
-        if (len > 0.0) {
-            t->ux[k] = (float)(((double)P[3 * (size_t)hi] - P[3 * (size_t)hj]) / len);
-            t->uy[k] = (float)(((double)P[3 * (size_t)hi + 1] - P[3 * (size_t)hj + 1]) / len);
-            t->uz[k] = (float)(((double)P[3 * (size_t)hi + 2] - P[3 * (size_t)hj + 2]) / len);
+    /* 8. Springs (sorted by host (lower, upper) vertex) with their own stiffness, and
+     * the internal CSR adjacency with one slot per spring end. */
+    uint32_t k = 0;
+    for (uint32_t hi = 0; hi < n; ++hi)
+        for (uint32_t e = s.bstart[hi]; e < s.bstart[hi + 1]; ++e, ++k) {
+            uint32_t hj = (uint32_t)(s.entries[e] >> 32);
+            uint32_t i = t->to_internal[hi], j = t->to_internal[hj];
+            t->sa[k] = i;
+            t->sb[k] = j;
+            double len = sqrt(dist3_sq(P, hi, hj));
+            t->rest_len[k] = (float)len;
+            t->stiff[k] = bits_float((uint32_t)s.entries[e]);
+            if (len > 0.0) {
+                t->ux[k] = (float)(((double)P[3 * (size_t)hi] - P[3 * (size_t)hj]) / len);
+                t->uy[k] = (float)(((double)P[3 * (size_t)hi + 1] - P[3 * (size_t)hj + 1]) / len);
+                t->uz[k] = (float)(((double)P[3 * (size_t)hi + 2] - P[3 * (size_t)hj + 2]) / len);
+            }
+            t->adj_start[i + 1]++;
+            t->adj_start[j + 1]++;
         }
-        t->adj_start[i + 1]++;
-        t->adj_start[j + 1]++;
-    }
     for (uint32_t i = 0; i < n; ++i) t->adj_start[i + 1] += t->adj_start[i];
     memcpy(s.fill, t->adj_start, (size_t)n * 4);
-    for (size_t k = 0; k < ns; ++k) {
+    for (k = 0; k < ns; ++k) {
         uint32_t i = t->sa[k], j = t->sb[k];
         uint32_t si = s.fill[i]++, sj = s.fill[j]++;
         t->adj_nbr[si] = j;
@@ -347,4 +562,10 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
     }
     scratch_free(&s, a);
     return RBC_OK;
+
+oom_topo:
+    rbc_topology_free(t, a);
+oom:
+    scratch_free(&s, a);
+    return fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory building the topology");
 }

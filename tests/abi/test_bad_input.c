@@ -14,8 +14,10 @@
  *   RBC_ERR_INVALID_ARGUMENT  "an argument or a def field is out of its documented
  *                             range (NULL pointer, non-finite number, dt <= 0,
  *                             wrong struct_size, ...)"
- *   RBC_ERR_BAD_MESH          "index out of range, degenerate quad, non-bipartite
- *                             graph": quads and springs define the mesh/graph.
+ *   RBC_ERR_BAD_MESH          "index out of range, degenerate quad, ...": quads
+ *                             and springs define the mesh/graph. A non-bipartite
+ *                             graph is no longer one (ABI 1.1 colors it with
+ *                             more colors); it is checked to be accepted.
  *   RBC_ERR_STALE_HANDLE      "destroyed, belongs to another world or is of
  *                             another kind".
  * Pins are not part of the mesh (they are a def field holding vertex numbers
@@ -454,9 +456,10 @@ static void test_world_def(void) {
 
 /* An 11 x 10 quad torus: periodic in both directions, 11 columns wrapping. The
  * cycle around the 11 columns has odd length, so the spring graph is not
- * bipartite and cannot be red-black colored (FIELD-NOTES: "an 11x10 torus ... not
- * bipartite"). Embedded as a real torus (R = 1, r = 0.3) so no quad is
- * degenerate. */
+ * bipartite (FIELD-NOTES: "an 11x10 torus ... not bipartite"). Since ABI 1.1 such
+ * a graph is colored with more colors instead of refused: it is accepted with 3
+ * (an odd cycle needs 3; 3 suffice here). Embedded as a real torus (R = 1,
+ * r = 0.3) so no quad is degenerate. */
 static void test_torus(void) {
     enum { NU = 11, NV = 10 };
     float pos[3 * NU * NV];
@@ -483,10 +486,21 @@ static void test_torus(void) {
     d.positions = pos;
     d.quad_count = NU * NV;
     d.quads = quads;
-    TRY_CLOTH(&d, RBC_ERR_BAD_MESH, "11x10 torus (non-bipartite)");
+    {
+        rbc_cloth_id c = 0;
+        CHECK_EQ(rbc_cloth_create(W, &d, &c), RBC_OK);
+        if (c) {
+            uint32_t springs = 0, colors = 0;
+            CHECK_EQ(rbc_cloth_get_topology(W, c, &springs, &colors), RBC_OK);
+            CHECK_EQ(springs, 2 * NU * NV);
+            CHECK_EQ(colors, 3); /* "11x10 torus (non-bipartite)": 3 colors, not refused */
+            CHECK_EQ(rbc_cloth_destroy(W, c), RBC_OK);
+        }
+        CHECK(test_snap_same(&S, __LINE__));
+    }
 
-    /* Control: a 12 x 10 torus (even cycles both ways) is bipartite and valid,
-     * so the refusal above is about the odd cycle, not about tori. */
+    /* Control: a 12 x 10 torus (even cycles both ways) is bipartite: red-black,
+     * 2 colors. */
     enum { MU = 12 };
     float pos2[3 * MU * NV];
     uint32_t quads2[4 * MU * NV];
@@ -693,7 +707,8 @@ static void test_cloth_def(void) {
     }
     /* Extra springs: spring 2 of 3 out of range, a self-spring i-i, NULL, and a
      * diagonal (shear) spring, which closes a triangle with two quad edges: an
-     * odd cycle, so the graph is not bipartite. */
+     * odd cycle, so the graph is not bipartite and takes 3 colors (ABI 1.1;
+     * refused before). */
     {
         uint32_t springs[6] = {0, 1, 5, 25, 10, nv}; /* two quad edges, then 10-nv */
         rbc_cloth_def d = base;
@@ -727,7 +742,16 @@ static void test_cloth_def(void) {
         uint32_t diag[2] = {0, 21}; /* (0,0)-(1,1): with 0-1 and 1-21, a triangle */
         d.springs = diag;
         d.spring_count = 1;
-        TRY_CLOTH(&d, RBC_ERR_BAD_MESH, "diagonal spring (odd cycle)");
+        c = 0;
+        CHECK_EQ(rbc_cloth_create(W, &d, &c), RBC_OK); /* "diagonal spring (odd cycle)" */
+        if (c) {
+            uint32_t ns = 0, colors = 0;
+            CHECK_EQ(rbc_cloth_get_topology(W, c, &ns, &colors), RBC_OK);
+            CHECK_EQ(ns, test_grid_spring_count(&g) + 1);
+            CHECK_EQ(colors, 3);
+            CHECK_EQ(rbc_cloth_destroy(W, c), RBC_OK);
+        }
+        CHECK(test_snap_same(&S, __LINE__));
     }
     test_torus();
 #undef RESET
