@@ -1,4 +1,4 @@
-/* main.c -- the rbcloth command line: `run`, `info` and `--help`.
+/* main.c -- the rbcloth command line: `run`, `bench`, `info` and `--help`.
  *
  * The plugin is loaded with dlopen (see plugin.c) and used only through its
  * function table, as any host would. Exit codes: 0 success, 1 runtime failure,
@@ -10,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "bench.h"
 #include "plugin.h"
 #include "run.h"
 
@@ -26,6 +27,13 @@ static const char usage_text[] =
     "                              NAME.obj (rest mesh), NAME.pc2 (point cache of every\n"
     "                              frame) and NAME.json (summary); with several cloths\n"
     "                              NAME_CLOTH.obj and NAME_CLOTH.pc2 per cloth\n"
+    "  bench accuracy [OPTIONS]    the paper's convergence experiments (Figs. 3, 4)\n"
+    "                              for every solver: Eq. 7 per frame at 11 iterations\n"
+    "                              and within 2 ms, a budget sweep, the PD objective\n"
+    "                              gap; CSVs, pareto.md and PNG plots (gnuplot) in DIR\n"
+    "  bench stability [OPTIONS]   a stability map of every solver over stiffness, dt,\n"
+    "                              mass ratio, size, degenerate springs, stretch, pins\n"
+    "                              and a moving sphere: stability.csv, stability.md\n"
     "  info                        print the plugin's path, ABI version and version\n"
     "\n"
     "Options of run:\n"
@@ -35,6 +43,12 @@ static const char usage_text[] =
     "  --substeps N      substeps per frame (1..1024)\n"
     "  --iterations N    linear Red-Black Gauss-Seidel iterations (1..4096)\n"
     "  --quiet           no progress bar and no table of timings\n"
+    "\n"
+    "Options of bench:\n"
+    "  --out DIR         output directory, created if missing (default: out/bench)\n"
+    "  --frames N        frames per run (accuracy: default 240; stability: 200)\n"
+    "  --threads N       worker threads of every world; 0 = one per core\n"
+    "  --quick           fewer frames, budgets and cases (a smoke run, for tests)\n"
     "\n"
     "  -h, --help        show this help\n"
     "\n"
@@ -154,6 +168,84 @@ static int command_run(int argc, char **argv) {
     return rc;
 }
 
+static int parse_bench_args(int argc, char **argv, cli_bench_options *o) {
+    int_option ints[] = {
+        {"--frames", 1, 1000000, &o->frames},
+        {"--threads", 0, 1024, &o->threads},
+    };
+    for (int i = 0; i < argc; ++i) {
+        const char *arg = argv[i];
+        if (strcmp(arg, "--quick") == 0) {
+            o->quick = 1;
+            continue;
+        }
+        if (arg[0] != '-')
+            return usage_error("bench takes no file arguments, got '%s'", arg);
+        const char *eq = strchr(arg, '=');
+        size_t name_len = eq ? (size_t)(eq - arg) : strlen(arg);
+        const char *value = eq ? eq + 1 : NULL;
+        if (name_len == strlen("--out") && strncmp(arg, "--out", name_len) == 0) {
+            if (!value && i + 1 < argc)
+                value = argv[++i];
+            if (!value || !value[0])
+                return usage_error("%s needs a directory", "--out");
+            o->out_dir = value;
+            continue;
+        }
+        int matched = 0;
+        for (size_t k = 0; k < sizeof ints / sizeof ints[0]; ++k) {
+            if (name_len != strlen(ints[k].name) || strncmp(arg, ints[k].name, name_len) != 0)
+                continue;
+            matched = 1;
+            if (!value && i + 1 < argc)
+                value = argv[++i];
+            if (parse_long(value, ints[k].min, ints[k].max, ints[k].target)) {
+                fprintf(stderr, "rbcloth: %s needs an integer in [%ld, %ld], got '%s'\n",
+                        ints[k].name, ints[k].min, ints[k].max, value ? value : "");
+                fputs("Try 'rbcloth --help'.\n", stderr);
+                return EXIT_USAGE;
+            }
+        }
+        if (!matched)
+            return usage_error("unknown option '%s' for bench", arg);
+    }
+    return EXIT_OK;
+}
+
+static int command_bench(int argc, char **argv) {
+    cli_bench_options options = {
+        .out_dir = "out/bench",
+        .frames = -1,
+        .threads = -1,
+        .quick = 0,
+    };
+    for (int i = 0; i < argc; ++i) {
+        if (is_help(argv[i])) {
+            fputs(usage_text, stdout);
+            return EXIT_OK;
+        }
+    }
+    if (argc < 1)
+        return usage_error("%s", "bench needs 'accuracy' or 'stability'");
+    const char *which = argv[0];
+    int accuracy = strcmp(which, "accuracy") == 0;
+    if (!accuracy && strcmp(which, "stability") != 0)
+        return usage_error("unknown bench '%s' (accuracy or stability)", which);
+    int rc = parse_bench_args(argc - 1, argv + 1, &options);
+    if (rc != EXIT_OK)
+        return rc;
+
+    cli_plugin plugin;
+    char err[4096 + 512];
+    if (cli_plugin_open(&plugin, err, sizeof err)) {
+        fprintf(stderr, "rbcloth: %s\n", err);
+        return EXIT_RUNTIME;
+    }
+    rc = accuracy ? cli_bench_accuracy(&plugin, &options) : cli_bench_stability(&plugin, &options);
+    cli_plugin_close(&plugin);
+    return rc;
+}
+
 static int command_info(int argc, char **argv) {
     if (argc > 0)
         return is_help(argv[0]) ? (fputs(usage_text, stdout), EXIT_OK)
@@ -186,6 +278,8 @@ int main(int argc, char **argv) {
     }
     if (strcmp(command, "run") == 0)
         return command_run(argc - 2, argv + 2);
+    if (strcmp(command, "bench") == 0)
+        return command_bench(argc - 2, argv + 2);
     if (strcmp(command, "info") == 0)
         return command_info(argc - 2, argv + 2);
     return usage_error("unknown command '%s'", command);

@@ -1,0 +1,209 @@
+/* bench.h -- what `rbcloth bench accuracy` and `rbcloth bench stability` share:
+ * the solver list, a host-side copy of a cloth's mesh (to evaluate Eq. 7, spring
+ * energy and the Projective Dynamics objective without trusting the library's
+ * stats), world creation through the function table, CSV and gnuplot helpers.
+ *
+ * Everything goes through `const rbc_api_v1 *` (ABI 1.1 entries included): the
+ * benches are hosts like any other and never link the plugin.
+ */
+#ifndef RBC_CLI_BENCH_H
+#define RBC_CLI_BENCH_H
+
+#include <stdint.h>
+#include <stdio.h>
+
+#include "plugin.h"
+
+/* ------------------------------------------------------------------------- */
+/* Options and entry points                                                  */
+/* ------------------------------------------------------------------------- */
+
+typedef struct cli_bench_options {
+    /// Output directory (created like mkdir -p). Default "out/bench".
+    const char *out_dir;
+    /// Frames per run (accuracy: per scene and solver); -1 = the bench's default.
+    long frames;
+    /// Worker threads of every world; -1 = the library's default (one per core).
+    long threads;
+    /// Fewer frames, budgets and cases: a smoke run for the tests.
+    int quick;
+} cli_bench_options;
+
+/// `rbcloth bench accuracy`: the paper's Fig. 3/4 experiments for every solver.
+/// Returns the process exit code (0, or 1 after a message on stderr).
+int cli_bench_accuracy(const cli_plugin *plugin, const cli_bench_options *options);
+
+/// `rbcloth bench stability`: a stability map of every solver over stress
+/// dimensions. Returns 0, or 1 after a message; a NaN reaching the host is
+/// reported on stderr and in the outputs but still returns 0 (the map is the
+/// result; tests/bench checks it).
+int cli_bench_stability(const cli_plugin *plugin, const cli_bench_options *options);
+
+/* ------------------------------------------------------------------------- */
+/* Solvers                                                                   */
+/* ------------------------------------------------------------------------- */
+
+enum { BENCH_SOLVER_COUNT = 8 };
+
+typedef struct bench_solver {
+    rbc_solver_kind kind;
+    /// Short name for CSV, plots and tables: "rbgs", "jacobi", ...
+    const char *name;
+    /// 1 if the solver's sweeps run in parallel (all but serial Gauss-Seidel and the
+    /// direct solve).
+    int parallel;
+    /// 1 if linear iteration counts apply (all but the direct solver).
+    int iterative;
+} bench_solver;
+
+/// Every rbc_solver_kind of ABI 1.1, in enum order.
+extern const bench_solver bench_solvers[BENCH_SOLVER_COUNT];
+
+/// The plugin has the ABI 1.1 entries the benches call. Returns 0, or -1 with a
+/// message on stderr.
+int bench_require_v1_1(const cli_plugin *plugin);
+
+/* ------------------------------------------------------------------------- */
+/* Host copy of a cloth                                                      */
+/* ------------------------------------------------------------------------- */
+
+/// A cloth as the host creates it, plus the spring list the library derives from it
+/// (quad edges and explicit springs, each pair once), so the host can evaluate
+/// energies itself. All arrays malloc'd; bench_mesh_free releases them.
+typedef struct bench_mesh {
+    uint32_t n;
+    /// Rest positions (x y z per vertex), metres: also the creation positions.
+    float *rest;
+    uint32_t quad_count;
+    uint32_t *quads;
+    /// Explicit springs given to the library (2 indices each).
+    uint32_t extra_count;
+    uint32_t *extra;
+    /// Per-vertex masses (kg) or NULL: then every vertex has vertex_mass.
+    float *masses;
+    float vertex_mass;
+    /// N/m (every spring), 1/s.
+    float stiffness;
+    float damping;
+    uint32_t pin_count;
+    uint32_t *pins;
+    /// Derived by bench_mesh_finish: unique springs (a < b) and their rest lengths
+    /// (m, from `rest` in double), and a per-vertex pinned flag.
+    uint32_t spring_count;
+    uint32_t *springs;
+    double *rest_len;
+    uint8_t *pinned;
+    /// Grid size when made by bench_mesh_grid (0 otherwise).
+    uint32_t nx, ny;
+} bench_mesh;
+
+/// An nx x ny grid (vertex (i, j) = i + nx j) in the xz plane at height y0 (plane 0)
+/// or the xy plane (plane 1), `spacing` metres, vertex_mass 1e-4 kg, k 1000 N/m,
+/// no damping, no pins. Returns 0, or -1 when out of memory / invalid.
+int bench_mesh_grid(bench_mesh *m, uint32_t nx, uint32_t ny, double spacing, int plane,
+                    double y0);
+/// Derive springs, rest lengths and pinned flags (call after changing quads, extra
+/// springs, pins or rest positions). Returns 0, or -1 when out of memory.
+int bench_mesh_finish(bench_mesh *m);
+void bench_mesh_free(bench_mesh *m);
+
+static inline double bench_mass(const bench_mesh *m, uint32_t i) {
+    return m->masses ? (double)m->masses[i] : (double)m->vertex_mass;
+}
+
+/// Total mass of the free (unpinned) vertices, kg.
+double bench_free_mass(const bench_mesh *m);
+
+/// Eq. 7: sum over springs of (|p_a - p_b| - L)^2, m^2, in double.
+double bench_eq7(const bench_mesh *m, const float *xyz);
+/// Spring energy sum s/2 (|p_a - p_b| - L)^2, J.
+double bench_spring_energy(const bench_mesh *m, const float *xyz);
+/// Largest | |p_a - p_b| / L - 1 | over springs with L > 0.
+double bench_max_strain(const bench_mesh *m, const float *xyz);
+/// Kinetic energy of the free vertices from the Verlet state, J:
+/// sum m_i / 2 |(x_i - q_i) / h|^2.
+double bench_kinetic_energy(const bench_mesh *m, const float *x, const float *q, double h);
+/// The same in a frame moving at velocity u (m/s): velocities v - u.
+double bench_kinetic_energy_in_frame(const bench_mesh *m, const float *x, const float *q, double h,
+                                     const float u[3]);
+/// How much that kinetic energy can change when every velocity component changes by
+/// at most delta (m/s): sum m (sqrt(3) |v - u| delta + 3/2 delta^2), J.
+double bench_kinetic_energy_rounding(const bench_mesh *m, const float *x, const float *q,
+                                     double h, const float u[3], double delta);
+/// Work done by gravity on the free vertices since `x0`, J: sum m_i g . (x_i - x0_i).
+double bench_gravity_work(const bench_mesh *m, const float *x0, const float *x,
+                          const float g[3]);
+
+/// The inertial target of Alg. 2 for the free vertices: y = x + (x - q) keep + h^2 g,
+/// keep = max(0, 1 - damping h) (the library's clamp); pinned vertices get
+/// `pin_pos` (their pin targets; NULL = x). Written into y (3n doubles).
+void bench_inertial_target(const bench_mesh *m, const float *x, const float *q, double h,
+                           const float g[3], const float *pin_pos, double *y);
+/// Projective Dynamics objective at positions p (3n doubles or floats via one of
+/// the two pointers): sum_free m_i/(2h^2) |p_i - y_i|^2 + sum_s s/2 (|p_a-p_b|-L)^2, J.
+double bench_pd_objective(const bench_mesh *m, const double *y, const double *pd,
+                          const float *pf, double h);
+/// Relative residual |b - A p| / |b| of Eq. 6 over the free vertices, with the local
+/// step evaluated at `y` (one non-linear iteration: the local step sees p = y) and
+/// pinned vertices at y. Used to check stats.linear_residual. *floor_out (if not
+/// NULL) receives what float evaluation can change in it: each row of Eq. 6 sums at
+/// most 8 rounded terms, 2^-21 times |w y| + sum s (|p_i| + |p_j| + L) per row.
+double bench_linear_residual(const bench_mesh *m, const double *y, const float *p, double h,
+                             double *floor_out);
+/// How much the spring energy at xyz can change when each spring length and rest
+/// length is evaluated in float: sum s |v| (|v| + 2L) 2^-22, J (v = |p_a-p_b| - L).
+double bench_spring_energy_rounding(const bench_mesh *m, const float *xyz);
+
+/* ------------------------------------------------------------------------- */
+/* Worlds                                                                    */
+/* ------------------------------------------------------------------------- */
+
+typedef struct bench_world_config {
+    float gravity[3];
+    uint32_t substeps;
+    uint32_t nonlinear_iterations;
+    uint32_t linear_iterations;
+    /// 0 = one per core.
+    uint32_t threads;
+    rbc_solver_def solver;
+} bench_world_config;
+
+/// Defaults: gravity (0, -9.81, 0), 1 substep, 1 non-linear and 11 linear
+/// iterations, the library's thread default and solver def (RBGS, FIXED).
+int bench_world_config_init(const rbc_api_v1 *api, bench_world_config *c);
+
+/// A world with one cloth made from `m`. Returns the library's result (message in
+/// api->last_error()); nothing is left created on failure.
+rbc_result bench_world_create(const rbc_api_v1 *api, const bench_mesh *m,
+                              const bench_world_config *c, rbc_world_id *out_world,
+                              rbc_cloth_id *out_cloth);
+
+/// Stats with struct_size set.
+rbc_result bench_stats(const rbc_api_v1 *api, rbc_world_id world, rbc_world_stats *st);
+
+/// 1 if every floating-point field of the stats is finite.
+int bench_stats_finite(const rbc_world_stats *st, const char **bad_field);
+/// Index of the first non-finite float in v[0..count), or -1.
+long bench_first_nonfinite(const float *v, size_t count);
+
+/* ------------------------------------------------------------------------- */
+/* Small helpers                                                             */
+/* ------------------------------------------------------------------------- */
+
+double bench_now(void);
+/// Median of v[0..n) (sorts a copy; 0 when n == 0).
+double bench_median(const double *v, size_t n);
+/// fopen(dir/name, "w") with a message on stderr on failure.
+FILE *bench_open(const char *dir, const char *name);
+/// fclose with an error check; message on stderr on failure. Returns 0 or -1.
+int bench_close(FILE *f, const char *dir, const char *name);
+/// 1 if an executable `gnuplot` is on PATH.
+int bench_have_gnuplot(void);
+/// Run `gnuplot SCRIPT` inside dir. Returns its exit status (or -1).
+int bench_run_gnuplot(const char *dir, const char *script);
+/// "rbcloth: <result>: <last error>" on stderr; returns 1.
+int bench_report(const rbc_api_v1 *api, rbc_result r, const char *context);
+/// The same message as a string (for tables), into buf.
+const char *bench_result_text(const rbc_api_v1 *api, rbc_result r, char *buf, size_t size);
+
+#endif

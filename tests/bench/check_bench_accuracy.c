@@ -1,0 +1,166 @@
+/* check_bench_accuracy.c -- checks the outputs of `rbcloth bench accuracy --quick`.
+ *
+ * Usage: check_bench_accuracy DIR
+ *
+ * Each CSV must have exactly its documented header, at least one row per paper scene
+ * (stretched, hanging) and solver, and every numeric field finite. In
+ * accuracy_gap.csv the library's stats must agree with the host's recomputation from
+ * the positions it reads back: Eq. 7 is a double sum of the same float positions
+ * (relative 1e-6 covers any summation order); the PD objective agrees to the
+ * F_tolerance the bench derives for each row (the rounding of the library's float
+ * inertial target y and spring lengths, see hosts/cli/bench_accuracy.c), and the
+ * linear residual to its residual_tolerance (1e-3 relative plus the float floor of
+ * evaluating b - A p, derived per row in bench_linear_residual).
+ * pareto.md must mark a Pareto front.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "check.h"
+
+enum { MAX_COLS = 32 };
+
+static char *read_file(const char *dir, const char *name) {
+    char path[4096];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        fprintf(stderr, "cannot open %s\n", path);
+        return NULL;
+    }
+    fseek(f, 0, SEEK_END);
+    long size = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *text = malloc((size_t)size + 1);
+    if (text && fread(text, 1, (size_t)size, f) != (size_t)size) {
+        free(text);
+        text = NULL;
+    }
+    if (text)
+        text[size] = '\0';
+    fclose(f);
+    return text;
+}
+
+static int split(char *line, char sep, char **out, int max) {
+    int n = 0;
+    out[n++] = line;
+    for (char *p = line; *p && n < max; ++p)
+        if (*p == sep) {
+            *p = '\0';
+            out[n++] = p + 1;
+        }
+    return n;
+}
+
+static int is_text_column(const char *name) {
+    return !strcmp(name, "scene") || !strcmp(name, "solver") || !strcmp(name, "control") ||
+           !strcmp(name, "mode") || !strcmp(name, "reference");
+}
+
+static double rel(double a, double b) {
+    double s = fmax(fabs(a), fabs(b));
+    return s > 0.0 ? fabs(a - b) / s : 0.0;
+}
+
+/* Check one CSV; for the gap file also the stats agreement. Returns the row count. */
+static int check_csv(const char *dir, const char *name, const char *header, int gap) {
+    char *text = read_file(dir, name);
+    CHECK(text != NULL);
+    if (!text)
+        return 0;
+    char *line = text, *next;
+    int rows = 0, cols = 0;
+    char *head[MAX_COLS];
+    int seen[2] = {0, 0}; /* stretched, hanging */
+    for (int i = 0; line && *line; ++i, line = next) {
+        next = strchr(line, '\n');
+        if (next)
+            *next++ = '\0';
+        if (i == 0) {
+            if (strcmp(line, header) != 0)
+                fprintf(stderr, "%s: header\n  %s\nexpected\n  %s\n", name, line, header);
+            CHECK(strcmp(line, header) == 0);
+            static char copy[1024];
+            snprintf(copy, sizeof copy, "%s", header);
+            cols = split(copy, ',', head, MAX_COLS);
+            continue;
+        }
+        char *f[MAX_COLS];
+        int n = split(line, ',', f, MAX_COLS);
+        CHECK_EQ(n, cols);
+        if (n != cols)
+            continue;
+        ++rows;
+        seen[0] |= !strcmp(f[0], "stretched");
+        seen[1] |= !strcmp(f[0], "hanging");
+        double v[MAX_COLS];
+        for (int k = 0; k < n; ++k) {
+            if (is_text_column(head[k]))
+                continue;
+            char *end;
+            v[k] = strtod(f[k], &end);
+            if (!(isfinite(v[k]) && end != f[k] && *end == '\0')) {
+                fprintf(stderr, "%s row %d: %s = '%s' is not a finite number\n", name, rows, head[k], f[k]);
+                CHECK(!"finite numbers");
+            }
+        }
+        if (gap) {
+            /* F0 F F_star ... F_library F_star_library eq7_host eq7_library residual_host residual_library */
+            /* ... F_linear_star gap_linear F_tolerance F_star_tolerance */
+            int bad = fabs(v[6] - v[10]) > v[18] || fabs(v[7] - v[11]) > v[19] || rel(v[12], v[13]) > 1e-6;
+            if (bad)
+                fprintf(stderr, "%s row %d (%s %s frame %s): F %.12g / %.12g (tol %.3g), F* %.12g / %.12g (tol %.3g), Eq. 7 %.12g / %.12g (host / library)\n",
+                        name, rows, f[0], f[1], f[3], v[6], v[10], v[18], v[7], v[11], v[19], v[12], v[13]);
+            CHECK(fabs(v[6] - v[10]) <= v[18]);
+            CHECK(fabs(v[7] - v[11]) <= v[19]);
+            CHECK(rel(v[12], v[13]) <= 1e-6);
+            if (fabs(v[14] - v[15]) > v[20])
+                fprintf(stderr, "%s row %d (%s %s frame %s): linear residual host %.9g, library %.9g (tol %.3g)\n",
+                        name, rows, f[0], f[1], f[3], v[14], v[15], v[20]);
+            CHECK(fabs(v[14] - v[15]) <= v[20]);
+        }
+    }
+    CHECK(rows > 0);
+    CHECK(seen[0] && seen[1]);
+    free(text);
+    return rows;
+}
+
+int main(int argc, char **argv) {
+    if (argc != 2) {
+        fprintf(stderr, "usage: %s DIR\n", argv[0]);
+        return 2;
+    }
+    const char *dir = argv[1];
+    int n = check_csv(dir, "accuracy_iterations.csv",
+                      "scene,solver,frame,eq7,linear_residual,pd_objective,step_ms", 0);
+    printf("accuracy_iterations.csv: %d rows\n", n);
+    n = check_csv(dir, "accuracy_budget.csv",
+                  "scene,solver,frame,budget_ms,eq7,linear_iterations,linear_residual,"
+                  "pd_objective,step_ms",
+                  0);
+    printf("accuracy_budget.csv: %d rows\n", n);
+    n = check_csv(dir, "accuracy_sweep.csv",
+                  "scene,solver,control,budget_ms,substeps,nonlinear_iterations,linear_iterations,"
+                  "frames,final_eq7,median_step_ms,median_linear_iterations,unstable_steps",
+                  0);
+    printf("accuracy_sweep.csv: %d rows\n", n);
+    n = check_csv(dir, "accuracy_gap.csv",
+                  "scene,solver,mode,frame,linear_iterations,F0,F,F_star,gap,reference,"
+                  "F_library,F_star_library,eq7_host,eq7_library,residual_host,residual_library,"
+                  "F_linear_star,gap_linear,F_tolerance,F_star_tolerance,residual_tolerance",
+                  1);
+    printf("accuracy_gap.csv: %d rows\n", n);
+    char *pareto = read_file(dir, "pareto.md");
+    CHECK(pareto != NULL);
+    if (pareto) {
+        CHECK(strstr(pareto, "## stretched") != NULL);
+        CHECK(strstr(pareto, "## hanging") != NULL);
+        CHECK(strstr(pareto, "**front**") != NULL);
+        free(pareto);
+    }
+    return check_report("bench_accuracy");
+}

@@ -1,0 +1,215 @@
+/* check_bench_stability.c -- checks the stability.csv of `rbcloth bench stability
+ * --quick`.
+ *
+ * Usage: check_bench_stability STABILITY.csv KNOWN_ENERGY_GROWTH.txt
+ *
+ * Asserted for every (case, solver) row:
+ *   - no non-finite value ever reached the host (status NaN-leak, nonfinite_frame,
+ *     or a "LIBRARY BUG" note: non-finite stats, state not restored after
+ *     RBC_ERR_UNSTABLE) -- never allowed;
+ *   - no run failed with another error, and no degenerate mesh of the ABI's valid
+ *     kinds (coincident vertices, zero-length springs) was rejected;
+ *   - where every step returned RBC_OK, the kinetic energy stayed within the energy
+ *     the configuration supplies: ke_ratio <= 1 + 1e-6. The bound (initial spring
+ *     energy + work of gravity + what pins or a moving sphere can supply, in the
+ *     sphere's frame, + the rounding of a float state) is derived in
+ *     hosts/cli/bench_stability.c. A step that returns RBC_ERR_UNSTABLE is allowed:
+ *     the library restored the state and said so.
+ * Energy growth that is known and reported is listed in KNOWN_ENERGY_GROWTH.txt
+ * (dimension|value|solver|why); such rows are printed, not failed, and a listed row
+ * that no longer grows is printed so the list can shrink. Any other growth fails.
+ * The extreme cases the test is about must be present for all 8 solvers.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "check.h"
+
+enum { MAX_COLS = 32, MAX_ROWS = 4096, MAX_KNOWN = 256, SOLVERS = 8 };
+
+typedef struct row {
+    char *field[MAX_COLS];
+    int count;
+} row;
+
+static char *read_file(const char *path) {
+    FILE *f = fopen(path, "rb");
+    if (!f)
+        return NULL;
+    fseek(f, 0, SEEK_END);
+    long size = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *text = malloc((size_t)size + 1);
+    if (text && fread(text, 1, (size_t)size, f) != (size_t)size) {
+        free(text);
+        text = NULL;
+    }
+    if (text)
+        text[size] = '\0';
+    fclose(f);
+    return text;
+}
+
+/* Split text into lines and a line into fields, in place. */
+static int split(char *line, char sep, char **out, int max) {
+    int n = 0;
+    out[n++] = line;
+    for (char *p = line; *p && n < max; ++p)
+        if (*p == sep) {
+            *p = '\0';
+            out[n++] = p + 1;
+        }
+    return n;
+}
+
+static int col(row *header, const char *name) {
+    for (int k = 0; k < header->count; ++k)
+        if (strcmp(header->field[k], name) == 0)
+            return k;
+    fprintf(stderr, "stability.csv has no column %s\n", name);
+    exit(1);
+}
+
+typedef struct known {
+    char *dimension, *value, *solver, *why;
+    int seen_growing;
+} known;
+
+int main(int argc, char **argv) {
+    if (argc != 3) {
+        fprintf(stderr, "usage: %s STABILITY.csv KNOWN_ENERGY_GROWTH.txt\n", argv[0]);
+        return 2;
+    }
+    char *csv = read_file(argv[1]);
+    char *list = read_file(argv[2]);
+    CHECK(csv != NULL);
+    CHECK(list != NULL);
+    if (!csv || !list)
+        return check_report("bench_stability");
+
+    known known_rows[MAX_KNOWN];
+    int known_count = 0;
+    char *lines[MAX_ROWS];
+    int nl = split(list, '\n', lines, MAX_ROWS);
+    for (int i = 0; i < nl && known_count < MAX_KNOWN; ++i) {
+        if (!lines[i][0] || lines[i][0] == '#')
+            continue;
+        char *f[4];
+        if (split(lines[i], '|', f, 4) != 4) {
+            fprintf(stderr, "%s: line %d is not dimension|value|solver|why\n", argv[2], i + 1);
+            CHECK(0);
+            continue;
+        }
+        known_rows[known_count++] = (known){f[0], f[1], f[2], f[3], 0};
+    }
+
+    static row rows[MAX_ROWS];
+    int n = split(csv, '\n', lines, MAX_ROWS);
+    int row_count = 0;
+    for (int i = 0; i < n; ++i)
+        if (lines[i][0])
+            rows[row_count].count = split(lines[i], ',', rows[row_count].field, MAX_COLS), ++row_count;
+    CHECK(row_count > 1);
+    if (row_count < 2)
+        return check_report("bench_stability");
+    row *h = &rows[0];
+    const int c_dim = col(h, "dimension"), c_val = col(h, "value"), c_sol = col(h, "solver"),
+              c_status = col(h, "status"), c_nonfinite = col(h, "nonfinite_frame"),
+              c_ratio = col(h, "ke_ratio"), c_eq7 = col(h, "final_eq7"),
+              c_strain = col(h, "peak_max_strain"), c_run = col(h, "frames_run"),
+              c_planned = col(h, "frames_planned"), c_unst = col(h, "first_unstable_frame"),
+              c_note = col(h, "note");
+
+    int growth_known = 0, unstable = 0;
+    for (int i = 1; i < row_count; ++i) {
+        row *r = &rows[i];
+        CHECK_EQ(r->count, h->count);
+        if (r->count != h->count)
+            continue;
+        const char *status = r->field[c_status], *note = r->field[c_note];
+        char label[256];
+        snprintf(label, sizeof label, "%s = %s, %s", r->field[c_dim], r->field[c_val], r->field[c_sol]);
+        if (strcmp(status, "NaN-leak") == 0 || atol(r->field[c_nonfinite]) != -1 ||
+            strstr(note, "LIBRARY BUG")) {
+            fprintf(stderr, "%s: a non-finite value or broken state reached the host: %s\n", label,
+                    note);
+            CHECK(!"no non-finite value reaches the host");
+            continue;
+        }
+        if (strcmp(status, "error") == 0 || strcmp(status, "rejected") == 0) {
+            fprintf(stderr, "%s: %s: %s\n", label, status, note);
+            CHECK(!"every case runs");
+            continue;
+        }
+        if (strcmp(status, "skipped") == 0) {
+            printf("skipped: %s: %s\n", label, note);
+            continue;
+        }
+        if (strcmp(status, "unstable-reported") == 0) {
+            CHECK(atol(r->field[c_unst]) >= 1);
+            ++unstable;
+            continue;
+        }
+        double ratio = strtod(r->field[c_ratio], NULL);
+        CHECK(isfinite(ratio));
+        CHECK(isfinite(strtod(r->field[c_eq7], NULL)));
+        CHECK(isfinite(strtod(r->field[c_strain], NULL)));
+        CHECK_EQ(atol(r->field[c_run]), atol(r->field[c_planned]));
+        known *k = NULL;
+        for (int j = 0; j < known_count; ++j)
+            if (strcmp(known_rows[j].dimension, r->field[c_dim]) == 0 &&
+                strcmp(known_rows[j].value, r->field[c_val]) == 0 &&
+                strcmp(known_rows[j].solver, r->field[c_sol]) == 0)
+                k = &known_rows[j];
+        if (strcmp(status, "energy-growth") == 0 || !(ratio <= 1.0 + 1e-6)) {
+            if (k) {
+                k->seen_growing = 1;
+                ++growth_known;
+                printf("known energy growth: %s: ke_ratio %.4g (%s)\n", label, ratio, k->why);
+            } else {
+                fprintf(stderr, "%s: kinetic energy %.4g x the energy supplied, every step RBC_OK\n",
+                        label, ratio);
+                CHECK(!"energy bounded where every step returned RBC_OK");
+            }
+        } else {
+            CHECK(strcmp(status, "ok") == 0);
+        }
+    }
+    for (int j = 0; j < known_count; ++j)
+        if (!known_rows[j].seen_growing)
+            printf("listed as known but not growing now (remove it from the list?): %s = %s, %s\n",
+                   known_rows[j].dimension, known_rows[j].value, known_rows[j].solver);
+
+    /* The extremes this test is about, each for every solver. */
+    static const char *const required[][2] = {
+        {"k h^2/m", "1e+07"},
+        {"dt (s) at k = 1000 N/m", "1e-5"},
+        {"dt (s) at k = 1000 N/m", "1/30"},
+        {"mass ratio", "1e+06"},
+        {"start", "stretched 10x"},
+        {"degenerate springs", "zero-length (2 coincident layers)"},
+        {"degenerate springs", "coincident neighbours"},
+        {"degenerate springs", "all particles at one point"},
+        {"collider", "sphere 10 m/s at dt 2e-3"},
+        {"pins", "pulled 3x apart"},
+        {"size (particles)", "2x2"},
+    };
+    for (size_t q = 0; q < sizeof required / sizeof required[0]; ++q) {
+        int found = 0;
+        for (int i = 1; i < row_count; ++i)
+            if (rows[i].count == h->count && strcmp(rows[i].field[c_dim], required[q][0]) == 0 &&
+                strcmp(rows[i].field[c_val], required[q][1]) == 0)
+                ++found;
+        if (found != SOLVERS)
+            fprintf(stderr, "case %s = %s: %d rows, expected %d\n", required[q][0], required[q][1],
+                    found, SOLVERS);
+        CHECK_EQ(found, SOLVERS);
+    }
+    printf("%d rows: %d unstable-reported (allowed), %d known energy growth\n", row_count - 1,
+           unstable, growth_known);
+    free(csv);
+    free(list);
+    return check_report("bench_stability");
+}
