@@ -2,7 +2,7 @@
 # Install the Debian packages rbcloth needs to build and test, if any is missing.
 # Runs as root (CI and a fresh machine); with sudo otherwise.
 set -euo pipefail
-pkgs=(cmake make gcc libc6-dev pkg-config libcjson-dev abigail-tools binutils)
+pkgs=(cmake make gcc libc6-dev pkg-config libcjson-dev libsuitesparse-dev abigail-tools binutils)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

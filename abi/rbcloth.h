@@ -100,7 +100,7 @@ enum {
     RBC_ERR_UNSUPPORTED = -3,
     /// The requested backend (e.g. CUDA) is not available on this machine or build.
     RBC_ERR_BACKEND_UNAVAILABLE = -4,
-    /// The mesh is unusable: index out of range, degenerate quad, non-bipartite graph.
+    /// The mesh is unusable: index out of range, degenerate quad, more than 64 colors.
     RBC_ERR_BAD_MESH = -5,
     /// A file could not be read or written.
     RBC_ERR_IO = -6,
@@ -339,7 +339,7 @@ typedef struct rbc_cloth_def {
     /// Extra springs, 2 vertex indices each; duplicates of quad edges are merged. An
     /// index out of range or a spring from a vertex to itself is RBC_ERR_BAD_MESH, as
     /// are quads with an index out of range, a repeated vertex, coincident corners or
-    /// zero area, and a spring graph that two colors cannot separate.
+    /// zero area, and (since 1.1) a spring graph that needs more than 64 colors.
     const uint32_t *springs;
     /// Per-vertex masses, kg (finite, > 0), or NULL to use `density` or `vertex_mass`.
     const float *masses;

@@ -7,8 +7,11 @@
  *     integrate    Alg. 2: y = Verlet prediction, p = y; pins set       (particles)
  *     loop nonlinear_iterations:
  *       local      Alg. 3: d_ij for every spring                        (springs)
- *       loop linear_iterations:
- *         global   Eq. 6 over the red particles, then over the black    (per color)
+ *       global     Eq. 6 by the selected solver (global.c): RBGS sweeps one
+ *                  color at a time (red, then black; more colors when the graph
+ *                  needs them), Jacobi, SOR, Chebyshev, serial Gauss-Seidel, or the
+ *                  exact direct solve; linear iterations fixed, to a tolerance,
+ *                  or within a time budget
  *     collide      built-in colliders project the free particles       (particles)
  *     callback     the host's collision code, on thread 0
  *     check        every position finite, else restore and fail
@@ -26,6 +29,8 @@
 #include <string.h>
 #include <time.h>
 
+#include "direct.h"
+#include "global.h"
 #include "kernels/collide_kernels.h"
 #include "kernels/pd_kernels.h"
 
@@ -64,6 +69,12 @@ int32_t rbc_solver_init(rbc_solver *s, const rbc_allocator *a, uint32_t nthreads
     s->nonlinear_iterations = 1;
     s->linear_iterations = 11;
     s->gravity[1] = -9.81f;
+    s->settings.kind = RBC_SOLVER_RBGS;
+    s->settings.chebyshev_delay = 2;
+    s->settings.mode = RBC_ITERATE_FIXED;
+    s->settings.tolerance = 1e-3f;
+    s->settings.budget_ms = 2.0f;
+    s->settings.max_linear_iterations = 1000;
     if (rbc_pool_create(&s->pool, nthreads, a) != 0) return RBC_ERR_OUT_OF_MEMORY;
     return RBC_OK;
 }
@@ -112,8 +123,47 @@ static int alloc_cb_buffers(rbc_solver *s, rbc_cloth_state *c) {
     return 0;
 }
 
+/* Which optional buffers a solver needs. */
+static int needs_alt(rbc_solver_kind k) {
+    return k == RBC_SOLVER_JACOBI || k == RBC_SOLVER_JACOBI_CHEBYSHEV ||
+           k == RBC_SOLVER_RBGS_CHEBYSHEV;
+}
+static int needs_prev(rbc_solver_kind k) {
+    return k == RBC_SOLVER_JACOBI_CHEBYSHEV || k == RBC_SOLVER_RBGS_CHEBYSHEV;
+}
+
+static void free_solver_buffers(rbc_solver *s, rbc_cloth_state *c, int alt, int prev) {
+    size_t bytes = (size_t)c->topo.n * sizeof(float);
+    for (int a = 0; a < 3; ++a) {
+        if (alt) {
+            rbc_mem_free(&s->alloc, c->alt[a], bytes);
+            c->alt[a] = NULL;
+        }
+        if (prev) {
+            rbc_mem_free(&s->alloc, c->prev[a], bytes);
+            c->prev[a] = NULL;
+        }
+    }
+}
+
+/* Allocate what solver kind k needs and this cloth lacks; all or nothing. */
+static int alloc_solver_buffers(rbc_solver *s, rbc_cloth_state *c, rbc_solver_kind k) {
+    size_t bytes = (size_t)c->topo.n * sizeof(float);
+    int want_alt = needs_alt(k) && !c->alt[0], want_prev = needs_prev(k) && !c->prev[0];
+    for (int a = 0; a < 3; ++a) {
+        if (want_alt && !(c->alt[a] = rbc_mem_alloc(&s->alloc, bytes))) goto fail;
+        if (want_prev && !(c->prev[a] = rbc_mem_alloc(&s->alloc, bytes))) goto fail;
+    }
+    return 1;
+fail:
+    free_solver_buffers(s, c, want_alt, want_prev);
+    return 0;
+}
+
 void rbc_cloth_state_destroy(rbc_solver *s, rbc_cloth_state *c) {
     if (!c) return;
+    free_solver_buffers(s, c, 1, 1);
+    rbc_direct_destroy(c->direct);
     size_t n = c->topo.n, ns = c->topo.ns;
     (void)n;
     (void)ns;
@@ -175,6 +225,7 @@ int32_t rbc_cloth_state_create(rbc_solver *s, const rbc_mesh_input *in, float da
 #undef ALLOC_ONE
     if (ok && in->pin_count) ok = grow_pins(s, c, in->pin_count);
     if (ok && s->callback) ok = alloc_cb_buffers(s, c);
+    if (ok) ok = alloc_solver_buffers(s, c, s->settings.kind);
     if (!ok) {
         rbc_cloth_state_destroy(s, c);
         return fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for %zu particles", n);
@@ -251,6 +302,8 @@ int32_t rbc_cloth_state_set_pin(rbc_solver *s, rbc_cloth_state *c, uint32_t host
         c->pin_idx[m] = c->pin_idx[last];
         memcpy(&c->pin_target[3 * m], &c->pin_target[3 * last], 3 * sizeof(float));
         c->pinned[i] = 0;
+        c->direct_dirty = 1; /* the free set changed: refactor */
+        c->rho_est = 0.0f;
         return RBC_OK;
     }
     if (m == c->pin_count) {
@@ -258,6 +311,8 @@ int32_t rbc_cloth_state_set_pin(rbc_solver *s, rbc_cloth_state *c, uint32_t host
         c->pin_idx[m] = i;
         c->pin_count++;
         c->pinned[i] = 1;
+        c->direct_dirty = 1;
+        c->rho_est = 0.0f;
     }
     memcpy(&c->pin_target[3 * m], target, 3 * sizeof(float));
     return RBC_OK;
@@ -343,6 +398,79 @@ int32_t rbc_solver_set_callback(rbc_solver *s, rbc_collision_fn fn, void *user) 
     return RBC_OK;
 }
 
+int32_t rbc_solver_set_settings(rbc_solver *s, const rbc_solver_settings *st) {
+    for (uint32_t k = 0; k < s->cloth_count; ++k) {
+        if (alloc_solver_buffers(s, s->cloths[k], st->kind)) continue;
+        return RBC_ERR_OUT_OF_MEMORY; /* buffers kept so far are harmless extras */
+    }
+    /* Release what the new solver does not use (a scene pays only for its solver). */
+    for (uint32_t k = 0; k < s->cloth_count; ++k)
+        free_solver_buffers(s, s->cloths[k], !needs_alt(st->kind), !needs_prev(st->kind));
+    s->settings = *st;
+    return RBC_OK;
+}
+
+void rbc_cloth_state_get(const rbc_cloth_state *c, float *pos, float *prev) {
+    const uint32_t *to_int = c->topo.to_internal;
+    for (uint32_t v = 0; v < c->topo.n; ++v) {
+        uint32_t i = to_int[v];
+        for (int a = 0; a < 3; ++a) {
+            if (pos) pos[3 * (size_t)v + a] = c->x[a][i];
+            if (prev) prev[3 * (size_t)v + a] = c->q[a][i];
+        }
+    }
+}
+
+void rbc_cloth_state_set(rbc_cloth_state *c, const float *pos, const float *prev) {
+    const uint32_t *to_int = c->topo.to_internal;
+    if (!prev) prev = pos;
+    for (uint32_t v = 0; v < c->topo.n; ++v) {
+        uint32_t i = to_int[v];
+        if (c->pinned[i]) continue;
+        for (int a = 0; a < 3; ++a) {
+            c->x[a][i] = pos[3 * (size_t)v + a];
+            c->q[a][i] = prev[3 * (size_t)v + a];
+        }
+    }
+    c->system_valid = 0;
+}
+
+void rbc_cloth_state_system_error(const rbc_cloth_state *c, double *res_num2, double *res_den2,
+                                  double *objective) {
+    *res_num2 = *res_den2 = *objective = 0.0;
+    if (!c->system_valid) return;
+    const rbc_topology *t = &c->topo;
+    /* The residual reads p: evaluate it at the committed positions x. */
+    rbc_cloth_state tmp = *c;
+    for (int a = 0; a < 3; ++a) tmp.p[a] = c->x[a];
+    rbc_global_residual(&tmp, t->ncolors, 0, 1, res_num2, res_den2);
+    double obj = 0.0;
+    for (uint32_t i = 0; i < t->n; ++i) {
+        if (c->pinned[i]) continue;
+        double d2 = 0.0;
+        for (int a = 0; a < 3; ++a) {
+            double d = (double)c->x[a][i] - c->y[a][i];
+            d2 += d * d;
+        }
+        obj += 0.5 * c->w[i] * d2;
+    }
+    for (uint32_t k = 0; k < t->ns; ++k) {
+        uint32_t a = t->sa[k], b = t->sb[k];
+        double ex = (double)c->x[0][a] - c->x[0][b], ey = (double)c->x[1][a] - c->x[1][b],
+               ez = (double)c->x[2][a] - c->x[2][b];
+        double v = sqrt(ex * ex + ey * ey + ez * ez) - t->rest_len[k];
+        obj += 0.5 * t->stiff[k] * v * v;
+    }
+    *objective = obj;
+}
+
+float rbc_solver_sor_omega(const rbc_solver *s, rbc_cloth_state *c, float h) {
+    if (s->settings.omega > 0.0f) return s->settings.omega;
+    /* Optimal SOR for a consistently ordered matrix (red-black): Young's formula. */
+    float rho = rbc_cloth_state_spectral_radius(c, h);
+    return 2.0f / (1.0f + sqrtf(1.0f - rho * rho));
+}
+
 /* ------------------------------------------------------------------------- */
 /* The step                                                                  */
 /* ------------------------------------------------------------------------- */
@@ -352,27 +480,36 @@ typedef struct step_ctx {
     float h;
     uint32_t substeps;
     uint32_t ncolors; /* most colors of any cloth */
+    double start_ms;  /* for the budget */
     /* Set by thread 0 between barriers; read by all after the barrier. */
     volatile int32_t result;
+    volatile int stop;
+    uint32_t linear_done; /* linear iterations of the step (thread 0 counts) */
     char *err;
     size_t errlen;
     /* Per-thread first non-finite particle found, (cloth index, internal index). */
     int64_t bad[64][2];
+    /* Per-thread partial residual sums, padded to their own cache lines. */
+    struct {
+        double r2, b2;
+        char pad[48];
+    } part[64];
+    float cheb_rho[64];   /* per cloth (first 64): the Chebyshev rho in use */
+    float sor_omega[64];  /* per cloth: the SOR omega in use */
     rbc_step_times t;
 } step_ctx;
 
 /* m_i/h^2 and 1/(m_i/h^2 + sum s_ij), recomputed only when h changes. */
-static void prepare_weights(rbc_cloth_state *c, float h, uint32_t tid, uint32_t nt) {
-    uint32_t b, e;
-    split(c->topo.n, tid, nt, &b, &e);
+static void prepare_weights(rbc_cloth_state *c, float h) {
+    if (c->h_cached == h) return;
     float inv_h2 = 1.0f / (h * h);
-    for (uint32_t i = b; i < e; ++i) {
+    for (uint32_t i = 0; i < c->topo.n; ++i) {
         float wi = c->topo.mass[i] * inv_h2;
         c->w[i] = wi;
         c->inv_denom[i] = 1.0f / (wi + c->topo.ksum[i]);
     }
+    c->h_cached = h;
 }
-
 static void phase_integrate(step_ctx *ctx, uint32_t tid, uint32_t nt) {
     rbc_solver *s = ctx->s;
     float h = ctx->h, h2 = h * h;
@@ -421,31 +558,6 @@ static void phase_local(step_ctx *ctx, uint32_t tid, uint32_t nt) {
         for (uint32_t sp = b; sp < e; ++sp)
             rbc_k_local(sp, t->sa, t->sb, t->rest_len, t->ux, t->uy, t->uz, t->he_a, t->he_b,
                         c->p[0], c->p[1], c->p[2], c->dx, c->dy, c->dz);
-    }
-}
-
-static void phase_global_color(step_ctx *ctx, uint32_t color, uint32_t tid, uint32_t nt) {
-    rbc_solver *s = ctx->s;
-    for (uint32_t k = 0; k < s->cloth_count; ++k) {
-        rbc_cloth_state *c = s->cloths[k];
-        const rbc_topology *t = &c->topo;
-        if (color >= t->ncolors) continue;
-        uint32_t c0 = t->color_start[color], count = t->color_start[color + 1] - c0;
-        uint32_t b, e;
-        split(count, tid, nt, &b, &e);
-        /* Local copies: stores to p must not force reloads of these pointers. */
-        const uint32_t *restrict adj_start = t->adj_start, *restrict adj_nbr = t->adj_nbr;
-        const float *restrict adj_k = t->adj_k, *restrict dx = c->dx, *restrict dy = c->dy,
-                              *restrict dz = c->dz, *restrict w = c->w,
-                              *restrict inv_denom = c->inv_denom, *restrict yx = c->y[0],
-                              *restrict yy = c->y[1], *restrict yz = c->y[2];
-        const uint8_t *restrict pinned = c->pinned;
-        float *px = c->p[0], *py = c->p[1], *pz = c->p[2];
-        for (uint32_t i = c0 + b; i < c0 + e; ++i) {
-            if (pinned[i]) continue;
-            rbc_k_global(i, adj_start, adj_nbr, adj_k, dx, dy, dz, w, inv_denom, yx, yy, yz, px,
-                         py, pz);
-        }
     }
 }
 
@@ -568,6 +680,138 @@ static void snapshot(rbc_solver *s, int restore) {
     }
 }
 
+/* One linear iteration of the selected iterative solver over every cloth, with the
+ * barriers it needs; k is the iteration's index in this non-linear iteration. */
+static void linear_iteration(step_ctx *ctx, uint32_t k, uint32_t tid, uint32_t nt) {
+    rbc_solver *s = ctx->s;
+    rbc_pool *pool = s->pool;
+    const rbc_solver_settings *st = &s->settings;
+    switch (st->kind) {
+    case RBC_SOLVER_JACOBI:
+    case RBC_SOLVER_JACOBI_CHEBYSHEV: {
+        int cheb = st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV;
+        for (uint32_t q = 0; q < s->cloth_count; ++q) {
+            rbc_cloth_state *c = s->cloths[q];
+            /* Even k reads p and writes alt, odd k the reverse; the step swaps the
+             * buffers afterwards when the count is odd. */
+            float *const *src = (k & 1) ? c->alt : c->p;
+            float *const *dst = (k & 1) ? c->p : c->alt;
+            float omega = cheb ? rbc_chebyshev_omega(k, st->chebyshev_delay,
+                                                     ctx->cheb_rho[q < 64 ? q : 63])
+                               : 1.0f;
+            rbc_global_jacobi(c, src, dst, cheb, omega, tid, nt);
+        }
+        rbc_pool_barrier(pool);
+        break;
+    }
+    case RBC_SOLVER_GAUSS_SEIDEL:
+        if (tid == 0)
+            for (uint32_t q = 0; q < s->cloth_count; ++q) rbc_global_gs_serial(s->cloths[q]);
+        rbc_pool_barrier(pool);
+        break;
+    default: { /* RBGS, MULTICOLOR_GS, RBGS_SOR, RBGS_CHEBYSHEV */
+        rbc_gs_variant v = st->kind == RBC_SOLVER_RBGS_SOR         ? RBC_GS_SOR
+                           : st->kind == RBC_SOLVER_RBGS_CHEBYSHEV ? RBC_GS_STASH
+                                                                   : RBC_GS_PLAIN;
+        for (uint32_t color = 0; color < ctx->ncolors; ++color) {
+            for (uint32_t q = 0; q < s->cloth_count; ++q)
+                rbc_global_gs_color(s->cloths[q], color, v, ctx->sor_omega[q < 64 ? q : 63], tid,
+                                    nt);
+            rbc_pool_barrier(pool);
+        }
+        if (v == RBC_GS_STASH) {
+            for (uint32_t q = 0; q < s->cloth_count; ++q)
+                rbc_global_chebyshev_blend(
+                    s->cloths[q],
+                    rbc_chebyshev_omega(k, st->chebyshev_delay, ctx->cheb_rho[q < 64 ? q : 63]),
+                    tid, nt);
+            rbc_pool_barrier(pool);
+        }
+        break;
+    }
+    }
+}
+
+/* The global step of one non-linear iteration: iterate until the mode says stop. */
+static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uint32_t tid,
+                        uint32_t nt) {
+    rbc_solver *s = ctx->s;
+    rbc_pool *pool = s->pool;
+    const rbc_solver_settings *st = &s->settings;
+    int chebyshev = st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV || st->kind == RBC_SOLVER_RBGS_CHEBYSHEV;
+    if (chebyshev) {
+        /* p^(k-1) starts as the initial guess: the first (unaccelerated) iteration
+         * does not read it. */
+        for (uint32_t q = 0; q < s->cloth_count; ++q) {
+            rbc_cloth_state *c = s->cloths[q];
+            uint32_t b = (uint32_t)((uint64_t)c->topo.n * tid / nt),
+                     e = (uint32_t)((uint64_t)c->topo.n * (tid + 1) / nt);
+            for (int a = 0; a < 3; ++a)
+                memcpy(c->prev[a] + b, c->p[a] + b, (size_t)(e - b) * sizeof(float));
+        }
+        rbc_pool_barrier(pool);
+    }
+    /* Residual check over all colors but the last one a Gauss-Seidel sweep just
+     * solved exactly (its rows have zero residual up to rounding). */
+    int gs_family = st->kind != RBC_SOLVER_JACOBI && st->kind != RBC_SOLVER_JACOBI_CHEBYSHEV;
+    uint32_t limit = st->mode == RBC_ITERATE_FIXED ? s->linear_iterations : st->max_linear_iterations;
+    double deadline = ctx->start_ms + (double)st->budget_ms * (segment + 1) / nsegments;
+    uint32_t k = 0;
+    double t_iter = 0.0;
+    for (;;) {
+        double t0 = tid == 0 ? now_ms() : 0.0;
+        linear_iteration(ctx, k, tid, nt);
+        k++;
+        if (st->mode == RBC_ITERATE_FIXED) {
+            if (k >= limit) break;
+            continue;
+        }
+        if (st->mode == RBC_ITERATE_TOLERANCE) {
+            double r2 = 0.0, b2 = 0.0;
+            for (uint32_t q = 0; q < s->cloth_count; ++q) {
+                const rbc_cloth_state *c = s->cloths[q];
+                uint32_t end = gs_family && c->topo.ncolors > 1 && st->kind != RBC_SOLVER_GAUSS_SEIDEL
+                                   ? c->topo.ncolors - 1
+                                   : c->topo.ncolors;
+                rbc_global_residual(c, end, tid, nt, &r2, &b2);
+            }
+            ctx->part[tid].r2 = r2;
+            ctx->part[tid].b2 = b2;
+            rbc_pool_barrier(pool);
+            if (tid == 0) {
+                double R = 0.0, B = 0.0;
+                for (uint32_t th = 0; th < nt; ++th) {
+                    R += ctx->part[th].r2;
+                    B += ctx->part[th].b2;
+                }
+                double tol = st->tolerance;
+                ctx->stop = k >= limit || R <= tol * tol * B;
+            }
+        } else { /* budget: stop when another iteration would pass the deadline */
+            if (tid == 0) {
+                double t1 = now_ms();
+                t_iter = t1 - t0;
+                ctx->stop = k >= limit || t1 + t_iter > deadline;
+            }
+        }
+        rbc_pool_barrier(pool);
+        if (ctx->stop) break;
+    }
+    if (tid == 0) ctx->linear_done += k;
+    if ((st->kind == RBC_SOLVER_JACOBI || st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV) && (k & 1)) {
+        /* The last iteration wrote alt: make it p. */
+        if (tid == 0)
+            for (uint32_t q = 0; q < s->cloth_count; ++q)
+                for (int a = 0; a < 3; ++a) {
+                    rbc_cloth_state *c = s->cloths[q];
+                    float *tmp = c->p[a];
+                    c->p[a] = c->alt[a];
+                    c->alt[a] = tmp;
+                }
+        rbc_pool_barrier(pool);
+    }
+}
+
 static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
     step_ctx *ctx = arg;
     rbc_solver *s = ctx->s;
@@ -583,32 +827,29 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
         if (tid == 0) { t1 = now_ms(); ctx->t.field += t1 - t0; } \
     } while (0)
 
-    STAGE_BEGIN();
-    for (uint32_t k = 0; k < s->cloth_count; ++k) {
-        rbc_cloth_state *c = s->cloths[k];
-        if (c->h_cached != ctx->h) prepare_weights(c, ctx->h, tid, nt);
-    }
-    STAGE_END(other);
-    if (tid == 0) {
-        for (uint32_t k = 0; k < s->cloth_count; ++k) s->cloths[k]->h_cached = ctx->h;
-    }
-
+    const uint32_t nl_count = s->nonlinear_iterations;
     for (uint32_t sub = 0; sub < ctx->substeps; ++sub) {
         STAGE_BEGIN();
         phase_integrate(ctx, tid, nt);
         place_pins(ctx, sub, tid, nt);
         STAGE_END(integrate);
 
-        for (uint32_t nl = 0; nl < s->nonlinear_iterations; ++nl) {
+        for (uint32_t nl = 0; nl < nl_count; ++nl) {
             STAGE_BEGIN();
             phase_local(ctx, tid, nt);
             STAGE_END(local);
             STAGE_BEGIN();
-            for (uint32_t it = 0; it < s->linear_iterations; ++it) {
-                for (uint32_t color = 0; color < ctx->ncolors; ++color) {
-                    phase_global_color(ctx, color, tid, nt);
-                    rbc_pool_barrier(pool);
+            if (s->settings.kind == RBC_SOLVER_DIRECT) {
+                /* One exact solve per cloth; cloths are spread over the threads. */
+                for (uint32_t q = tid; q < s->cloth_count; q += nt) {
+                    rbc_cloth_state *c = s->cloths[q];
+                    rbc_direct_solve(c->direct, &c->topo, c->pinned, c->w,
+                                     (const float *const *)c->y, c->dx, c->dy, c->dz, c->p);
                 }
+                rbc_pool_barrier(pool);
+                if (tid == 0) ctx->linear_done += 1;
+            } else {
+                global_step(ctx, sub * nl_count + nl, ctx->substeps * nl_count, tid, nt);
             }
             if (tid == 0) ctx->t.global += now_ms() - t0;
         }
@@ -641,8 +882,7 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
                                    "(h = %g s, stiffness*h^2/mass up to %g); the world was "
                                    "restored to its state before the step",
                                    c->public_id, c->topo.to_host[i], sub, ctx->substeps,
-                                   (double)ctx->h,
-                                   (double)(c->topo.ksum[i] / c->w[i]));
+                                   (double)ctx->h, (double)(c->topo.ksum[i] / c->w[i]));
                 break;
             }
             if (ctx->result == RBC_OK) commit(s);
@@ -666,9 +906,42 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     ctx.result = RBC_OK;
     ctx.err = err;
     ctx.errlen = errlen;
+    ctx.start_ms = start;
     if (!(ctx.h > 0.0f))
         return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                     "dt / substeps = %g s underflows to zero", (double)ctx.h);
+
+    /* Serial preparation: weights for h, and what the solver needs for them (the
+     * spectral radius for SOR and Chebyshev, the factorisation for the direct
+     * solver). These change only when h, the pins or the topology change. */
+    const rbc_solver_settings *st = &s->settings;
+    for (uint32_t k = 0; k < s->cloth_count; ++k) {
+        rbc_cloth_state *c = s->cloths[k];
+        prepare_weights(c, ctx.h);
+        if (c->topo.ncolors > ctx.ncolors) ctx.ncolors = c->topo.ncolors;
+        uint32_t ki = k < 64 ? k : 63;
+        if (st->kind == RBC_SOLVER_RBGS_SOR) ctx.sor_omega[ki] = rbc_solver_sor_omega(s, c, ctx.h);
+        if (st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV || st->kind == RBC_SOLVER_RBGS_CHEBYSHEV) {
+            float rho = st->rho;
+            if (!(rho > 0.0f)) {
+                rho = rbc_cloth_state_spectral_radius(c, ctx.h);
+                /* Gauss-Seidel's radius is rho_J^2 for a consistently ordered (two
+                 * color) matrix; used as the estimate with more colors too. */
+                if (st->kind == RBC_SOLVER_RBGS_CHEBYSHEV) rho = rho * rho;
+            }
+            ctx.cheb_rho[ki] = rho;
+        }
+        if (st->kind == RBC_SOLVER_DIRECT &&
+            (!c->direct || c->h_direct != ctx.h || c->direct_dirty)) {
+            rbc_direct *d = NULL;
+            int32_t rc = rbc_direct_create(&d, &c->topo, c->pinned, ctx.h, &s->alloc, err, errlen);
+            if (rc != RBC_OK) return rc;
+            rbc_direct_destroy(c->direct);
+            c->direct = d;
+            c->h_direct = ctx.h;
+            c->direct_dirty = 0;
+        }
+    }
 
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
@@ -680,20 +953,18 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     int need_snapshot = ctx.substeps > 1;
     if (need_snapshot) snapshot(s, 0);
 
-    for (uint32_t k = 0; k < s->cloth_count; ++k)
-        if (s->cloths[k]->topo.ncolors > ctx.ncolors) ctx.ncolors = s->cloths[k]->topo.ncolors;
-
     rbc_pool_run(s->pool, step_spmd, &ctx);
 
     if (ctx.result != RBC_OK) {
         if (need_snapshot) snapshot(s, 1);
         return ctx.result;
     }
+    for (uint32_t k = 0; k < s->cloth_count; ++k) s->cloths[k]->system_valid = 1;
     ctx.t.step = now_ms() - start;
     s->last = ctx.t;
     s->last_substeps = ctx.substeps;
     s->last_nonlinear = ctx.substeps * s->nonlinear_iterations;
-    s->last_linear = s->last_nonlinear * s->linear_iterations;
+    s->last_linear = ctx.linear_done;
     s->step_count++;
     return RBC_OK;
 }

@@ -14,6 +14,20 @@
 #include "cpu/pool.h"
 #include "topology.h"
 
+struct rbc_direct;
+
+/* The global solver settings (the ABI's rbc_solver_def, validated by the plugin). */
+typedef struct rbc_solver_settings {
+    rbc_solver_kind kind;
+    float omega;                /* SOR factor; 0 = optimal from rho */
+    float rho;                  /* Chebyshev spectral radius; 0 = estimate */
+    uint32_t chebyshev_delay;
+    rbc_iteration_mode mode;
+    float tolerance;
+    float budget_ms;
+    uint32_t max_linear_iterations;
+} rbc_solver_settings;
+
 /* One cloth: immutable topology plus the state that a step changes. */
 typedef struct rbc_cloth_state {
     rbc_topology topo;
@@ -39,6 +53,20 @@ typedef struct rbc_cloth_state {
 
     /* Host-order buffers for the collision callback (allocated while one is set). */
     float *cb_pos, *cb_prev;
+
+    /* Buffers only some solvers need, allocated when such a solver is selected:
+     * alt: the Jacobi destination iterate; prev: p^(k-1) for Chebyshev. */
+    float *alt[3], *prev[3];
+    /* The exact solver's factorisation (RBC_SOLVER_DIRECT), for h_direct; rebuilt
+     * when h or the pins change (direct_dirty). */
+    struct rbc_direct *direct;
+    float h_direct;
+    int direct_dirty;
+    /* Jacobi spectral radius of the global system for h_rho (0 = not estimated). */
+    float rho_est, h_rho;
+    /* 1 when y, d and w describe the global system of the last substep (false
+     * before the first step and after set_state). */
+    int system_valid;
 
     size_t state_bytes;
 } rbc_cloth_state;
@@ -66,6 +94,7 @@ typedef struct rbc_solver {
     rbc_collider_state *colliders; /* dense */
     uint32_t collider_count, collider_cap;
 
+    rbc_solver_settings settings;
     rbc_collision_fn callback;
     void *callback_user;
     uint32_t public_world_id;
@@ -101,6 +130,23 @@ void rbc_cloth_state_error(const rbc_cloth_state *c, double *eq7, double *max_st
 int32_t rbc_solver_add_collider(rbc_solver *s, const rbc_collider_state *c);
 void rbc_solver_remove_collider(rbc_solver *s, uint32_t index);
 void rbc_collider_update_frame(rbc_collider_state *c);
+
+/* Select the global solver (allocates the buffers it needs; on failure nothing
+ * changes). */
+int32_t rbc_solver_set_settings(rbc_solver *s, const rbc_solver_settings *st);
+/* Positions and previous positions in host order; either may be NULL. */
+void rbc_cloth_state_get(const rbc_cloth_state *c, float *pos, float *prev);
+/* Replace them (prev NULL = pos); pinned particles stay on their pins. */
+void rbc_cloth_state_set(rbc_cloth_state *c, const float *pos, const float *prev);
+/* Relative residual of the last substep's global system at the current positions
+ * and the PD objective there (both 0 when no step has been made). */
+void rbc_cloth_state_system_error(const rbc_cloth_state *c, double *res_num2, double *res_den2,
+                                  double *objective);
+/* The Jacobi spectral radius of the cloth's global system for substep h (power
+ * iteration; cached per h). */
+float rbc_cloth_state_spectral_radius(rbc_cloth_state *c, float h);
+/* The omega SOR uses for this cloth (given, or optimal from its rho). */
+float rbc_solver_sor_omega(const rbc_solver *s, rbc_cloth_state *c, float h);
 
 /* Install or remove the host collision callback (allocates host-order buffers). */
 int32_t rbc_solver_set_callback(rbc_solver *s, rbc_collision_fn fn, void *user);

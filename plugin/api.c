@@ -44,6 +44,12 @@ static const rbc_api_v1 g_api_v1 = {
     rbc_cache_write_frame,
     rbc_cache_finish,
     rbc_cache_destroy,
+    rbc_solver_def_init,
+    rbc_world_set_solver,
+    rbc_world_get_solver,
+    rbc_cloth_get_colors,
+    rbc_cloth_get_state,
+    rbc_cloth_set_state,
 };
 
 RBC_API const void *RBC_CALL rbc_get_api(uint32_t abi_major) {

@@ -112,7 +112,7 @@ RBC_API rbc_result RBC_CALL rbc_cache_def_init(rbc_cache_def *def, uint32_t stru
     d.format = RBC_CACHE_PC2;
     d.start_frame = 0.0f;
     d.sample_rate = 1.0f;
-    return rbc_def_init_common(def, struct_size, &d, sizeof d, "rbc_cache_def_init",
+    return rbc_def_init_common(def, struct_size, &d, sizeof d, 0, "rbc_cache_def_init",
                                "rbc_cache_def");
 }
 

@@ -15,5 +15,6 @@ char *rbc_error_buffer(void);
 /* Fill a host's def: check struct_size against the released size and copy that
  * many bytes of `defaults` (shared by the *_def_init functions). */
 rbc_result rbc_def_init_common(void *def, uint32_t struct_size, const void *defaults,
-                               size_t released_size, const char *fn, const char *what);
+                               size_t released_size, size_t old_size, const char *fn,
+                               const char *what);
 #endif

@@ -58,17 +58,20 @@ static rbc_result world_error(rbc_world *w, rbc_result code, const char *fmt, ..
 static int finite3(const float *v) { return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]); }
 
 /* Copy a def of a released size into a defaults-filled struct. */
-static rbc_result read_def(void *dst, size_t dst_size, const void *src, const char *fn,
-                           const char *what) {
+/* Copy a def of a released size into a defaults-filled struct: the current size, or
+ * the ABI 1.0 size `old_size` (0 if the struct had no other release), whose missing
+ * fields keep their defaults. */
+static rbc_result read_def(void *dst, size_t dst_size, size_t old_size, const void *src,
+                           const char *fn, const char *what) {
     if (!src) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: %s is NULL", fn, what);
     uint32_t size;
     memcpy(&size, src, sizeof size);
-    /* ABI 1.0 has one released size of each def; later minors append sizes here. */
-    if (size != dst_size)
+    if (size != dst_size && (old_size == 0 || size != old_size))
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                              "%s: %s->struct_size is %u, which matches no released version "
-                             "(this library knows %zu); set it to sizeof(%s)",
-                             fn, what, size, dst_size, what);
+                             "(this library knows %zu%s); set it to sizeof(%s)",
+                             fn, what, size, dst_size, old_size ? " and the 1.0 size" : "",
+                             what);
     memcpy(dst, src, size);
     return RBC_OK;
 }
@@ -117,10 +120,10 @@ static rbc_collider_def collider_def_defaults(void) {
 
 /* Write the first struct_size bytes of the defaults into a host's def. */
 rbc_result rbc_def_init_common(void *def, uint32_t struct_size, const void *defaults,
-                               size_t released_size, const char *fn, const char *what) {
+                               size_t released_size, size_t old_size, const char *fn,
+                               const char *what) {
     if (!def) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: def is NULL", fn);
-    /* ABI 1.0 has one released size of each def; later minors append sizes here. */
-    if (struct_size != released_size)
+    if (struct_size != released_size && (old_size == 0 || struct_size != old_size))
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                              "%s: struct_size is %u, which matches no released version of %s "
                              "(this library knows %zu)",
@@ -132,20 +135,86 @@ rbc_result rbc_def_init_common(void *def, uint32_t struct_size, const void *defa
 
 RBC_API rbc_result RBC_CALL rbc_world_def_init(rbc_world_def *def, uint32_t struct_size) {
     rbc_world_def d = world_def_defaults();
-    return rbc_def_init_common(def, struct_size, &d, sizeof d, "rbc_world_def_init",
+    return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_WORLD_DEF_SIZE_V1_0,
+                               "rbc_world_def_init",
                                "rbc_world_def");
 }
 
 RBC_API rbc_result RBC_CALL rbc_cloth_def_init(rbc_cloth_def *def, uint32_t struct_size) {
     rbc_cloth_def d = cloth_def_defaults();
-    return rbc_def_init_common(def, struct_size, &d, sizeof d, "rbc_cloth_def_init",
+    return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_CLOTH_DEF_SIZE_V1_0,
+                               "rbc_cloth_def_init",
                                "rbc_cloth_def");
 }
 
 RBC_API rbc_result RBC_CALL rbc_collider_def_init(rbc_collider_def *def, uint32_t struct_size) {
     rbc_collider_def d = collider_def_defaults();
-    return rbc_def_init_common(def, struct_size, &d, sizeof d, "rbc_collider_def_init",
+    return rbc_def_init_common(def, struct_size, &d, sizeof d, 0, "rbc_collider_def_init",
                                "rbc_collider_def");
+}
+
+static rbc_solver_def solver_def_defaults(void) {
+    rbc_solver_def d;
+    memset(&d, 0, sizeof d);
+    d.struct_size = sizeof d;
+    d.solver = RBC_SOLVER_RBGS;
+    d.omega = 0.0f;
+    d.rho = 0.0f;
+    d.chebyshev_delay = 2;
+    d.mode = RBC_ITERATE_FIXED;
+    d.tolerance = 1e-3f;
+    d.budget_ms = 2.0f;
+    d.max_linear_iterations = 1000;
+    return d;
+}
+
+RBC_API rbc_result RBC_CALL rbc_solver_def_init(rbc_solver_def *def, uint32_t struct_size) {
+    rbc_solver_def d = solver_def_defaults();
+    return rbc_def_init_common(def, struct_size, &d, sizeof d, 0, "rbc_solver_def_init",
+                               "rbc_solver_def");
+}
+
+/* Validate a solver def (already read at a released size) into core settings. */
+static rbc_result solver_settings_from(rbc_world *w, const char *fn, const rbc_solver_def *d,
+                                       rbc_solver_settings *out) {
+    if (d->solver < RBC_SOLVER_RBGS || d->solver > RBC_SOLVER_DIRECT)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: solver %d is not an rbc_solver_kind",
+                           fn, (int)d->solver);
+    if (!(isfinite(d->omega) && d->omega >= 0.0f && d->omega < 2.0f))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: omega is %g; it must be in (0, 2), or 0 for the optimal value",
+                           fn, (double)d->omega);
+    if (!(isfinite(d->rho) && d->rho >= 0.0f && d->rho < 1.0f))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: rho is %g; it must be in (0, 1), or 0 to estimate it", fn,
+                           (double)d->rho);
+    if (d->chebyshev_delay > 100000)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: chebyshev_delay is %u; at most 100000",
+                           fn, d->chebyshev_delay);
+    if (d->mode < RBC_ITERATE_FIXED || d->mode > RBC_ITERATE_BUDGET)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: mode %d is not an rbc_iteration_mode",
+                           fn, (int)d->mode);
+    if (!(isfinite(d->tolerance) && d->tolerance > 0.0f))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: tolerance is %g; it must be finite and > 0", fn,
+                           (double)d->tolerance);
+    if (!(isfinite(d->budget_ms) && d->budget_ms > 0.0f))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: budget_ms is %g; it must be finite and > 0", fn,
+                           (double)d->budget_ms);
+    if (d->max_linear_iterations < 1 || d->max_linear_iterations > 100000)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: max_linear_iterations is %u; range 1..100000", fn,
+                           d->max_linear_iterations);
+    out->kind = d->solver;
+    out->omega = d->omega;
+    out->rho = d->rho;
+    out->chebyshev_delay = d->chebyshev_delay;
+    out->mode = d->mode;
+    out->tolerance = d->tolerance;
+    out->budget_ms = d->budget_ms;
+    out->max_linear_iterations = d->max_linear_iterations;
+    return RBC_OK;
 }
 
 /* ------------------------------------------------------------------------- */
@@ -172,7 +241,7 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     if (!out_world) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: out_world is NULL", fn);
     *out_world = 0;
     rbc_world_def def = world_def_defaults();
-    rbc_result rc = read_def(&def, sizeof def, user_def, fn, "rbc_world_def");
+    rbc_result rc = read_def(&def, sizeof def, RBC_WORLD_DEF_SIZE_V1_0, user_def, fn, "rbc_world_def");
     if (rc) return rc;
     if (!finite3(def.gravity))
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: gravity (%g, %g, %g) is not finite",
@@ -199,6 +268,13 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     if ((def.alloc == NULL) != (def.free == NULL))
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                              "%s: give both alloc and free hooks, or neither", fn);
+
+    rbc_solver_def sdef = solver_def_defaults();
+    rbc_solver_settings settings;
+    if (def.solver &&
+        (rc = read_def(&sdef, sizeof sdef, 0, def.solver, fn, "rbc_world_def.solver")))
+        return rc;
+    if ((rc = solver_settings_from(NULL, fn, &sdef, &settings))) return rc;
 
     rbc_allocator alloc = rbc_allocator_default();
     if (def.alloc) {
@@ -230,6 +306,7 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     w->solver.substeps = def.substeps;
     w->solver.nonlinear_iterations = def.nonlinear_iterations;
     w->solver.linear_iterations = def.linear_iterations;
+    w->solver.settings = settings; /* no cloth yet: no buffers to allocate */
     w->solver.public_world_id = w->id;
     *out_world = w->id;
     char msg[128];
@@ -299,12 +376,15 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
     rbc_result rc = lookup_world(id, fn, &w);
     if (rc) return rc;
     if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: stats is NULL", fn);
-    if (out->struct_size != sizeof(rbc_world_stats))
+    if (out->struct_size != sizeof(rbc_world_stats) &&
+        out->struct_size != RBC_WORLD_STATS_SIZE_V1_0)
         return world_error(w, RBC_ERR_INVALID_ARGUMENT,
                            "%s: stats->struct_size is %u, which matches no released version "
-                           "(this library knows %zu)",
-                           fn, out->struct_size, sizeof(rbc_world_stats));
-    const rbc_solver *s = &w->solver;
+                           "(this library knows %zu and the 1.0 size %u)",
+                           fn, out->struct_size, sizeof(rbc_world_stats),
+                           RBC_WORLD_STATS_SIZE_V1_0);
+    rbc_solver *s = &w->solver;
+    double res_num = 0.0, res_den = 0.0;
     rbc_world_stats st;
     memset(&st, 0, sizeof st);
     st.struct_size = out->struct_size;
@@ -322,6 +402,21 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
         rbc_cloth_state_error(c, &e, &strain);
         st.error_eq7 += e;
         if (strain > st.max_strain) st.max_strain = strain;
+        if (out->struct_size >= sizeof(rbc_world_stats)) {
+            double r2, b2, obj;
+            rbc_cloth_state_system_error(c, &r2, &b2, &obj);
+            res_num += r2;
+            res_den += b2;
+            st.pd_objective += obj;
+            if (c->rho_est > st.spectral_radius) st.spectral_radius = c->rho_est;
+        }
+    }
+    st.solver = s->settings.kind;
+    st.iteration_mode = s->settings.mode;
+    st.linear_residual = res_den > 0.0 ? sqrt(res_num / res_den) : 0.0;
+    if (s->settings.kind == RBC_SOLVER_RBGS_SOR && s->cloth_count) {
+        rbc_cloth_state *c0 = s->cloths[0];
+        st.omega = c0->h_cached > 0.0f ? rbc_solver_sor_omega(s, c0, c0->h_cached) : s->settings.omega;
     }
     st.substeps = s->last_substeps;
     st.nonlinear_iterations = s->last_nonlinear;
@@ -333,7 +428,7 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
     st.collide_ms = s->last.collide;
     st.callback_ms = s->last.callback;
     st.other_ms = s->last.other;
-    memcpy(out, &st, sizeof st);
+    memcpy(out, &st, out->struct_size); /* only what the host's struct holds */
     return RBC_OK;
 }
 
@@ -361,10 +456,16 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create(rbc_world_id wid, const rbc_cloth_d
     if (!out_cloth) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: out_cloth is NULL", fn);
     *out_cloth = 0;
     rbc_cloth_def def = cloth_def_defaults();
-    if ((rc = read_def(&def, sizeof def, user_def, fn, "rbc_cloth_def"))) {
+    if ((rc = read_def(&def, sizeof def, RBC_CLOTH_DEF_SIZE_V1_0, user_def, fn, "rbc_cloth_def"))) {
         world_log(w, RBC_LOG_ERROR, rbc_last_error());
         return rc;
     }
+    if (!(isfinite(def.shear_stiffness) && def.shear_stiffness >= 0.0f) ||
+        !(isfinite(def.bend_stiffness) && def.bend_stiffness >= 0.0f))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: cloth def: shear_stiffness %g and bend_stiffness %g N/m must be "
+                           "finite and >= 0",
+                           fn, (double)def.shear_stiffness, (double)def.bend_stiffness);
     if (!(isfinite(def.damping) && def.damping >= 0.0f))
         return world_error(w, RBC_ERR_INVALID_ARGUMENT,
                            "%s: cloth def: damping is %g 1/s; it must be finite and >= 0", fn,
@@ -381,6 +482,8 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create(rbc_world_id wid, const rbc_cloth_d
     in.density = def.density;
     in.vertex_mass = def.vertex_mass;
     in.stiffness = def.stiffness;
+    in.shear_stiffness = def.shear_stiffness;
+    in.bend_stiffness = def.bend_stiffness;
     in.pin_count = def.pin_count;
     in.pins = def.pins;
     char msg[RBC_ERROR_CAP - 64];
@@ -521,7 +624,7 @@ RBC_API rbc_result RBC_CALL rbc_collider_create(rbc_world_id wid, const rbc_coll
     if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: out_collider is NULL", fn);
     *out = 0;
     rbc_collider_def def = collider_def_defaults();
-    if ((rc = read_def(&def, sizeof def, user_def, fn, "rbc_collider_def"))) {
+    if ((rc = read_def(&def, sizeof def, 0, user_def, fn, "rbc_collider_def"))) {
         world_log(w, RBC_LOG_ERROR, rbc_last_error());
         return rc;
     }
@@ -598,5 +701,108 @@ RBC_API rbc_result RBC_CALL rbc_collider_destroy(rbc_world_id wid, rbc_collider_
     if (rc) return rc;
     rbc_solver_remove_collider(&w->solver, k);
     rbc_reg_remove(&g_colliders, cid);
+    return RBC_OK;
+}
+
+/* ------------------------------------------------------------------------- */
+/* ABI 1.1: solvers, colors, state                                           */
+/* ------------------------------------------------------------------------- */
+
+RBC_API rbc_result RBC_CALL rbc_world_set_solver(rbc_world_id id, const rbc_solver_def *user_def) {
+    static const char fn[] = "rbc_world_set_solver";
+    rbc_world *w;
+    rbc_result rc = lookup_world(id, fn, &w);
+    if (rc) return rc;
+    rbc_solver_def def = solver_def_defaults();
+    if ((rc = read_def(&def, sizeof def, 0, user_def, fn, "rbc_solver_def"))) {
+        world_log(w, RBC_LOG_ERROR, rbc_last_error());
+        return rc;
+    }
+    rbc_solver_settings st;
+    if ((rc = solver_settings_from(w, fn, &def, &st))) return rc;
+    if ((rc = rbc_solver_set_settings(&w->solver, &st)))
+        return world_error(w, rc, "%s: out of memory for the solver's buffers", fn);
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_world_get_solver(rbc_world_id id, rbc_solver_def *out) {
+    static const char fn[] = "rbc_world_get_solver";
+    rbc_world *w;
+    rbc_result rc = lookup_world(id, fn, &w);
+    if (rc) return rc;
+    if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: def is NULL", fn);
+    if (out->struct_size != sizeof(rbc_solver_def))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: def->struct_size is %u, which matches no released version "
+                           "(this library knows %zu)",
+                           fn, out->struct_size, sizeof(rbc_solver_def));
+    const rbc_solver_settings *st = &w->solver.settings;
+    rbc_solver_def d = solver_def_defaults();
+    d.solver = st->kind;
+    d.omega = st->omega;
+    d.rho = st->rho;
+    d.chebyshev_delay = st->chebyshev_delay;
+    d.mode = st->mode;
+    d.tolerance = st->tolerance;
+    d.budget_ms = st->budget_ms;
+    d.max_linear_iterations = st->max_linear_iterations;
+    *out = d;
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_cloth_get_colors(rbc_world_id wid, rbc_cloth_id cid,
+                                                 uint32_t *sizes, uint32_t capacity,
+                                                 uint32_t *out_color_count) {
+    static const char fn[] = "rbc_cloth_get_colors";
+    rbc_world *w;
+    rbc_cloth_state *c;
+    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    if (rc) return rc;
+    if (!sizes && capacity)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: sizes is NULL but capacity is %u",
+                           fn, capacity);
+    const rbc_topology *t = &c->topo;
+    for (uint32_t k = 0; k < t->ncolors && k < capacity; ++k)
+        sizes[k] = t->color_start[k + 1] - t->color_start[k];
+    if (out_color_count) *out_color_count = t->ncolors;
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_cloth_get_state(rbc_world_id wid, rbc_cloth_id cid,
+                                                float *positions, float *previous,
+                                                size_t capacity) {
+    static const char fn[] = "rbc_cloth_get_state";
+    rbc_world *w;
+    rbc_cloth_state *c;
+    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    if (rc) return rc;
+    size_t need = 3 * (size_t)c->topo.n;
+    if ((positions || previous) && capacity < need)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: cloth 0x%08x has %u vertices and needs %zu floats; capacity is %zu",
+                           fn, cid, c->topo.n, need, capacity);
+    rbc_cloth_state_get(c, positions, previous);
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_cloth_set_state(rbc_world_id wid, rbc_cloth_id cid,
+                                                const float *positions, const float *previous) {
+    static const char fn[] = "rbc_cloth_set_state";
+    rbc_world *w;
+    rbc_cloth_state *c;
+    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    if (rc) return rc;
+    if (!positions)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: positions is NULL", fn);
+    for (uint32_t v = 0; v < c->topo.n; ++v) {
+        if (!finite3(positions + 3 * (size_t)v))
+            return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                               "%s: cloth 0x%08x: vertex %u has a non-finite position", fn, cid, v);
+        if (previous && !finite3(previous + 3 * (size_t)v))
+            return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                               "%s: cloth 0x%08x: vertex %u has a non-finite previous position",
+                               fn, cid, v);
+    }
+    rbc_cloth_state_set(c, positions, previous);
     return RBC_OK;
 }

@@ -326,9 +326,58 @@ static const char *const backend_names[] = {"auto", "cpu", "cuda", NULL};
 static const rbc_backend backend_values[] = {RBC_BACKEND_AUTO, RBC_BACKEND_CPU,
                                              RBC_BACKEND_CUDA};
 
+/* Solver names as the CLI and the scenes spell them, in rbc_solver_kind order. */
+const char *const rbc_scene_solver_names[] = {"rbgs",     "jacobi",          "jacobi_chebyshev",
+                                              "gauss_seidel", "rbgs_sor",    "rbgs_chebyshev",
+                                              "multicolor_gs", "direct",     NULL};
+const char *const rbc_scene_mode_names[] = {"fixed", "tolerance", "budget", NULL};
+
+static int parse_solver(parser *p, const cJSON *obj, const char *key, rbc_solver_def *d) {
+    static const char *const keys[] = {"kind",      "omega",     "rho",
+                                       "chebyshev_delay", "mode", "tolerance",
+                                       "budget_ms", "max_linear_iterations", NULL};
+    const cJSON *item;
+    char k[KEY_MAX];
+    int choice;
+    if (expect_object(p, obj, key) || check_keys(p, obj, key, keys))
+        return -1;
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "kind"))) {
+        key_join(k, key, "kind");
+        if (read_choice(p, item, k, rbc_scene_solver_names, &choice))
+            return -1;
+        d->solver = (rbc_solver_kind)choice;
+    }
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "mode"))) {
+        key_join(k, key, "mode");
+        if (read_choice(p, item, k, rbc_scene_mode_names, &choice))
+            return -1;
+        d->mode = (rbc_iteration_mode)choice;
+    }
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "omega")) &&
+        (key_join(k, key, "omega"), read_float(p, item, k, RANGE_NON_NEGATIVE, &d->omega)))
+        return -1;
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "rho")) &&
+        (key_join(k, key, "rho"), read_float(p, item, k, RANGE_NON_NEGATIVE, &d->rho)))
+        return -1;
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "chebyshev_delay")) &&
+        (key_join(k, key, "chebyshev_delay"), read_u32(p, item, k, 0, 100000, &d->chebyshev_delay)))
+        return -1;
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "tolerance")) &&
+        (key_join(k, key, "tolerance"), read_float(p, item, k, RANGE_POSITIVE, &d->tolerance)))
+        return -1;
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "budget_ms")) &&
+        (key_join(k, key, "budget_ms"), read_float(p, item, k, RANGE_POSITIVE, &d->budget_ms)))
+        return -1;
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "max_linear_iterations")) &&
+        (key_join(k, key, "max_linear_iterations"),
+         read_u32(p, item, k, 1, 100000, &d->max_linear_iterations)))
+        return -1;
+    return 0;
+}
+
 static int parse_world(parser *p, const cJSON *obj, rbc_scene_world *w) {
     static const char *const keys[] = {"gravity", "substeps", "nonlinear_iterations",
-                                       "linear_iterations", "threads", "backend", NULL};
+                                       "linear_iterations", "threads", "backend", "solver", NULL};
     const char *key = "world";
     const cJSON *item;
     char k[KEY_MAX];
@@ -358,6 +407,9 @@ static int parse_world(parser *p, const cJSON *obj, rbc_scene_world *w) {
             return -1;
         w->backend = backend_values[choice];
     }
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "solver")) &&
+        (key_join(k, key, "solver"), parse_solver(p, item, k, &w->solver)))
+        return -1;
     return 0;
 }
 
@@ -489,16 +541,20 @@ static int parse_pins(parser *p, const cJSON *item, const char *key, rbc_scene_c
 
 static int parse_cloth(parser *p, const cJSON *obj, const char *key, uint32_t index,
                        rbc_scene_cloth *c) {
-    static const char *const keys[] = {"name", "grid", "vertices", "quads", "vertex_mass",
-                                       "stiffness", "damping", "pins", NULL};
-    const cJSON *name, *grid, *vertices, *quads, *mass, *stiffness, *damping, *pins;
+    static const char *const keys[] = {"name",      "grid",   "vertices", "quads",
+                                       "vertex_mass", "stiffness", "damping", "pins",
+                                       "shear_stiffness", "bend_stiffness", NULL};
+    const cJSON *name, *grid, *vertices, *quads, *mass, *stiffness, *damping, *pins, *shear,
+        *bend;
     char k[KEY_MAX];
     if (expect_object(p, obj, key) || check_keys(p, obj, key, keys) ||
         member(p, obj, key, "name", 0, &name) || member(p, obj, key, "grid", 0, &grid) ||
         member(p, obj, key, "vertices", 0, &vertices) || member(p, obj, key, "quads", 0, &quads) ||
         member(p, obj, key, "vertex_mass", 0, &mass) ||
         member(p, obj, key, "stiffness", 0, &stiffness) ||
-        member(p, obj, key, "damping", 0, &damping) || member(p, obj, key, "pins", 0, &pins))
+        member(p, obj, key, "damping", 0, &damping) || member(p, obj, key, "pins", 0, &pins) ||
+        member(p, obj, key, "shear_stiffness", 0, &shear) ||
+        member(p, obj, key, "bend_stiffness", 0, &bend))
         return -1;
 
     if (name) {
@@ -540,7 +596,11 @@ static int parse_cloth(parser *p, const cJSON *obj, const char *key, uint32_t in
         (stiffness && (key_join(k, key, "stiffness"),
                        read_float(p, stiffness, k, RANGE_POSITIVE, &c->stiffness))) ||
         (damping && (key_join(k, key, "damping"),
-                     read_float(p, damping, k, RANGE_NON_NEGATIVE, &c->damping))))
+                     read_float(p, damping, k, RANGE_NON_NEGATIVE, &c->damping))) ||
+        (shear && (key_join(k, key, "shear_stiffness"),
+                   read_float(p, shear, k, RANGE_NON_NEGATIVE, &c->shear_stiffness))) ||
+        (bend && (key_join(k, key, "bend_stiffness"),
+                  read_float(p, bend, k, RANGE_NON_NEGATIVE, &c->bend_stiffness))))
         return -1;
     if (pins && (key_join(k, key, "pins"), parse_pins(p, pins, k, c)))
         return -1;
@@ -635,10 +695,19 @@ static int parse_root(parser *p, const cJSON *root, rbc_scene *s) {
     s->world.linear_iterations = 11;
     s->world.thread_count = 0;
     s->world.backend = RBC_BACKEND_AUTO;
+    /* rbc_solver_def's documented defaults (the loader does not call the library). */
+    memset(&s->world.solver, 0, sizeof s->world.solver);
+    s->world.solver.struct_size = sizeof s->world.solver;
+    s->world.solver.solver = RBC_SOLVER_RBGS;
+    s->world.solver.chebyshev_delay = 2;
+    s->world.solver.mode = RBC_ITERATE_FIXED;
+    s->world.solver.tolerance = 1e-3f;
+    s->world.solver.budget_ms = 2.0f;
+    s->world.solver.max_linear_iterations = 1000;
     if (world && parse_world(p, world, &s->world))
         return -1;
 
-    uint32_t n;
+    uint32_t n = 0;
     if (read_array(p, cloths, "cloths", 1, SCENE_MAX_CLOTHS, &n))
         return -1;
     if (!(s->cloths = calloc(n, sizeof *s->cloths)))
@@ -894,6 +963,9 @@ rbc_result rbc_scene_instantiate(const rbc_api_v1 *api, const rbc_scene *scene,
     wd.linear_iterations = scene->world.linear_iterations;
     wd.thread_count = scene->world.thread_count;
     wd.backend = scene->world.backend;
+    rbc_solver_def sd = scene->world.solver;
+    sd.struct_size = sizeof sd;
+    wd.solver = &sd;
     if (log) {
         wd.log = log;
         wd.log_user = log_user;
@@ -922,6 +994,8 @@ rbc_result rbc_scene_instantiate(const rbc_api_v1 *api, const rbc_scene *scene,
         cd.vertex_mass = c->vertex_mass;
         cd.stiffness = c->stiffness;
         cd.damping = c->damping;
+        cd.shear_stiffness = c->shear_stiffness;
+        cd.bend_stiffness = c->bend_stiffness;
         cd.pin_count = c->pin_count;
         cd.pins = c->pins;
         r = api->cloth_create(inst.world, &cd, &inst.cloths[i]);

@@ -32,6 +32,8 @@ typedef struct rbc_scene_world {
     /// 0 = one per available core.
     uint32_t thread_count;
     rbc_backend backend;
+    /// The "solver" object: the global solver and iteration control (ABI 1.1).
+    rbc_solver_def solver;
 } rbc_scene_world;
 
 /// One cloth: its mesh (generated from "grid" or given inline) and material.
@@ -52,6 +54,9 @@ typedef struct rbc_scene_cloth {
     float vertex_mass;
     float stiffness;
     float damping;
+    /// Shear and bend spring stiffness, N/m (0 = none; ABI 1.1).
+    float shear_stiffness;
+    float bend_stiffness;
     uint32_t pin_count;
     /// Pinned vertex indices, in file order, each < vertex_count, no duplicates.
     uint32_t *pins;
@@ -92,6 +97,11 @@ int rbc_scene_parse(const char *json, size_t length, const char *source, rbc_sce
 
 /// Read and parse a scene file. Returns 0 or -1 as rbc_scene_parse.
 int rbc_scene_load_file(const char *path, rbc_scene *out, char *err, size_t err_size);
+
+/// Solver and iteration-mode names as scenes and the CLI spell them, indexed by
+/// rbc_solver_kind / rbc_iteration_mode, NULL-terminated.
+extern const char *const rbc_scene_solver_names[];
+extern const char *const rbc_scene_mode_names[];
 
 /// The built-in default scene, identical to samples/scenes/hanging_cloth.json: the
 /// paper's 100 x 100 hanging cloth. Returns 0 or -1 as rbc_scene_parse.

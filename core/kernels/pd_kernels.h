@@ -62,15 +62,16 @@ RBC_HD void rbc_k_local(uint32_t s, const uint32_t *sa, const uint32_t *sb, cons
     dz[kb] = -oz;
 }
 
-/* Eq. 6, one Gauss-Seidel update of free particle i, reading its neighbors' current
- * positions (the other color, already updated this sweep or not yet: red-black
- * ordering makes both Gauss-Seidel):
- *   p_i = (m_i/h^2 y_i + sum_j s_ij (p_j + d_ij)) / (m_i/h^2 + sum_j s_ij)
- * w[i] = m_i/h^2 (kg/s^2), inv_denom[i] = 1/(w_i + sum_j s_ij). */
-RBC_HD void rbc_k_global(uint32_t i, const uint32_t *adj_start, const uint32_t *adj_nbr,
-                         const float *adj_k, const float *dx, const float *dy, const float *dz,
-                         const float *w, const float *inv_denom, const float *yx,
-                         const float *yy, const float *yz, float *px, float *py, float *pz) {
+/* Eq. 6 for particle i, reading the neighbours from (px, py, pz):
+ *   g_i = (m_i/h^2 y_i + sum_j s_ij (p_j + d_ij)) / (m_i/h^2 + sum_j s_ij)
+ * w[i] = m_i/h^2 (kg/s^2), inv_denom[i] = 1/(w_i + sum_j s_ij). Gauss-Seidel writes g_i
+ * back into the same arrays (red-black ordering makes a color's updates independent),
+ * Jacobi into another iterate. */
+RBC_HD void rbc_k_eq6(uint32_t i, const uint32_t *adj_start, const uint32_t *adj_nbr,
+                      const float *adj_k, const float *dx, const float *dy, const float *dz,
+                      const float *w, const float *inv_denom, const float *yx, const float *yy,
+                      const float *yz, const float *px, const float *py, const float *pz,
+                      float *gx, float *gy, float *gz) {
     float wi = w[i];
     float sx = wi * yx[i], sy = wi * yy[i], sz = wi * yz[i];
     for (uint32_t k = adj_start[i]; k < adj_start[i + 1]; ++k) {
@@ -81,8 +82,54 @@ RBC_HD void rbc_k_global(uint32_t i, const uint32_t *adj_start, const uint32_t *
         sz += kk * (pz[j] + dz[k]);
     }
     float r = inv_denom[i];
-    px[i] = sx * r;
-    py[i] = sy * r;
-    pz[i] = sz * r;
+    *gx = sx * r;
+    *gy = sy * r;
+    *gz = sz * r;
+}
+
+/* One Gauss-Seidel update of free particle i in place (Eq. 6). */
+RBC_HD void rbc_k_global(uint32_t i, const uint32_t *adj_start, const uint32_t *adj_nbr,
+                         const float *adj_k, const float *dx, const float *dy, const float *dz,
+                         const float *w, const float *inv_denom, const float *yx,
+                         const float *yy, const float *yz, float *px, float *py, float *pz) {
+    float gx, gy, gz;
+    rbc_k_eq6(i, adj_start, adj_nbr, adj_k, dx, dy, dz, w, inv_denom, yx, yy, yz, px, py, pz,
+              &gx, &gy, &gz);
+    px[i] = gx;
+    py[i] = gy;
+    pz[i] = gz;
+}
+
+/* Residual and right-hand side of free particle i's row of the global system
+ *   (w_i + sum_j s_ij) p_i - sum_{j free} s_ij p_j = w_i y_i + sum_j s_ij d_ij + sum_{j pinned} s_ij p_j
+ * as squared norms: *r2 += |b_i - (A p)_i|^2, *b2 += |b_i|^2 (double accumulators). */
+RBC_HD void rbc_k_residual(uint32_t i, const uint32_t *adj_start, const uint32_t *adj_nbr,
+                           const float *adj_k, const float *dx, const float *dy, const float *dz,
+                           const float *w, const float *inv_denom, const float *yx,
+                           const float *yy, const float *yz, const float *px, const float *py,
+                           const float *pz, const uint8_t *pinned, double *r2, double *b2) {
+    double wi = w[i];
+    double bx = wi * yx[i], by = wi * yy[i], bz = wi * yz[i];
+    double ax = px[i] / (double)inv_denom[i], ay = py[i] / (double)inv_denom[i],
+           az = pz[i] / (double)inv_denom[i];
+    for (uint32_t k = adj_start[i]; k < adj_start[i + 1]; ++k) {
+        uint32_t j = adj_nbr[k];
+        double kk = adj_k[k];
+        bx += kk * dx[k];
+        by += kk * dy[k];
+        bz += kk * dz[k];
+        if (pinned[j]) {
+            bx += kk * px[j];
+            by += kk * py[j];
+            bz += kk * pz[j];
+        } else {
+            ax -= kk * px[j];
+            ay -= kk * py[j];
+            az -= kk * pz[j];
+        }
+    }
+    double rx = bx - ax, ry = by - ay, rz = bz - az;
+    *r2 += rx * rx + ry * ry + rz * rz;
+    *b2 += bx * bx + by * by + bz * bz;
 }
 #endif

@@ -1,0 +1,43 @@
+/* global.h -- the solvers of the global step (Eq. 6) for one cloth, each over one
+ * thread's share of the particles: Gauss-Seidel by color (red-black, or more colors),
+ * with over-relaxation or Chebyshev acceleration; Jacobi, plain or Chebyshev; serial
+ * lexicographic Gauss-Seidel; and the residual and spectral radius that measure and
+ * tune them. The step (solver.c) calls these between barriers. */
+#ifndef RBC_CORE_GLOBAL_H
+#define RBC_CORE_GLOBAL_H
+#include <stdint.h>
+
+#include "solver.h"
+
+/* How a Gauss-Seidel color sweep writes its result g_i (Eq. 6). */
+typedef enum rbc_gs_variant {
+    RBC_GS_PLAIN,     /* p_i = g_i */
+    RBC_GS_SOR,       /* p_i += omega (g_i - p_i) */
+    RBC_GS_STASH      /* p_i = g_i, and the old p_i kept in alt (for Chebyshev) */
+} rbc_gs_variant;
+
+/* One color of one Gauss-Seidel iteration, this thread's share. */
+void rbc_global_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, float omega,
+                         uint32_t tid, uint32_t nt);
+/* Chebyshev blend after a full Gauss-Seidel iteration (this thread's share of the
+ * particles): p = omega (p - prev) + prev, then prev = the iterate before the
+ * iteration (stashed in alt by RBC_GS_STASH). Blending after the whole sweep, not
+ * inside it, keeps every color's sweep a plain Gauss-Seidel step of the same
+ * iteration, which is what the semi-iterative method accelerates. */
+void rbc_global_chebyshev_blend(rbc_cloth_state *c, float omega, uint32_t tid, uint32_t nt);
+/* One Jacobi iteration, this thread's share: dst = Eq. 6 of src for free particles,
+ * dst = src for pinned ones; with chebyshev, dst = omega (g - prev) + prev and
+ * prev = src. */
+void rbc_global_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst[3],
+                       int chebyshev, float omega, uint32_t tid, uint32_t nt);
+/* One serial lexicographic Gauss-Seidel iteration in the host's vertex order. */
+void rbc_global_gs_serial(rbc_cloth_state *c);
+/* Squared residual and right-hand side norms of the global system at p, over this
+ * thread's share of the particles of colors [0, color_end). */
+void rbc_global_residual(const rbc_cloth_state *c, uint32_t color_end, uint32_t tid,
+                         uint32_t nt, double *r2, double *b2);
+/* Chebyshev weight of iteration k (0-based) for spectral radius rho, starting after
+ * `delay` plain iterations (Wang 2015): 1 before, then 2/(2 - rho^2), then
+ * 4/(4 - rho^2 omega_prev). */
+float rbc_chebyshev_omega(uint32_t k, uint32_t delay, float rho);
+#endif

@@ -1,0 +1,280 @@
+/* ABI 1.1 as a host sees it:
+ *  - a host built against 1.0 (defs and stats at the RBC_*_SIZE_V1_0 sizes) keeps
+ *    working: 1.0 defs get the 1.1 fields' defaults, 1.0 stats get no byte past
+ *    their size;
+ *  - every solver is selectable at creation and at run time, runs the paper's
+ *    hanging cloth, and reports itself in stats; rbc_world_get_solver round-trips;
+ *  - bad solver defs are refused with a message and change nothing;
+ *  - the iteration modes do what they say: TOLERANCE reaches its residual (or the
+ *    cap), BUDGET stays near its budget, FIXED does its count;
+ *  - the direct solver's global residual is at float rounding level;
+ *  - state get/set round-trips bitwise and keeps pins; color sizes add up.
+ */
+#include "abi_util.h"
+
+static const char *const NAMES[] = {"rbgs",     "jacobi",         "jacobi_chebyshev",
+                                    "gauss_seidel", "rbgs_sor",   "rbgs_chebyshev",
+                                    "multicolor_gs", "direct"};
+
+static rbc_world_id make_world(rbc_solver_kind kind, rbc_iteration_mode mode, uint32_t threads) {
+    rbc_world_def wd = rbc_world_def_default();
+    rbc_solver_def sd = rbc_solver_def_default();
+    sd.solver = kind;
+    sd.mode = mode;
+    wd.solver = &sd;
+    wd.thread_count = threads;
+    rbc_world_id w = 0;
+    CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
+    return w;
+}
+
+static void test_v10_host(const test_grid *g) {
+    /* A 1.0 host's world def: the bytes up to the 1.0 size, garbage after. */
+    struct {
+        rbc_world_def d;
+        char tail[64];
+    } wbuf;
+    memset(&wbuf, 0xAB, sizeof wbuf);
+    CHECK_EQ(rbc_world_def_init(&wbuf.d, RBC_WORLD_DEF_SIZE_V1_0), RBC_OK);
+    /* init writes only the 1.0 bytes */
+    const unsigned char *raw = (const unsigned char *)&wbuf;
+    int untouched = 1;
+    for (size_t k = RBC_WORLD_DEF_SIZE_V1_0; k < sizeof wbuf; ++k) untouched &= raw[k] == 0xAB;
+    CHECK(untouched);
+    rbc_world_id w = 0;
+    CHECK_EQ(rbc_world_create(&wbuf.d, &w), RBC_OK);
+
+    struct {
+        rbc_cloth_def d;
+        char tail[64];
+    } cbuf;
+    memset(&cbuf, 0xCD, sizeof cbuf);
+    CHECK_EQ(rbc_cloth_def_init(&cbuf.d, RBC_CLOTH_DEF_SIZE_V1_0), RBC_OK);
+    cbuf.d.vertex_count = g->vertex_count;
+    cbuf.d.positions = g->positions;
+    cbuf.d.quad_count = g->quad_count;
+    cbuf.d.quads = g->quads;
+    rbc_cloth_id c = 0;
+    CHECK_EQ(rbc_cloth_create(w, &cbuf.d, &c), RBC_OK);
+    uint32_t springs = 0, colors = 0;
+    CHECK_EQ(rbc_cloth_get_topology(w, c, &springs, &colors), RBC_OK);
+    /* The 0xCD bytes where shear/bend would be must not have been read. */
+    CHECK_EQ(springs, test_grid_spring_count(g));
+    CHECK_EQ(colors, 2);
+    CHECK_EQ(rbc_world_step(w, 0.002f), RBC_OK);
+
+    struct {
+        rbc_world_stats s;
+        char tail[64];
+    } sbuf;
+    memset(&sbuf, 0xEF, sizeof sbuf);
+    sbuf.s.struct_size = RBC_WORLD_STATS_SIZE_V1_0;
+    CHECK_EQ(rbc_world_get_stats(w, &sbuf.s), RBC_OK);
+    raw = (const unsigned char *)&sbuf;
+    untouched = 1;
+    for (size_t k = RBC_WORLD_STATS_SIZE_V1_0; k < sizeof sbuf; ++k) untouched &= raw[k] == 0xEF;
+    CHECK(untouched);
+    CHECK_EQ(sbuf.s.particle_count, g->vertex_count);
+    CHECK_EQ(sbuf.s.step_count, 1);
+    /* A size between the releases is refused. */
+    sbuf.s.struct_size = RBC_WORLD_STATS_SIZE_V1_0 + 8;
+    CHECK_EQ(rbc_world_get_stats(w, &sbuf.s), RBC_ERR_INVALID_ARGUMENT);
+    /* The 1.1 default solver runs for a 1.0 host. */
+    rbc_solver_def sd;
+    sd.struct_size = sizeof sd;
+    CHECK_EQ(rbc_world_get_solver(w, &sd), RBC_OK);
+    CHECK_EQ(sd.solver, RBC_SOLVER_RBGS);
+    CHECK_EQ(sd.mode, RBC_ITERATE_FIXED);
+    CHECK_EQ(rbc_world_destroy(w), RBC_OK);
+    /* And the table: a 1.0 host checks struct_size >= the 1.0 size. */
+    const rbc_api_v1 *api = (const rbc_api_v1 *)rbc_get_api(1);
+    CHECK(api && api->struct_size >= RBC_API_V1_SIZE_V1_0 && api->struct_size == sizeof *api);
+    CHECK(api->abi_version == RBC_ABI_VERSION);
+}
+
+static void test_bad_solver_defs(void) {
+    rbc_world_id w = make_world(RBC_SOLVER_RBGS, RBC_ITERATE_FIXED, 1);
+    struct {
+        const char *what;
+        rbc_solver_def d;
+    } bad[9];
+    for (int k = 0; k < 9; ++k) bad[k].d = rbc_solver_def_default();
+    bad[0].what = "unknown solver", bad[0].d.solver = 8;
+    bad[1].what = "omega 2", bad[1].d.omega = 2.0f;
+    bad[2].what = "omega NaN", bad[2].d.omega = NAN;
+    bad[3].what = "rho 1", bad[3].d.rho = 1.0f;
+    bad[4].what = "unknown mode", bad[4].d.mode = 3;
+    bad[5].what = "tolerance 0", bad[5].d.tolerance = 0.0f;
+    bad[6].what = "budget -1", bad[6].d.budget_ms = -1.0f;
+    bad[7].what = "max 0", bad[7].d.max_linear_iterations = 0;
+    bad[8].what = "struct_size", bad[8].d.struct_size = 4;
+    for (int k = 0; k < 9; ++k) {
+        rbc_result r = rbc_world_set_solver(w, &bad[k].d);
+        CHECK_EQ(r, RBC_ERR_INVALID_ARGUMENT);
+        if (r != RBC_ERR_INVALID_ARGUMENT) fprintf(stderr, "  case: %s\n", bad[k].what);
+        CHECK(rbc_last_error()[0] != '\0');
+        rbc_solver_def now;
+        now.struct_size = sizeof now;
+        CHECK_EQ(rbc_world_get_solver(w, &now), RBC_OK);
+        CHECK_EQ(now.solver, RBC_SOLVER_RBGS); /* unchanged */
+    }
+    /* The same refusals at creation. */
+    rbc_world_def wd = rbc_world_def_default();
+    wd.solver = &bad[0].d;
+    rbc_world_id w2 = 0;
+    CHECK_EQ(rbc_world_create(&wd, &w2), RBC_ERR_INVALID_ARGUMENT);
+    CHECK_EQ(w2, 0);
+    CHECK_EQ(rbc_world_destroy(w), RBC_OK);
+}
+
+/* Every solver on the paper's hanging cloth (100 x 100, h = 2 ms), 30 frames,
+ * created with it and switched to it at run time: finite, and reported. */
+static void test_every_solver(const test_grid *g) {
+    uint32_t pins[2] = {0, 99};
+    for (int kind = 0; kind <= RBC_SOLVER_DIRECT; ++kind) {
+        rbc_world_id w = make_world(kind, RBC_ITERATE_FIXED, 2);
+        rbc_cloth_def cd = test_grid_def(g, pins, 2);
+        rbc_cloth_id c = 0;
+        CHECK_EQ(rbc_cloth_create(w, &cd, &c), RBC_OK);
+        int ok = 1;
+        for (int f = 0; f < 30 && ok; ++f) ok = rbc_world_step(w, 0.002f) == RBC_OK;
+        CHECK(ok);
+        if (!ok) fprintf(stderr, "  %s: %s\n", NAMES[kind], rbc_last_error());
+        rbc_world_stats st = test_stats(w);
+        CHECK_EQ(st.solver, kind);
+        uint32_t n = 0;
+        float *x = test_read(w, c, &n);
+        CHECK(test_all_finite(x, 3 * (size_t)n));
+        /* One step's iterations: FIXED does 11 (the direct solver one solve). */
+        CHECK_EQ(st.linear_iterations, kind == RBC_SOLVER_DIRECT ? 1 : 11);
+        printf("%-17s 30 frames: Eq. 7 %.4g, residual %.3g, PD objective %.4g, rho_J %.4f, "
+               "omega %.4f\n",
+               NAMES[kind], st.error_eq7, st.linear_residual, st.pd_objective,
+               st.spectral_radius, st.omega);
+        if (kind == RBC_SOLVER_DIRECT) {
+            /* Exact solve: the residual of the last global system at the float result
+             * is rounding: |A| |p| 2^-24 / |b| with |A| ~ 2 (w + sum s), |p| ~ 1,
+             * |b| ~ w |y|; measured ~4e-6 here, bounded by 1e-4. */
+            CHECK(st.linear_residual < 1e-4);
+        } else {
+            CHECK(st.linear_residual > 0.0);
+        }
+        /* Switch at run time to another solver and keep stepping. */
+        rbc_solver_def sd = rbc_solver_def_default();
+        sd.solver = (rbc_solver_kind)((kind + 3) % 8);
+        CHECK_EQ(rbc_world_set_solver(w, &sd), RBC_OK);
+        CHECK_EQ(rbc_world_step(w, 0.002f), RBC_OK);
+        CHECK_EQ(test_stats(w).solver, sd.solver);
+        free(x);
+        CHECK_EQ(rbc_world_destroy(w), RBC_OK);
+    }
+}
+
+static void test_modes(const test_grid *g) {
+    uint32_t pins[2] = {0, 99};
+    /* TOLERANCE: the residual after each step is within tolerance (checked by the
+     * solver on the same quantity the stats report), unless the cap was hit. */
+    rbc_world_id w = make_world(RBC_SOLVER_RBGS, RBC_ITERATE_TOLERANCE, 1);
+    rbc_solver_def sd = rbc_solver_def_default();
+    sd.mode = RBC_ITERATE_TOLERANCE;
+    sd.tolerance = 1e-4f;
+    CHECK_EQ(rbc_world_set_solver(w, &sd), RBC_OK);
+    rbc_cloth_def cd = test_grid_def(g, pins, 2);
+    rbc_cloth_id c = 0;
+    CHECK_EQ(rbc_cloth_create(w, &cd, &c), RBC_OK);
+    uint32_t worst_it = 0;
+    double worst_res = 0.0;
+    for (int f = 0; f < 20; ++f) {
+        CHECK_EQ(rbc_world_step(w, 0.002f), RBC_OK);
+        rbc_world_stats st = test_stats(w);
+        if (st.linear_iterations > worst_it) worst_it = st.linear_iterations;
+        if (st.linear_residual > worst_res) worst_res = st.linear_residual;
+    }
+    printf("tolerance 1e-4: worst residual %.3g, most iterations %u\n", worst_res, worst_it);
+    /* The stats' residual is over all colors; the solver's check skips the color
+     * just solved (its rows are exact up to rounding), so allow float rounding. */
+    CHECK(worst_res <= 1e-4 * 1.01 + 1e-6);
+    CHECK(worst_it < 1000);
+    CHECK_EQ(rbc_world_destroy(w), RBC_OK);
+
+    /* BUDGET: a 2 ms budget per step on one thread: the step takes about that (it
+     * stops when another iteration would pass the deadline, so at most one
+     * iteration over; at least one iteration always runs). Measured as a median
+     * over 30 steps; the bound is loose (4 ms) because this machine is shared. */
+    w = make_world(RBC_SOLVER_RBGS, RBC_ITERATE_BUDGET, 1);
+    sd.mode = RBC_ITERATE_BUDGET;
+    sd.budget_ms = 2.0f;
+    CHECK_EQ(rbc_world_set_solver(w, &sd), RBC_OK);
+    CHECK_EQ(rbc_cloth_create(w, &cd, &c), RBC_OK);
+    double ms[30];
+    uint32_t iters = 0;
+    for (int f = 0; f < 30; ++f) {
+        CHECK_EQ(rbc_world_step(w, 0.002f), RBC_OK);
+        rbc_world_stats st = test_stats(w);
+        ms[f] = st.step_ms;
+        iters += st.linear_iterations;
+    }
+    for (int i = 1; i < 30; ++i)
+        for (int j = i; j > 0 && ms[j - 1] > ms[j]; --j) {
+            double t = ms[j];
+            ms[j] = ms[j - 1];
+            ms[j - 1] = t;
+        }
+    printf("budget 2 ms: median step %.3f ms, %.1f iterations per step\n", ms[15], iters / 30.0);
+    CHECK(ms[15] < 4.0);
+    CHECK(iters >= 30);
+    CHECK_EQ(rbc_world_destroy(w), RBC_OK);
+}
+
+static void test_state_and_colors(const test_grid *g) {
+    rbc_world_id w = make_world(RBC_SOLVER_RBGS, RBC_ITERATE_FIXED, 1);
+    uint32_t pins[2] = {0, 99};
+    rbc_cloth_def cd = test_grid_def(g, pins, 2);
+    rbc_cloth_id c = 0;
+    CHECK_EQ(rbc_cloth_create(w, &cd, &c), RBC_OK);
+    for (int f = 0; f < 5; ++f) CHECK_EQ(rbc_world_step(w, 0.002f), RBC_OK);
+    size_t n3 = 3 * (size_t)g->vertex_count;
+    float *x = malloc(n3 * sizeof(float)), *q = malloc(n3 * sizeof(float));
+    float *x2 = malloc(n3 * sizeof(float)), *q2 = malloc(n3 * sizeof(float));
+    CHECK_EQ(rbc_cloth_get_state(w, c, x, q, n3), RBC_OK);
+    CHECK_EQ(rbc_cloth_get_state(w, c, x, q, n3 - 1), RBC_ERR_INVALID_ARGUMENT);
+    /* Step on, then put the old state back: the next step repeats bitwise. */
+    CHECK_EQ(rbc_world_step(w, 0.002f), RBC_OK);
+    CHECK_EQ(rbc_cloth_get_state(w, c, x2, NULL, n3), RBC_OK);
+    CHECK_EQ(rbc_cloth_set_state(w, c, x, q), RBC_OK);
+    CHECK_EQ(rbc_world_step(w, 0.002f), RBC_OK);
+    CHECK_EQ(rbc_cloth_get_state(w, c, q2, NULL, n3), RBC_OK);
+    CHECK(memcmp(x2, q2, n3 * sizeof(float)) == 0);
+    /* set_state moves free vertices, not pinned ones. */
+    for (size_t k = 0; k < n3; ++k) x2[k] = x[k] + 0.5f;
+    CHECK_EQ(rbc_cloth_set_state(w, c, x2, NULL), RBC_OK);
+    CHECK_EQ(rbc_cloth_get_state(w, c, q2, NULL, n3), RBC_OK);
+    CHECK(q2[0] == g->positions[0] && q2[3 * 99] == g->positions[3 * 99]);
+    CHECK(q2[3 * 50] == x2[3 * 50]);
+    x2[7] = NAN;
+    CHECK_EQ(rbc_cloth_set_state(w, c, x2, NULL), RBC_ERR_INVALID_ARGUMENT);
+    CHECK(test_contains_number(rbc_last_error(), 2)); /* float 7 is vertex 2 */
+    uint32_t sizes[4] = {0}, ncol = 0;
+    CHECK_EQ(rbc_cloth_get_colors(w, c, sizes, 4, &ncol), RBC_OK);
+    CHECK_EQ(ncol, 2);
+    CHECK_EQ(sizes[0] + sizes[1], g->vertex_count);
+    CHECK_EQ(sizes[0], g->vertex_count / 2);
+    free(x);
+    free(q);
+    free(x2);
+    free(q2);
+    CHECK_EQ(rbc_world_destroy(w), RBC_OK);
+}
+
+int main(void) {
+    test_grid g = test_grid_make(100, 100, 1.0f / 99.0f, 0.0f, 0.0f, 0.0f);
+    test_grid small = test_grid_make(10, 10, 0.1f, 0.0f, 0.0f, 0.0f);
+    test_v10_host(&small);
+    test_bad_solver_defs();
+    test_every_solver(&g);
+    test_modes(&g);
+    test_state_and_colors(&g);
+    test_grid_free(&g);
+    test_grid_free(&small);
+    return check_report("abi_abi11");
+}
