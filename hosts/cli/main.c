@@ -13,6 +13,7 @@
 #include "bench.h"
 #include "plugin.h"
 #include "run.h"
+#include "scene.h"
 
 enum { EXIT_OK = 0, EXIT_RUNTIME = 1, EXIT_USAGE = 2 };
 
@@ -41,7 +42,15 @@ static const char usage_text[] =
     "  --frames N        frames to simulate (one step of the scene's dt each)\n"
     "  --threads N       worker threads; 0 = one per core\n"
     "  --substeps N      substeps per frame (1..1024)\n"
-    "  --iterations N    linear Red-Black Gauss-Seidel iterations (1..4096)\n"
+    "  --iterations N    linear iterations per non-linear iteration (1..4096)\n"
+    "  --nonlinear N     non-linear (local/global) iterations per substep (1..1024)\n"
+    "  --solver NAME     global solver: rbgs (default), jacobi, jacobi_chebyshev,\n"
+    "                    gauss_seidel, rbgs_sor, rbgs_chebyshev, multicolor_gs, direct\n"
+    "  --mode NAME       when linear iterations stop: fixed (the count), tolerance\n"
+    "                    (relative residual), budget (milliseconds per frame)\n"
+    "  --tolerance X     relative residual for --mode tolerance (default 1e-3)\n"
+    "  --budget-ms X     milliseconds per frame for --mode budget (default 2)\n"
+    "  --omega X         SOR factor for rbgs_sor, in (0, 2); 0 = optimal (default)\n"
     "  --quiet           no progress bar and no table of timings\n"
     "\n"
     "Options of bench:\n"
@@ -92,7 +101,19 @@ static int parse_run_args(int argc, char **argv, cli_run_options *o) {
         {"--threads", 0, 1024, &o->threads},
         {"--substeps", 1, 1024, &o->substeps},
         {"--iterations", 1, 4096, &o->iterations},
+        {"--nonlinear", 1, 1024, &o->nonlinear},
     };
+    struct {
+        const char *name;
+        double *target;
+    } reals[] = {{"--tolerance", &o->tolerance}, {"--budget-ms", &o->budget_ms},
+                 {"--omega", &o->omega}};
+    struct {
+        const char *name;
+        const char *const *choices;
+        const char **target;
+    } names[] = {{"--solver", rbc_scene_solver_names, &o->solver},
+                 {"--mode", rbc_scene_mode_names, &o->mode}};
     for (int i = 0; i < argc; ++i) {
         const char *arg = argv[i];
         if (strcmp(arg, "--quiet") == 0 || strcmp(arg, "-q") == 0) {
@@ -117,6 +138,40 @@ static int parse_run_args(int argc, char **argv, cli_run_options *o) {
                 return usage_error("%s needs a directory", "--out");
             o->out_dir = value;
             continue;
+        }
+        for (size_t k = 0; k < sizeof reals / sizeof reals[0]; ++k) {
+            if (name_len != strlen(reals[k].name) || strncmp(arg, reals[k].name, name_len) != 0)
+                continue;
+            matched = 1;
+            if (!value && i + 1 < argc)
+                value = argv[++i];
+            char *end = NULL;
+            double v = value ? strtod(value, &end) : -1.0;
+            if (!value || !value[0] || *end || !(v >= 0.0) || v > 1e9) {
+                fprintf(stderr, "rbcloth: %s needs a number >= 0, got '%s'\n", reals[k].name,
+                        value ? value : "");
+                fputs("Try 'rbcloth --help'.\n", stderr);
+                return EXIT_USAGE;
+            }
+            *reals[k].target = v;
+        }
+        for (size_t k = 0; k < sizeof names / sizeof names[0]; ++k) {
+            if (name_len != strlen(names[k].name) || strncmp(arg, names[k].name, name_len) != 0)
+                continue;
+            matched = 1;
+            if (!value && i + 1 < argc)
+                value = argv[++i];
+            int found = 0;
+            for (int c = 0; value && names[k].choices[c]; ++c)
+                found |= strcmp(value, names[k].choices[c]) == 0;
+            if (!found) {
+                fprintf(stderr, "rbcloth: %s needs one of:", names[k].name);
+                for (int c = 0; names[k].choices[c]; ++c) fprintf(stderr, " %s", names[k].choices[c]);
+                fprintf(stderr, "; got '%s'\n", value ? value : "");
+                fputs("Try 'rbcloth --help'.\n", stderr);
+                return EXIT_USAGE;
+            }
+            *names[k].target = value;
         }
         for (size_t k = 0; k < sizeof ints / sizeof ints[0]; ++k) {
             if (name_len != strlen(ints[k].name) || strncmp(arg, ints[k].name, name_len) != 0)
@@ -145,6 +200,12 @@ static int command_run(int argc, char **argv) {
         .threads = -1,
         .substeps = -1,
         .iterations = -1,
+        .nonlinear = -1,
+        .solver = NULL,
+        .mode = NULL,
+        .tolerance = -1.0,
+        .budget_ms = -1.0,
+        .omega = -1.0,
         .quiet = 0,
     };
     for (int i = 0; i < argc; ++i) {

@@ -162,6 +162,16 @@ static int load_scene(run_state *s) {
         s->scene.world.substeps = (uint32_t)o->substeps;
     if (o->iterations >= 0)
         s->scene.world.linear_iterations = (uint32_t)o->iterations;
+    if (o->nonlinear >= 0)
+        s->scene.world.nonlinear_iterations = (uint32_t)o->nonlinear;
+    rbc_solver_def *sd = &s->scene.world.solver;
+    for (int k = 0; o->solver && rbc_scene_solver_names[k]; ++k)
+        if (strcmp(o->solver, rbc_scene_solver_names[k]) == 0) sd->solver = (rbc_solver_kind)k;
+    for (int k = 0; o->mode && rbc_scene_mode_names[k]; ++k)
+        if (strcmp(o->mode, rbc_scene_mode_names[k]) == 0) sd->mode = (rbc_iteration_mode)k;
+    if (o->tolerance >= 0.0) sd->tolerance = (float)o->tolerance;
+    if (o->budget_ms >= 0.0) sd->budget_ms = (float)o->budget_ms;
+    if (o->omega >= 0.0) sd->omega = (float)o->omega;
     return 0;
 }
 
@@ -371,6 +381,8 @@ static cJSON *build_summary(const run_state *s, json_builder *b) {
     jnum(b, root, "substeps", sc->world.substeps);
     jnum(b, root, "nonlinear_iterations", sc->world.nonlinear_iterations);
     jnum(b, root, "linear_iterations", sc->world.linear_iterations);
+    cJSON_AddStringToObject(root, "solver", rbc_scene_solver_names[sc->world.solver.solver]);
+    cJSON_AddStringToObject(root, "iteration_mode", rbc_scene_mode_names[sc->world.solver.mode]);
     jnum(b, root, "colliders", st->collider_count);
 
     cJSON *cloths = jcheck(b, cJSON_AddArrayToObject(root, "cloths"));
@@ -443,6 +455,12 @@ static void print_table(const run_state *s) {
            sc->name, s->frames_done, 1e3 * float_as_decimal(sc->dt), st->particle_count,
            st->spring_count, st->color_count, backend_name(st->backend), st->thread_count,
            st->thread_count == 1 ? "" : "s");
+    printf("  solver %s, iterations %s: %u substep(s) x %u non-linear x %u linear per frame "
+           "(last frame)\n",
+           rbc_scene_solver_names[sc->world.solver.solver],
+           rbc_scene_mode_names[sc->world.solver.mode], st->substeps,
+           st->substeps ? st->nonlinear_iterations / st->substeps : 0,
+           st->nonlinear_iterations ? st->linear_iterations / st->nonlinear_iterations : 0);
     printf("  %-10s %12s %12s\n", "stage", "median ms", "mean ms");
     for (int stage = 0; stage < CLI_STAGE_COUNT; ++stage) {
         double median, mean;

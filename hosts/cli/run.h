@@ -15,6 +15,14 @@ typedef struct cli_run_options {
     long substeps;
     /// Linear (Red-Black Gauss-Seidel) iterations per non-linear iteration.
     long iterations;
+    /// Non-linear (local/global) iterations per substep.
+    long nonlinear;
+    /// Global solver and iteration mode by name (rbc_scene_solver_names,
+    /// rbc_scene_mode_names), or NULL to keep the scene's.
+    const char *solver;
+    const char *mode;
+    /// Mode parameters and SOR omega; < 0 = keep the scene's.
+    double tolerance, budget_ms, omega;
     /// No progress bar and no table on stdout.
     int quiet;
 } cli_run_options;
