@@ -328,6 +328,47 @@ static void test_multicolor_torus(void) {
     CHECK_EQ(rbc_world_destroy(w), RBC_OK);
 }
 
+/* Shear and bend springs through the ABI: counts on a grid ((nx-1)(ny-1) quads with
+ * two diagonals each; (nx-2) ny + nx (ny-2) skip-one springs) and the colors a grid
+ * needs (FIELD-NOTES: structural 2, + shear 4, + bend 3, + both 5); the colors are
+ * reported with their sizes adding up to the particle count. */
+static void test_shear_bend(void) {
+    test_grid g = test_grid_make(12, 9, 0.05f, 0.0f, 0.0f, 0.0f);
+    const uint32_t structural = test_grid_spring_count(&g);
+    const uint32_t shear = 2 * 11 * 8, bend = 10 * 9 + 12 * 7;
+    const struct {
+        float shear, bend;
+        uint32_t springs, colors;
+    } cases[4] = {{0, 0, structural, 2},
+                  {500, 0, structural + shear, 4},
+                  {0, 50, structural + bend, 3},
+                  {500, 50, structural + shear + bend, 5}};
+    rbc_world_id w = make_world(RBC_SOLVER_RBGS, RBC_ITERATE_FIXED, 2);
+    for (int k = 0; k < 4; ++k) {
+        rbc_cloth_def cd = test_grid_def(&g, NULL, 0);
+        cd.shear_stiffness = cases[k].shear;
+        cd.bend_stiffness = cases[k].bend;
+        rbc_cloth_id c = 0;
+        CHECK_EQ(rbc_cloth_create(w, &cd, &c), RBC_OK);
+        uint32_t springs = 0, colors = 0, sizes[8] = {0}, sum = 0;
+        CHECK_EQ(rbc_cloth_get_topology(w, c, &springs, &colors), RBC_OK);
+        CHECK_EQ(springs, cases[k].springs);
+        CHECK_EQ(colors, cases[k].colors);
+        CHECK_EQ(rbc_cloth_get_colors(w, c, sizes, 8, NULL), RBC_OK);
+        for (uint32_t i = 0; i < colors && i < 8; ++i) sum += sizes[i];
+        CHECK_EQ(sum, g.vertex_count);
+    }
+    /* All four cloths step together (colors differ per cloth). */
+    for (int f = 0; f < 10; ++f) CHECK_EQ(rbc_world_step(w, 0.002f), RBC_OK);
+    CHECK_EQ(test_stats(w).color_count, 5);
+    rbc_cloth_def cd = test_grid_def(&g, NULL, 0);
+    cd.shear_stiffness = -1.0f;
+    rbc_cloth_id c = 0;
+    CHECK_EQ(rbc_cloth_create(w, &cd, &c), RBC_ERR_INVALID_ARGUMENT);
+    CHECK_EQ(rbc_world_destroy(w), RBC_OK);
+    test_grid_free(&g);
+}
+
 int main(void) {
     test_grid g = test_grid_make(100, 100, 1.0f / 99.0f, 0.0f, 0.0f, 0.0f);
     test_grid small = test_grid_make(10, 10, 0.1f, 0.0f, 0.0f, 0.0f);
@@ -337,6 +378,7 @@ int main(void) {
     test_modes(&g);
     test_state_and_colors(&g);
     test_multicolor_torus();
+    test_shear_bend();
     test_grid_free(&g);
     test_grid_free(&small);
     return check_report("abi_abi11");
