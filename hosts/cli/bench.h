@@ -201,6 +201,9 @@ int bench_close(FILE *f, const char *dir, const char *name);
 int bench_have_gnuplot(void);
 /// Run `gnuplot SCRIPT` inside dir. Returns its exit status (or -1).
 int bench_run_gnuplot(const char *dir, const char *script);
+/// The 1-minute load average (/proc/loadavg), or -1 where unknown: timings taken
+/// while other processes compete for the cores are not the solver's.
+double bench_load_average(void);
 /// "rbcloth: <result>: <last error>" on stderr; returns 1.
 int bench_report(const rbc_api_v1 *api, rbc_result r, const char *context);
 /// The same message as a string (for tables), into buf.

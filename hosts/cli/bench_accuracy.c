@@ -40,6 +40,9 @@ typedef struct acc_scene {
     /// Only the gap at 11 iterations is measured (the FIELD-NOTES cross-check).
     int gap_only;
     uint32_t frames;
+    /// Sum of squared rest lengths, m^2: Eq. 7 above it means an rms strain above 1
+    /// (springs on average twice their length or collapsed): the run diverged.
+    double sum_rest2;
 } acc_scene;
 
 /* How the linear iterations of one run are controlled. */
@@ -56,6 +59,8 @@ typedef struct acc_result {
     int available;
     uint32_t frames_done;
     uint32_t unstable_steps;
+    /// Final Eq. 7 above the scene's sum_rest2 (or not finite).
+    int diverged;
     double final_eq7;
     double median_ms;
     double median_iterations;
@@ -100,6 +105,7 @@ typedef struct acc_ctx {
     double gap_linear[MAX_SCENES][BENCH_SOLVER_COUNT][MAX_GAP_FRAMES];
     sweep_row *rows;
     size_t row_count, row_cap;
+    double load_start;
     /// Disagreements between the library's stats and the host's recomputation.
     uint32_t stats_mismatches;
 } acc_ctx;
@@ -201,6 +207,11 @@ static int build_scenes(acc_ctx *ctx) {
             (float)(ratios[k] * s->mesh.vertex_mass / ((double)s->dt * (double)s->dt));
         s->gap_only = 1;
         s->frames = 121;
+    }
+    for (uint32_t k = 0; !rc && k < ctx->scene_count; ++k) {
+        acc_scene *t = &ctx->scenes[k];
+        for (uint32_t q = 0; q < t->mesh.spring_count; ++q)
+            t->sum_rest2 += t->mesh.rest_len[q] * t->mesh.rest_len[q];
     }
     rbc_scene_free(&sc);
     return rc;
@@ -518,6 +529,7 @@ static int run_one(acc_ctx *ctx, uint32_t scene, uint32_t solver, const acc_cont
     }
     out->median_ms = bench_median(ms, out->frames_done);
     out->median_iterations = bench_median(its, out->frames_done);
+    out->diverged = !(out->final_eq7 <= s->sum_rest2);
     free(ms);
     free(its);
     api->world_destroy(world);
@@ -539,10 +551,10 @@ static int add_row(acc_ctx *ctx, uint32_t scene, uint32_t solver, const acc_cont
     row->solver = solver;
     row->control = *c;
     row->result = *res;
-    fprintf(ctx->sweep_csv, "%s,%s,%s,%g,%u,%u,%u,%u,%.9g,%.6f,%g,%u\n", ctx->scenes[scene].name,
+    fprintf(ctx->sweep_csv, "%s,%s,%s,%g,%u,%u,%u,%u,%.9g,%.6f,%g,%u,%d\n", ctx->scenes[scene].name,
             bench_solvers[solver].name, c->budget ? "budget" : "fixed", c->budget ? c->budget_ms : 0.0,
             c->substeps, c->nonlinear, c->budget ? 0 : c->linear, res->frames_done, res->final_eq7,
-            res->median_ms, res->median_iterations, res->unstable_steps);
+            res->median_ms, res->median_iterations, res->unstable_steps, res->diverged);
     return 0;
 }
 
@@ -579,9 +591,10 @@ static int run_scene(acc_ctx *ctx, uint32_t scene) {
         const double *budgets = ctx->opt->quick ? quick_budgets : full_budgets;
         size_t nb = ctx->opt->quick ? sizeof quick_budgets / sizeof quick_budgets[0]
                                     : sizeof full_budgets / sizeof full_budgets[0];
-        for (size_t b = 0; b < nb && !rc; ++b) {
+        for (size_t b = 0; b < nb && !rc && bench_solvers[k].iterative; ++b) {
+            /* 2 ms: the run above; the direct solver has no iterations to budget. */
             if (budgets[b] == 2.0)
-                continue; /* the run above */
+                continue;
             acc_control c = {"budget", 1, budgets[b], 1, 1, 11};
             rc = run_one(ctx, scene, k, &c, s->frames, NULL, 0, &res);
             if (!rc && res.available)
@@ -610,7 +623,7 @@ static int run_scene(acc_ctx *ctx, uint32_t scene) {
 /* ------------------------------------------------------------------------- */
 
 static int row_valid(const sweep_row *r) {
-    return r->result.available && r->result.unstable_steps == 0 && isfinite(r->result.final_eq7) &&
+    return r->result.available && r->result.unstable_steps == 0 && !r->result.diverged &&
            r->result.frames_done > 0;
 }
 
@@ -637,9 +650,11 @@ static int cmp_row_ms(const void *a, const void *b) {
 
 static void config_text(const sweep_row *r, char *buf, size_t size) {
     const acc_control *c = &r->control;
-    if (c->budget)
+    if (c->budget && bench_solvers[r->solver].iterative) {
         snprintf(buf, size, "budget %g ms (%g it)", c->budget_ms, r->result.median_iterations);
-    else if (!bench_solvers[r->solver].iterative)
+        return;
+    }
+    if (!bench_solvers[r->solver].iterative)
         snprintf(buf, size, "%u substep%s, exact solve", c->substeps, c->substeps == 1 ? "" : "s");
     else
         snprintf(buf, size, "%u x %u", c->substeps, c->linear);
@@ -658,7 +673,11 @@ static int write_pareto(acc_ctx *ctx) {
     fprintf(f,
             "Every run of the sweep (budgets of RBC_ITERATE_BUDGET and fixed substeps x linear "
             "iterations, one non-linear iteration) over %u frames of 2 ms. **front** marks the "
-            "runs that no other run beats on both median ms per frame and final Eq. 7.\n",
+            "runs that no other run beats on both median ms per frame and final Eq. 7; "
+            "*diverged* marks runs whose final Eq. 7 exceeds the sum of squared rest lengths "
+            "(rms strain > 1: the cloth blew up without a non-finite value, so no "
+            "RBC_ERR_UNSTABLE). In the hanging scene Eq. 7 does not go to 0: gravity stretches "
+            "the cloth, and the converged implicit step (direct, 11 substeps) sets the floor.\n",
             ctx->frames);
     for (uint32_t sc = 0; sc < ctx->scene_count; ++sc) {
         if (ctx->scenes[sc].gap_only)
@@ -676,7 +695,10 @@ static int write_pareto(acc_ctx *ctx) {
             const sweep_row *r = &ctx->rows[order[k]];
             char cfg[96];
             config_text(r, cfg, sizeof cfg);
-            const char *mark = !row_valid(r) ? "unstable" : dominated(ctx, order[k]) ? "" : "**front**";
+            const char *mark = r->result.unstable_steps ? "unstable (RBC_ERR_UNSTABLE)"
+                               : r->result.diverged ? "diverged (rms strain > 1)"
+                               : dominated(ctx, order[k]) ? ""
+                                                          : "**front**";
             fprintf(f, "| %s | %s | %.3f | %g | %.3e | %s |\n", bench_solvers[r->solver].name, cfg,
                     r->result.median_ms, r->result.median_iterations, r->result.final_eq7, mark);
         }
@@ -699,7 +721,7 @@ static void gp_header(FILE *f, const char *png, int width, int height) {
     fprintf(f, "set output '%s'\n", png);
     fprintf(f, "set datafile separator ','\n");
     fprintf(f, "set grid lc rgb '#dddddd'\n");
-    fprintf(f, "set key outside right top spacing 1.1\n");
+    fprintf(f, "set key inside opaque box lc rgb '#bbbbbb' spacing 1.1 font ',9'\n");
     for (int k = 0; k < BENCH_SOLVER_COUNT; ++k)
         fprintf(f, "set linetype %d lc rgb '%s' lw 2 pt %d ps 0.8\n", k + 1, solver_colors[k], 5 + k % 4 * 2);
 }
@@ -715,6 +737,7 @@ static void gp_series(acc_ctx *ctx, FILE *f, const char *csv, int eq7_col, int b
         if (ctx->scenes[sc].gap_only)
             continue;
         fprintf(f, "set title '%s'\n", ctx->scenes[sc].title);
+        fprintf(f, "set key %s\n", sc == 0 ? "bottom left" : "bottom right");
         fprintf(f, "plot ");
         int first = 1;
         for (int k = 0; k < BENCH_SOLVER_COUNT; ++k) {
@@ -725,7 +748,7 @@ static void gp_series(acc_ctx *ctx, FILE *f, const char *csv, int eq7_col, int b
                 snprintf(title, sizeof title, "%s (%g it)", bench_solvers[k].name, ctx->its_budget[sc][k]);
             else
                 snprintf(title, sizeof title, "%s", bench_solvers[k].name);
-            fprintf(f, "%s'%s' using (strcol(1) eq '%s' && strcol(2) eq '%s' ? $3 : NaN):%d with lines lt %d title '%s'",
+            fprintf(f, "%s'%s' using (strcol(1) eq '%s' && strcol(2) eq '%s' ? $3 : NaN):%d with lines lt %d title '%s' noenhanced",
                     first ? "" : ", \\\n     ", csv, ctx->scenes[sc].name, bench_solvers[k].name, eq7_col, k + 1,
                     title);
             first = 0;
@@ -760,23 +783,31 @@ static int write_plots(acc_ctx *ctx) {
     fprintf(f, "set multiplot layout 1,2 title 'Final Eq. 7 error after %u frames against the time budget per frame (labels: median linear iterations per frame)'\n",
             ctx->frames);
     fprintf(f, "set logscale xy\nset format y '10^{%%L}'\nset xlabel 'budget per frame (ms)'\n"
-               "set ylabel 'final Eq. 7 error (m^2)'\n");
+               "set ylabel 'final Eq. 7 error (m^2)'\nset xrange [0.07:30]\n");
     for (uint32_t sc = 0; sc < ctx->scene_count; ++sc) {
         if (ctx->scenes[sc].gap_only)
             continue;
-        fprintf(f, "set title '%s'\nplot ", ctx->scenes[sc].title);
+        double ceiling = ctx->scenes[sc].sum_rest2;
+        fprintf(f, "set title '%s'\nset key bottom left\n", ctx->scenes[sc].title);
+        fprintf(f, "set yrange [*:%g]\nunset arrow\nunset label\n", 4.0 * ceiling);
+        fprintf(f, "set arrow from graph 0, first %g to graph 1, first %g nohead dt 2 lc rgb '#888888'\n",
+                ceiling, ceiling);
+        fprintf(f, "set label 'diverged (rms strain > 1): plotted on this line' at graph 0.98, first %g right offset 0,0.7 font ',8' tc rgb '#666666'\n",
+                ceiling);
+        fprintf(f, "plot ");
         int first = 1;
         for (int k = 0; k < BENCH_SOLVER_COUNT; ++k) {
             if (!ctx->available[k])
                 continue;
             const char *sel = "strcol(1) eq '%s' && strcol(2) eq '%s' && strcol(3) eq 'budget'";
-            char cond[256];
+            char cond[256], yexpr[64];
             snprintf(cond, sizeof cond, sel, ctx->scenes[sc].name, bench_solvers[k].name);
-            fprintf(f, "%s'accuracy_sweep.csv' using (%s ? $4 : NaN):9 with linespoints lt %d title '%s'",
-                    first ? "" : ", \\\n     ", cond, k + 1, bench_solvers[k].name);
+            snprintf(yexpr, sizeof yexpr, "($13 > 0 ? %g : $9)", ceiling);
+            fprintf(f, "%s'accuracy_sweep.csv' using (%s ? $4 : NaN):%s with linespoints lt %d title '%s' noenhanced",
+                    first ? "" : ", \\\n     ", cond, yexpr, k + 1, bench_solvers[k].name);
             if (bench_solvers[k].iterative)
-                fprintf(f, ", \\\n     'accuracy_sweep.csv' using (%s ? $4 : NaN):9:(sprintf('%%d', int($11))) with labels offset 0.6,0.5 font ',7' tc lt %d notitle",
-                        cond, k + 1);
+                fprintf(f, ", \\\n     'accuracy_sweep.csv' using (%s ? $4 : NaN):%s:(sprintf('%%d', int($11))) with labels offset 0.6,0.5 font ',7' tc lt %d notitle",
+                        cond, yexpr, k + 1);
             first = 0;
         }
         fprintf(f, "\n");
@@ -795,14 +826,21 @@ static int write_plots(acc_ctx *ctx) {
     for (uint32_t sc = 0; sc < ctx->scene_count; ++sc) {
         if (ctx->scenes[sc].gap_only)
             continue;
-        fprintf(f, "set title '%s'\nplot ", ctx->scenes[sc].title);
+        double ceiling = ctx->scenes[sc].sum_rest2;
+        fprintf(f, "set title '%s'\nset key bottom left\n", ctx->scenes[sc].title);
+        fprintf(f, "set yrange [*:%g]\nunset arrow\nunset label\n", 4.0 * ceiling);
+        fprintf(f, "set arrow from graph 0, first %g to graph 1, first %g nohead dt 2 lc rgb '#888888'\n",
+                ceiling, ceiling);
+        fprintf(f, "set label 'diverged' at graph 0.98, first %g right offset 0,0.7 font ',8' tc rgb '#666666'\n",
+                ceiling);
+        fprintf(f, "plot ");
         int first = 1;
         for (int k = 0; k < BENCH_SOLVER_COUNT; ++k) {
             if (!ctx->available[k])
                 continue;
-            fprintf(f, "%s'accuracy_sweep.csv' using (strcol(1) eq '%s' && strcol(2) eq '%s' ? $10 : NaN):9 with points lt %d title '%s'",
-                    first ? "" : ", \\\n     ", ctx->scenes[sc].name, bench_solvers[k].name, k + 1,
-                    bench_solvers[k].name);
+            fprintf(f, "%s'accuracy_sweep.csv' using (strcol(1) eq '%s' && strcol(2) eq '%s' ? $10 : NaN):($13 > 0 ? %g : $9) with points lt %d title '%s' noenhanced",
+                    first ? "" : ", \\\n     ", ctx->scenes[sc].name, bench_solvers[k].name, ceiling,
+                    k + 1, bench_solvers[k].name);
             first = 0;
         }
         fprintf(f, "\n");
@@ -834,6 +872,9 @@ static void print_summary(const acc_ctx *ctx) {
     printf("\nAccuracy bench: %u frames of 2 ms per scene, 10,000 particles / 19,800 springs; "
            "gap reference %s\n",
            ctx->frames, ctx->reference);
+    printf("Load average %.2f at the start, %.2f at the end (timings assume an otherwise idle "
+           "machine)\n",
+           ctx->load_start, bench_load_average());
     for (uint32_t sc = 0; sc < ctx->scene_count; ++sc) {
         const acc_scene *s = &ctx->scenes[sc];
         if (s->gap_only)
@@ -942,6 +983,7 @@ int cli_bench_accuracy(const cli_plugin *plugin, const cli_bench_options *option
         return 1;
     }
     double start = bench_now();
+    ctx.load_start = bench_load_average();
     int rc = build_scenes(&ctx);
     if (!rc) {
         size_t n3 = 3 * (size_t)ctx.scenes[0].mesh.n;
@@ -969,7 +1011,7 @@ int cli_bench_accuracy(const cli_plugin *plugin, const cli_bench_options *option
         ctx.sweep_csv = open_csv(&ctx, "accuracy_sweep.csv",
                                  "scene,solver,control,budget_ms,substeps,nonlinear_iterations,"
                                  "linear_iterations,frames,final_eq7,median_step_ms,"
-                                 "median_linear_iterations,unstable_steps");
+                                 "median_linear_iterations,unstable_steps,diverged");
         ctx.gap_csv = open_csv(&ctx, "accuracy_gap.csv",
                                "scene,solver,mode,frame,linear_iterations,F0,F,F_star,gap,"
                                "reference,F_library,F_star_library,eq7_host,eq7_library,"

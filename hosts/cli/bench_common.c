@@ -548,6 +548,17 @@ int bench_run_gnuplot(const char *dir, const char *script) {
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+double bench_load_average(void) {
+    FILE *f = fopen("/proc/loadavg", "r");
+    double load = -1.0;
+    if (f) {
+        if (fscanf(f, "%lf", &load) != 1)
+            load = -1.0;
+        fclose(f);
+    }
+    return load;
+}
+
 int bench_report(const rbc_api_v1 *api, rbc_result r, const char *context) {
     fprintf(stderr, "rbcloth: %s: %s%s%s\n", api->result_string(r), api->last_error(),
             context ? " " : "", context ? context : "");

@@ -145,7 +145,7 @@ int main(int argc, char **argv) {
     printf("accuracy_budget.csv: %d rows\n", n);
     n = check_csv(dir, "accuracy_sweep.csv",
                   "scene,solver,control,budget_ms,substeps,nonlinear_iterations,linear_iterations,"
-                  "frames,final_eq7,median_step_ms,median_linear_iterations,unstable_steps",
+                  "frames,final_eq7,median_step_ms,median_linear_iterations,unstable_steps,diverged",
                   0);
     printf("accuracy_sweep.csv: %d rows\n", n);
     n = check_csv(dir, "accuracy_gap.csv",
