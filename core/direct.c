@@ -40,6 +40,7 @@
  * 1M particle grid is just under. LL' rather than LDL': same speed, and a pivot <= 0
  * stops the factorisation with CHOLMOD_NOT_POSDEF instead of being factored.
  */
+#include "report.h"
 #include "direct.h"
 
 #include <math.h>
@@ -67,15 +68,6 @@ struct rbc_direct {
     size_t cholmod_bytes;       /* CHOLMOD's memory in use after create */
 };
 
-static int32_t fail(char *err, size_t errlen, int32_t code, const char *fmt, ...) {
-    if (err && errlen) {
-        va_list ap;
-        va_start(ap, fmt);
-        vsnprintf(err, errlen, fmt, ap);
-        va_end(ap);
-    }
-    return code;
-}
 
 void rbc_direct_destroy(rbc_direct *d) {
     if (!d) return;
@@ -101,10 +93,10 @@ static int32_t cholmod_fail(rbc_direct *d, const rbc_topology *t, const char *st
                             char *err, size_t errlen) {
     int s = d->cm.status;
     if (s == CHOLMOD_OUT_OF_MEMORY)
-        return fail(err, errlen, RBC_ERR_OUT_OF_MEMORY,
+        return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY,
                     "direct solver: out of memory in %s (%u free particles)", stage, d->nf);
     if (s == CHOLMOD_TOO_LARGE)
-        return fail(err, errlen, RBC_ERR_OUT_OF_MEMORY,
+        return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY,
                     "direct solver: the Cholesky factor of %u free particles exceeds CHOLMOD's "
                     "32-bit index range (%s)",
                     d->nf, stage);
@@ -114,13 +106,13 @@ static int32_t cholmod_fail(rbc_direct *d, const rbc_topology *t, const char *st
         const int *perm = d->L->Perm;
         uint32_t f = perm ? (uint32_t)perm[col] : (uint32_t)col;
         uint32_t i = d->free_of[f];
-        return fail(err, errlen, RBC_ERR_UNSTABLE,
+        return rbc_fail(err, errlen, RBC_ERR_UNSTABLE,
                     "direct solver: the global matrix is not positive definite at vertex %u "
                     "(h = %g s, m/h^2 = %g kg/s^2, sum of stiffness %g N/m)",
                     t->to_host[i], (double)h, (double)rbc_direct_weight(t->mass[i], h),
                     (double)t->ksum[i]);
     }
-    return fail(err, errlen, RBC_ERR_UNSTABLE, "direct solver: CHOLMOD status %d in %s", s,
+    return rbc_fail(err, errlen, RBC_ERR_UNSTABLE, "direct solver: CHOLMOD status %d in %s", s,
                 stage);
 }
 
@@ -143,18 +135,18 @@ int32_t rbc_direct_create(rbc_direct **out, const rbc_topology *t, const uint8_t
                           float h, const rbc_allocator *a, char *err, size_t errlen) {
     *out = NULL;
     if (!(isfinite(h) && h > 0.0f && isfinite(1.0f / (h * h))))
-        return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
+        return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                     "direct solver: h = %g s; it must be finite and > 0 with 1/h^2 finite",
                     (double)h);
     const uint32_t n = t->n;
     uint32_t nf = 0;
     for (uint32_t i = 0; i < n; ++i) nf += pinned[i] ? 0u : 1u;
     if (nf > (uint32_t)INT32_MAX)
-        return fail(err, errlen, RBC_ERR_OUT_OF_MEMORY,
+        return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY,
                     "direct solver: %u free particles exceed CHOLMOD's 32-bit indices", nf);
 
     rbc_direct *d = rbc_mem_alloc(a, sizeof *d);
-    if (!d) return fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "direct solver: out of memory");
+    if (!d) return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "direct solver: out of memory");
     d->alloc = *a;
     d->n = n;
     d->nf = nf;
@@ -169,7 +161,7 @@ int32_t rbc_direct_create(rbc_direct **out, const rbc_topology *t, const uint8_t
                    rbc_mul_size(4 * (size_t)nf, sizeof(double)) + nf;
     if (!d->free_idx || !d->free_of || !d->pos || !d->v || !d->inv_diag || !d->chain) {
         rbc_direct_destroy(d);
-        return fail(err, errlen, RBC_ERR_OUT_OF_MEMORY,
+        return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY,
                     "direct solver: out of memory for %u particles", n);
     }
     for (uint32_t i = 0, f = 0; i < n; ++i) {
@@ -233,7 +225,7 @@ int32_t rbc_direct_create(rbc_direct **out, const rbc_topology *t, const uint8_t
         }
         if (!isfinite(sum)) {
             cholmod_free_sparse(&A, &d->cm);
-            int32_t rc = fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
+            int32_t rc = rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                               "direct solver: vertex %u: m/h^2 + sum of stiffness = %g is not "
                               "finite (m = %g kg, h = %g s)",
                               t->to_host[i], sum, (double)t->mass[i], (double)h);
@@ -280,7 +272,7 @@ int32_t rbc_direct_create(rbc_direct **out, const rbc_topology *t, const uint8_t
     }
     if (!layout) {
         rbc_direct_destroy(d);
-        return fail(err, errlen, RBC_ERR_UNSTABLE,
+        return rbc_fail(err, errlen, RBC_ERR_UNSTABLE,
                     "direct solver: CHOLMOD returned a factor of an unexpected layout");
     }
     /* Analysis/factorisation scratch (Flag, Head, Iwork) is not used by the solve. */

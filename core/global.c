@@ -5,12 +5,8 @@
 #include <string.h>
 
 #include "kernels/pd_kernels.h"
+#include "report.h"
 
-static inline void split(uint32_t count, uint32_t tid, uint32_t n, uint32_t *begin,
-                         uint32_t *end) {
-    *begin = (uint32_t)((uint64_t)count * tid / n);
-    *end = (uint32_t)((uint64_t)count * (tid + 1) / n);
-}
 
 void rbc_global_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, float omega,
                          uint32_t tid, uint32_t nt) {
@@ -18,7 +14,7 @@ void rbc_global_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, f
     if (color >= t->ncolors) return;
     uint32_t c0 = t->color_start[color], count = t->color_start[color + 1] - c0;
     uint32_t b, e;
-    split(count, tid, nt, &b, &e);
+    rbc_split(count, tid, nt, &b, &e);
     /* Local copies: stores to p must not force reloads of these pointers. */
     const uint32_t *restrict adj_start = t->adj_start, *restrict adj_nbr = t->adj_nbr;
     const float *restrict adj_k = t->adj_k, *restrict dx = c->dx, *restrict dy = c->dy,
@@ -58,7 +54,7 @@ void rbc_global_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, f
 
 void rbc_global_chebyshev_blend(rbc_cloth_state *c, float omega, uint32_t tid, uint32_t nt) {
     uint32_t b, e;
-    split(c->topo.n, tid, nt, &b, &e);
+    rbc_split(c->topo.n, tid, nt, &b, &e);
     for (int a = 0; a < 3; ++a) {
         float *p = c->p[a], *q = c->prev[a];
         const float *old = c->alt[a];
@@ -74,7 +70,7 @@ void rbc_global_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst
                        int chebyshev, float omega, uint32_t tid, uint32_t nt) {
     const rbc_topology *t = &c->topo;
     uint32_t b, e;
-    split(t->n, tid, nt, &b, &e);
+    rbc_split(t->n, tid, nt, &b, &e);
     const uint8_t *pinned = c->pinned;
     const float *sx = src[0], *sy = src[1], *sz = src[2];
     float *ox = dst[0], *oy = dst[1], *oz = dst[2];
@@ -119,7 +115,7 @@ void rbc_global_residual(const rbc_cloth_state *c, uint32_t color_end, uint32_t 
     const rbc_topology *t = &c->topo;
     if (color_end > t->ncolors) color_end = t->ncolors;
     uint32_t b, e;
-    split(t->color_start[color_end], tid, nt, &b, &e);
+    rbc_split(t->color_start[color_end], tid, nt, &b, &e);
     double r = 0.0, bb = 0.0;
     for (uint32_t i = b; i < e; ++i) {
         if (c->pinned[i]) continue;

@@ -21,6 +21,7 @@
  * read a position another thread writes: the result is bitwise independent of the
  * thread count.
  */
+#include "report.h"
 #include "solver.h"
 
 #include <math.h>
@@ -40,23 +41,7 @@ static double now_ms(void) {
     return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
 }
 
-static int32_t fail(char *err, size_t errlen, int32_t code, const char *fmt, ...) {
-    if (err && errlen) {
-        va_list ap;
-        va_start(ap, fmt);
-        vsnprintf(err, errlen, fmt, ap);
-        va_end(ap);
-    }
-    return code;
-}
 
-/* [begin, end) of `count` items for thread tid of n (contiguous static split). */
-static inline void split(uint32_t count, uint32_t tid, uint32_t n, uint32_t *begin,
-                         uint32_t *end) {
-    uint64_t b = (uint64_t)count * tid / n, e = (uint64_t)count * (tid + 1) / n;
-    *begin = (uint32_t)b;
-    *end = (uint32_t)e;
-}
 
 /* ------------------------------------------------------------------------- */
 /* Life cycle                                                                */
@@ -208,7 +193,7 @@ int32_t rbc_cloth_state_create(rbc_solver *s, const rbc_mesh_input *in, float da
                                rbc_cloth_state **out, char *err, size_t errlen) {
     *out = NULL;
     rbc_cloth_state *c = rbc_mem_alloc(&s->alloc, sizeof *c);
-    if (!c) return fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for a cloth");
+    if (!c) return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for a cloth");
     int32_t rc = rbc_topology_build(in, &s->alloc, &c->topo, err, errlen);
     if (rc != RBC_OK) {
         rbc_mem_free(&s->alloc, c, sizeof *c);
@@ -228,7 +213,7 @@ int32_t rbc_cloth_state_create(rbc_solver *s, const rbc_mesh_input *in, float da
     if (ok) ok = alloc_solver_buffers(s, c, s->settings.kind);
     if (!ok) {
         rbc_cloth_state_destroy(s, c);
-        return fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for %zu particles", n);
+        return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for %zu particles", n);
     }
     c->state_bytes = bytes;
     c->damping = damping;
@@ -518,7 +503,7 @@ static void phase_integrate(step_ctx *ctx, uint32_t tid, uint32_t nt) {
         float keep = 1.0f - c->damping * h;
         if (keep < 0.0f) keep = 0.0f; /* damping * h > 1 would reverse velocities */
         uint32_t b, e;
-        split(c->topo.n, tid, nt, &b, &e);
+        rbc_split(c->topo.n, tid, nt, &b, &e);
         for (uint32_t i = b; i < e; ++i)
             rbc_k_predict(i, c->x[0], c->x[1], c->x[2], c->q[0], c->q[1], c->q[2], c->y[0],
                           c->y[1], c->y[2], c->p[0], c->p[1], c->p[2], keep,
@@ -536,7 +521,7 @@ static void place_pins(step_ctx *ctx, uint32_t sub, uint32_t tid, uint32_t nt) {
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
         uint32_t b, e;
-        split(c->topo.n, tid, nt, &b, &e);
+        rbc_split(c->topo.n, tid, nt, &b, &e);
         for (uint32_t m = 0; m < c->pin_count; ++m) {
             uint32_t i = c->pin_idx[m];
             if (i < b || i >= e) continue;
@@ -554,7 +539,7 @@ static void phase_local(step_ctx *ctx, uint32_t tid, uint32_t nt) {
         rbc_cloth_state *c = s->cloths[k];
         const rbc_topology *t = &c->topo;
         uint32_t b, e;
-        split(t->ns, tid, nt, &b, &e);
+        rbc_split(t->ns, tid, nt, &b, &e);
         for (uint32_t sp = b; sp < e; ++sp)
             rbc_k_local(sp, t->sa, t->sb, t->rest_len, t->ux, t->uy, t->uz, t->he_a, t->he_b,
                         c->p[0], c->p[1], c->p[2], c->dx, c->dy, c->dz);
@@ -566,7 +551,7 @@ static void phase_collide(step_ctx *ctx, uint32_t tid, uint32_t nt) {
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
         uint32_t b, e;
-        split(c->topo.n, tid, nt, &b, &e);
+        rbc_split(c->topo.n, tid, nt, &b, &e);
         for (uint32_t ci = 0; ci < s->collider_count; ++ci) {
             const rbc_collider_state *col = &s->colliders[ci];
             for (uint32_t i = b; i < e; ++i) {
@@ -604,7 +589,7 @@ static void run_callback(step_ctx *ctx, uint32_t sub) {
     int32_t r = s->callback(s->callback_user, s->public_world_id, ctx->h, s->cb_list,
                             s->cloth_count);
     if (r != 0) {
-        ctx->result = fail(ctx->err, ctx->errlen, RBC_ERR_CALLBACK,
+        ctx->result = rbc_fail(ctx->err, ctx->errlen, RBC_ERR_CALLBACK,
                            "the collision callback returned %d at substep %u", (int)r, sub);
         return;
     }
@@ -614,7 +599,7 @@ static void run_callback(step_ctx *ctx, uint32_t sub) {
         for (uint32_t v = 0; v < c->topo.n; ++v) {
             const float *hp = &c->cb_pos[3 * (size_t)v];
             if (!(isfinite(hp[0]) && isfinite(hp[1]) && isfinite(hp[2]))) {
-                ctx->result = fail(ctx->err, ctx->errlen, RBC_ERR_CALLBACK,
+                ctx->result = rbc_fail(ctx->err, ctx->errlen, RBC_ERR_CALLBACK,
                                    "the collision callback wrote a non-finite position for "
                                    "cloth 0x%08x vertex %u at substep %u",
                                    c->public_id, v, sub);
@@ -636,7 +621,7 @@ static void phase_check(step_ctx *ctx, uint32_t tid, uint32_t nt) {
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
         uint32_t b, e;
-        split(c->topo.n, tid, nt, &b, &e);
+        rbc_split(c->topo.n, tid, nt, &b, &e);
         const float *px = c->p[0], *py = c->p[1], *pz = c->p[2];
         /* Branch-free accumulation: x - x is 0 for finite x and NaN otherwise. */
         float acc = 0.0f;
@@ -877,7 +862,7 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
                 if (ctx->bad[th][0] < 0) continue;
                 rbc_cloth_state *c = s->cloths[ctx->bad[th][0]];
                 uint32_t i = (uint32_t)ctx->bad[th][1];
-                ctx->result = fail(ctx->err, ctx->errlen, RBC_ERR_UNSTABLE,
+                ctx->result = rbc_fail(ctx->err, ctx->errlen, RBC_ERR_UNSTABLE,
                                    "cloth 0x%08x: vertex %u became non-finite at substep %u of %u "
                                    "(h = %g s, stiffness*h^2/mass up to %g); the world was "
                                    "restored to its state before the step",
@@ -908,7 +893,7 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     ctx.errlen = errlen;
     ctx.start_ms = start;
     if (!(ctx.h > 0.0f))
-        return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
+        return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                     "dt / substeps = %g s underflows to zero", (double)ctx.h);
 
     /* Serial preparation: weights for h, and what the solver needs for them (the

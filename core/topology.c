@@ -1,6 +1,7 @@
 /* topology.c -- quad mesh -> particles and unique springs (structural, explicit,
  * shear, bend) -> coloring -> color-contiguous particle order (Fig. 2 of the
  * paper) -> CSR adjacency. */
+#include "report.h"
 #include "topology.h"
 
 #include <math.h>
@@ -12,15 +13,6 @@
 #include "../abi/rbcloth.h"
 #include "coloring.h"
 
-static int32_t fail(char *err, size_t errlen, int32_t code, const char *fmt, ...) {
-    if (err && errlen) {
-        va_list ap;
-        va_start(ap, fmt);
-        vsnprintf(err, errlen, fmt, ap);
-        va_end(ap);
-    }
-    return code;
-}
 
 static double dist3_sq(const float *p, uint32_t a, uint32_t b) {
     double dx = (double)p[3 * a] - p[3 * b], dy = (double)p[3 * a + 1] - p[3 * b + 1],
@@ -43,32 +35,32 @@ static double diag_cross_sq(const float *p, const uint32_t *q) {
 
 static int32_t validate(const rbc_mesh_input *in, char *err, size_t errlen) {
     const uint32_t n = in->vertex_count;
-    if (n == 0) return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT, "vertex_count is 0");
-    if (!in->positions) return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT, "positions is NULL");
+    if (n == 0) return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT, "vertex_count is 0");
+    if (!in->positions) return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT, "positions is NULL");
     if (in->quad_count && !in->quads)
-        return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT, "quads is NULL but quad_count is %u",
+        return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT, "quads is NULL but quad_count is %u",
                     in->quad_count);
     if (in->spring_count && !in->springs)
-        return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
+        return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                     "springs is NULL but spring_count is %u", in->spring_count);
     if (in->pin_count && !in->pins)
-        return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT, "pins is NULL but pin_count is %u",
+        return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT, "pins is NULL but pin_count is %u",
                     in->pin_count);
     if (!(isfinite(in->stiffness) && in->stiffness > 0.0f))
-        return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
+        return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                     "stiffness is %g N/m; it must be finite and > 0", (double)in->stiffness);
     if (!(isfinite(in->shear_stiffness) && in->shear_stiffness >= 0.0f))
-        return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
+        return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                     "shear_stiffness is %g N/m; it must be finite and >= 0",
                     (double)in->shear_stiffness);
     if (!(isfinite(in->bend_stiffness) && in->bend_stiffness >= 0.0f))
-        return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
+        return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                     "bend_stiffness is %g N/m; it must be finite and >= 0",
                     (double)in->bend_stiffness);
     for (uint32_t v = 0; v < n; ++v) {
         const float *p = in->positions + 3 * (size_t)v;
         if (!(isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2])))
-            return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
+            return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                         "vertex %u has a non-finite position (%g, %g, %g)", v, (double)p[0],
                         (double)p[1], (double)p[2]);
     }
@@ -76,19 +68,19 @@ static int32_t validate(const rbc_mesh_input *in, char *err, size_t errlen) {
         const uint32_t *q = in->quads + 4 * (size_t)f;
         for (int k = 0; k < 4; ++k) {
             if (q[k] >= n)
-                return fail(err, errlen, RBC_ERR_BAD_MESH,
+                return rbc_fail(err, errlen, RBC_ERR_BAD_MESH,
                             "quad %u: corner %d is vertex %u, out of range (vertex_count %u)", f,
                             k, q[k], n);
             for (int l = 0; l < k; ++l)
                 if (q[l] == q[k])
-                    return fail(err, errlen, RBC_ERR_BAD_MESH,
+                    return rbc_fail(err, errlen, RBC_ERR_BAD_MESH,
                                 "quad %u repeats vertex %u (corners %d and %d)", f, q[k], l, k);
         }
         double longest2 = 0.0; /* squared, m^2: no square root per quad */
         for (int k = 0; k < 4; ++k) {
             double len2 = dist3_sq(in->positions, q[k], q[(k + 1) & 3]);
             if (len2 == 0.0)
-                return fail(err, errlen, RBC_ERR_BAD_MESH,
+                return rbc_fail(err, errlen, RBC_ERR_BAD_MESH,
                             "quad %u is degenerate: vertices %u and %u coincide", f, q[k],
                             q[(k + 1) & 3]);
             if (len2 > longest2) longest2 = len2;
@@ -97,35 +89,35 @@ static int32_t validate(const rbc_mesh_input *in, char *err, size_t errlen) {
          * square of the longest edge): collinear or folded-flat corners. */
         double area2 = 0.25 * diag_cross_sq(in->positions, q);
         if (!(area2 > 1e-12 * longest2 * longest2))
-            return fail(err, errlen, RBC_ERR_BAD_MESH,
+            return rbc_fail(err, errlen, RBC_ERR_BAD_MESH,
                         "quad %u is degenerate: area %g m^2 for an edge of %g m", f,
                         sqrt(area2), sqrt(longest2));
     }
     for (uint32_t s = 0; s < in->spring_count; ++s) {
         uint32_t a = in->springs[2 * (size_t)s], b = in->springs[2 * (size_t)s + 1];
         if (a >= n || b >= n)
-            return fail(err, errlen, RBC_ERR_BAD_MESH,
+            return rbc_fail(err, errlen, RBC_ERR_BAD_MESH,
                         "spring %u joins vertices %u and %u; vertex_count is %u", s, a, b, n);
         if (a == b)
-            return fail(err, errlen, RBC_ERR_BAD_MESH, "spring %u joins vertex %u to itself", s,
+            return rbc_fail(err, errlen, RBC_ERR_BAD_MESH, "spring %u joins vertex %u to itself", s,
                         a);
     }
     for (uint32_t k = 0; k < in->pin_count; ++k)
         if (in->pins[k] >= n)
-            return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
+            return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                         "pin %u is vertex %u, out of range (vertex_count %u)", k, in->pins[k], n);
     if (in->masses) {
         for (uint32_t v = 0; v < n; ++v)
             if (!(isfinite(in->masses[v]) && in->masses[v] > 0.0f))
-                return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
+                return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                             "vertex %u has mass %g kg; it must be finite and > 0", v,
                             (double)in->masses[v]);
     } else if (in->density != 0.0f) {
         if (!(isfinite(in->density) && in->density > 0.0f))
-            return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
+            return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                         "density is %g kg/m^2; it must be finite and >= 0", (double)in->density);
     } else if (!(isfinite(in->vertex_mass) && in->vertex_mass > 0.0f)) {
-        return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
+        return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                     "vertex_mass is %g kg; it must be finite and > 0", (double)in->vertex_mass);
     }
     return RBC_OK;
@@ -390,7 +382,7 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
                              (in->shear_stiffness > 0.0f ? 2 * (size_t)nq : 0);
     if (most_keys > UINT32_MAX / 2) { /* 32-bit counts and 2 ns adjacency slots */
         scratch_free(&s, a);
-        return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
+        return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                     "too many springs (up to %zu; at most %u)", most_keys, UINT32_MAX / 2);
     }
     s.bstart = rbc_mem_alloc(a, rbc_mul_size((size_t)n + 1, 4));
@@ -428,7 +420,7 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
     if (!ok) {
         rbc_topology_free(t, a);
         scratch_free(&s, a);
-        return fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for %u particles", n);
+        return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for %u particles", n);
     }
     t->bytes = bytes;
     uint32_t *hadj_start = t->adj_start, *hadj = t->adj_nbr;
@@ -473,7 +465,7 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
             uint32_t deg = hadj_start[bad + 1] - hadj_start[bad];
             rbc_topology_free(t, a);
             scratch_free(&s, a);
-            return fail(err, errlen, RBC_ERR_BAD_MESH,
+            return rbc_fail(err, errlen, RBC_ERR_BAD_MESH,
                         "vertex %u: its %u springs reach vertices of all %d colors; the "
                         "spring graph needs more than %d colors (too dense explicit springs?)",
                         bad, deg, RBC_MAX_COLORS, RBC_MAX_COLORS);
@@ -516,7 +508,7 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
                 float m = t->mass[t->to_internal[v]];
                 rbc_topology_free(t, a);
                 scratch_free(&s, a);
-                return fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
+                return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                             "vertex %u gets mass %g kg from the density (it belongs to no quad "
                             "of positive area); give masses or vertex_mass",
                             v, (double)m);
@@ -567,5 +559,5 @@ oom_topo:
     rbc_topology_free(t, a);
 oom:
     scratch_free(&s, a);
-    return fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory building the topology");
+    return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory building the topology");
 }
