@@ -736,8 +736,16 @@ static void gp_series(acc_ctx *ctx, FILE *f, const char *csv, int eq7_col, int b
     for (uint32_t sc = 0; sc < ctx->scene_count; ++sc) {
         if (ctx->scenes[sc].gap_only)
             continue;
+        /* A diverged run is cut at 4x the divergence line (Eq. 7 = sum L^2, rms
+         * strain 1) instead of stretching the axis to 1e70. */
+        double ceiling = ctx->scenes[sc].sum_rest2;
         fprintf(f, "set title '%s'\n", ctx->scenes[sc].title);
         fprintf(f, "set key %s\n", sc == 0 ? "bottom left" : "bottom right");
+        fprintf(f, "set yrange [*:%g]\nunset arrow\nunset label\n", 4.0 * ceiling);
+        fprintf(f, "set arrow from graph 0, first %g to graph 1, first %g nohead dt 2 lc rgb '#888888'\n",
+                ceiling, ceiling);
+        fprintf(f, "set label 'diverged above (rms strain > 1)' at graph 0.02, first %g left offset 0,0.7 font ',8' tc rgb '#666666'\n",
+                ceiling);
         fprintf(f, "plot ");
         int first = 1;
         for (int k = 0; k < BENCH_SOLVER_COUNT; ++k) {
