@@ -217,6 +217,9 @@ int32_t rbc_cloth_state_create(rbc_solver *s, const rbc_mesh_input *in, float da
     }
     c->state_bytes = bytes;
     c->damping = damping;
+    double rest_sum = 0.0;
+    for (uint32_t k = 0; k < c->topo.ns; ++k) rest_sum += c->topo.rest_len[k];
+    c->mean_rest = c->topo.ns ? (float)(rest_sum / c->topo.ns) : 0.0f;
     const rbc_topology *t = &c->topo;
     memcpy(c->x[0], t->rest_x, n * sizeof(float));
     memcpy(c->x[1], t->rest_y, n * sizeof(float));
@@ -472,8 +475,9 @@ typedef struct step_ctx {
     uint32_t linear_done; /* linear iterations of the step (thread 0 counts) */
     char *err;
     size_t errlen;
-    /* Per-thread first non-finite particle found, (cloth index, internal index). */
-    int64_t bad[64][2];
+    /* Per-thread first failure found: (cloth index, internal particle or spring
+     * index, kind: 1 non-finite particle, 2 spring past the blow-up guard). */
+    int64_t bad[64][3];
     /* Per-thread partial residual sums, padded to their own cache lines. */
     struct {
         double r2, b2;
@@ -614,10 +618,38 @@ static void run_callback(step_ctx *ctx, uint32_t sub) {
     }
 }
 
-/* Record the first non-finite particle this thread sees. */
+/* The blow-up guard: an iterative solver that does not converge (Jacobi, SOR or
+ * Chebyshev with too few iterations on stiff cloth) can inject energy until the
+ * positions are huge but still finite. No cloth is stretched to RBC_BLOWUP_STRETCH
+ * times its rest length (the mean rest length for shorter springs) by physics that
+ * the solver resolved, so a spring past that counts as divergence, like a NaN. */
+#define RBC_BLOWUP_STRETCH 1000.0f
+
+/* Record the first non-finite particle, or over-stretched spring, this thread sees. */
 static void phase_check(step_ctx *ctx, uint32_t tid, uint32_t nt) {
     rbc_solver *s = ctx->s;
     ctx->bad[tid][0] = -1;
+    for (uint32_t k = 0; k < s->cloth_count; ++k) {
+        rbc_cloth_state *c = s->cloths[k];
+        const rbc_topology *t = &c->topo;
+        uint32_t b, e;
+        rbc_split(t->ns, tid, nt, &b, &e);
+        const float *px = c->p[0], *py = c->p[1], *pz = c->p[2];
+        const float floor_len = RBC_BLOWUP_STRETCH * c->mean_rest;
+        for (uint32_t sp = b; sp < e; ++sp) {
+            uint32_t i = t->sa[sp], j = t->sb[sp];
+            float ex = px[i] - px[j], ey = py[i] - py[j], ez = pz[i] - pz[j];
+            float lim = RBC_BLOWUP_STRETCH * t->rest_len[sp];
+            if (lim < floor_len) lim = floor_len;
+            /* NaN compares false here; the particle check below names it. */
+            if (ex * ex + ey * ey + ez * ez > lim * lim) {
+                ctx->bad[tid][0] = k;
+                ctx->bad[tid][1] = sp;
+                ctx->bad[tid][2] = 2;
+                return;
+            }
+        }
+    }
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
         uint32_t b, e;
@@ -631,6 +663,7 @@ static void phase_check(step_ctx *ctx, uint32_t tid, uint32_t nt) {
             if (!(isfinite(px[i]) && isfinite(py[i]) && isfinite(pz[i]))) {
                 ctx->bad[tid][0] = k;
                 ctx->bad[tid][1] = i;
+                ctx->bad[tid][2] = 1;
                 return;
             }
         }
@@ -862,6 +895,18 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
                 if (ctx->bad[th][0] < 0) continue;
                 rbc_cloth_state *c = s->cloths[ctx->bad[th][0]];
                 uint32_t i = (uint32_t)ctx->bad[th][1];
+                if (ctx->bad[th][2] == 2) {
+                    const rbc_topology *t = &c->topo;
+                    ctx->result = rbc_fail(
+                        ctx->err, ctx->errlen, RBC_ERR_UNSTABLE,
+                        "cloth 0x%08x: the spring between vertices %u and %u was stretched "
+                        "past %g times its rest length at substep %u of %u: the global "
+                        "solver diverged (more iterations, more substeps, or rbgs/direct "
+                        "keep it stable); the world was restored to its state before the step",
+                        c->public_id, t->to_host[t->sa[i]], t->to_host[t->sb[i]],
+                        (double)RBC_BLOWUP_STRETCH, sub, ctx->substeps);
+                    break;
+                }
                 ctx->result = rbc_fail(ctx->err, ctx->errlen, RBC_ERR_UNSTABLE,
                                    "cloth 0x%08x: vertex %u became non-finite at substep %u of %u "
                                    "(h = %g s, stiffness*h^2/mass up to %g); the world was "

@@ -33,6 +33,7 @@ typedef struct rbc_cloth_state {
     rbc_topology topo;
     uint32_t public_id;         /* the host's id, for messages */
     float damping;              /* 1/s */
+    float mean_rest;            /* mean spring rest length, m (the blow-up guard's scale) */
 
     /* Position sets, SoA, internal order. x: now (t); q: previous (t - h); p: the
      * iterate of the current substep; y: its inertial target. A committed substep
