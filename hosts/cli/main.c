@@ -95,6 +95,27 @@ typedef struct int_option {
     long *target;
 } int_option;
 
+/* If arg (of name_len characters before any '=') names one of ints, parse its value
+ * (after '=' or the next argument) into the target: *matched = 1. Returns EXIT_USAGE
+ * after printing why on a bad value, else EXIT_OK. */
+static int take_int_option(const int_option *ints, size_t n, const char *arg, size_t name_len,
+                           const char **value, int argc, char **argv, int *i, int *matched) {
+    for (size_t k = 0; k < n; ++k) {
+        if (name_len != strlen(ints[k].name) || strncmp(arg, ints[k].name, name_len) != 0)
+            continue;
+        *matched = 1;
+        if (!*value && *i + 1 < argc)
+            *value = argv[++*i];
+        if (parse_long(*value, ints[k].min, ints[k].max, ints[k].target)) {
+            fprintf(stderr, "rbcloth: %s needs an integer in [%ld, %ld], got '%s'\n",
+                    ints[k].name, ints[k].min, ints[k].max, *value ? *value : "");
+            fputs("Try 'rbcloth --help'.\n", stderr);
+            return EXIT_USAGE;
+        }
+    }
+    return EXIT_OK;
+}
+
 static int parse_run_args(int argc, char **argv, cli_run_options *o) {
     int_option ints[] = {
         {"--frames", 1, 10000000, &o->frames},
@@ -173,19 +194,9 @@ static int parse_run_args(int argc, char **argv, cli_run_options *o) {
             }
             *names[k].target = value;
         }
-        for (size_t k = 0; k < sizeof ints / sizeof ints[0]; ++k) {
-            if (name_len != strlen(ints[k].name) || strncmp(arg, ints[k].name, name_len) != 0)
-                continue;
-            matched = 1;
-            if (!value && i + 1 < argc)
-                value = argv[++i];
-            if (parse_long(value, ints[k].min, ints[k].max, ints[k].target)) {
-                fprintf(stderr, "rbcloth: %s needs an integer in [%ld, %ld], got '%s'\n",
-                        ints[k].name, ints[k].min, ints[k].max, value ? value : "");
-                fputs("Try 'rbcloth --help'.\n", stderr);
-                return EXIT_USAGE;
-            }
-        }
+        if (take_int_option(ints, sizeof ints / sizeof ints[0], arg, name_len, &value, argc, argv,
+                            &i, &matched))
+            return EXIT_USAGE;
         if (!matched)
             return usage_error("unknown option '%s' for run", arg);
     }
@@ -254,19 +265,9 @@ static int parse_bench_args(int argc, char **argv, cli_bench_options *o) {
             continue;
         }
         int matched = 0;
-        for (size_t k = 0; k < sizeof ints / sizeof ints[0]; ++k) {
-            if (name_len != strlen(ints[k].name) || strncmp(arg, ints[k].name, name_len) != 0)
-                continue;
-            matched = 1;
-            if (!value && i + 1 < argc)
-                value = argv[++i];
-            if (parse_long(value, ints[k].min, ints[k].max, ints[k].target)) {
-                fprintf(stderr, "rbcloth: %s needs an integer in [%ld, %ld], got '%s'\n",
-                        ints[k].name, ints[k].min, ints[k].max, value ? value : "");
-                fputs("Try 'rbcloth --help'.\n", stderr);
-                return EXIT_USAGE;
-            }
-        }
+        if (take_int_option(ints, sizeof ints / sizeof ints[0], arg, name_len, &value, argc, argv,
+                            &i, &matched))
+            return EXIT_USAGE;
         if (!matched)
             return usage_error("unknown option '%s' for bench", arg);
     }
