@@ -19,40 +19,17 @@
 #include <string.h>
 
 #include "check.h"
+#include "text_file.h"
 
 enum { MAX_COLS = 32 };
 
 static char *read_file(const char *dir, const char *name) {
     char path[4096];
     snprintf(path, sizeof path, "%s/%s", dir, name);
-    FILE *f = fopen(path, "rb");
-    if (!f) {
+    char *text = text_file_read(path);
+    if (!text)
         fprintf(stderr, "cannot open %s\n", path);
-        return NULL;
-    }
-    fseek(f, 0, SEEK_END);
-    long size = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    char *text = malloc((size_t)size + 1);
-    if (text && fread(text, 1, (size_t)size, f) != (size_t)size) {
-        free(text);
-        text = NULL;
-    }
-    if (text)
-        text[size] = '\0';
-    fclose(f);
     return text;
-}
-
-static int split(char *line, char sep, char **out, int max) {
-    int n = 0;
-    out[n++] = line;
-    for (char *p = line; *p && n < max; ++p)
-        if (*p == sep) {
-            *p = '\0';
-            out[n++] = p + 1;
-        }
-    return n;
 }
 
 static int is_text_column(const char *name) {
@@ -85,11 +62,11 @@ static int check_csv(const char *dir, const char *name, const char *header, int 
             CHECK(strcmp(line, header) == 0);
             static char copy[1024];
             snprintf(copy, sizeof copy, "%s", header);
-            cols = split(copy, ',', head, MAX_COLS);
+            cols = text_split(copy, ',', head, MAX_COLS);
             continue;
         }
         char *f[MAX_COLS];
-        int n = split(line, ',', f, MAX_COLS);
+        int n = text_split(line, ',', f, MAX_COLS);
         CHECK_EQ(n, cols);
         if (n != cols)
             continue;

@@ -26,6 +26,7 @@
 #include <string.h>
 
 #include "check.h"
+#include "text_file.h"
 
 enum { MAX_COLS = 32, MAX_ROWS = 4096, MAX_KNOWN = 256, SOLVERS = 8 };
 
@@ -33,36 +34,6 @@ typedef struct row {
     char *field[MAX_COLS];
     int count;
 } row;
-
-static char *read_file(const char *path) {
-    FILE *f = fopen(path, "rb");
-    if (!f)
-        return NULL;
-    fseek(f, 0, SEEK_END);
-    long size = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    char *text = malloc((size_t)size + 1);
-    if (text && fread(text, 1, (size_t)size, f) != (size_t)size) {
-        free(text);
-        text = NULL;
-    }
-    if (text)
-        text[size] = '\0';
-    fclose(f);
-    return text;
-}
-
-/* Split text into lines and a line into fields, in place. */
-static int split(char *line, char sep, char **out, int max) {
-    int n = 0;
-    out[n++] = line;
-    for (char *p = line; *p && n < max; ++p)
-        if (*p == sep) {
-            *p = '\0';
-            out[n++] = p + 1;
-        }
-    return n;
-}
 
 static int col(row *header, const char *name) {
     for (int k = 0; k < header->count; ++k)
@@ -82,8 +53,8 @@ int main(int argc, char **argv) {
         fprintf(stderr, "usage: %s STABILITY.csv KNOWN_ENERGY_GROWTH.txt\n", argv[0]);
         return 2;
     }
-    char *csv = read_file(argv[1]);
-    char *list = read_file(argv[2]);
+    char *csv = text_file_read(argv[1]);
+    char *list = text_file_read(argv[2]);
     CHECK(csv != NULL);
     CHECK(list != NULL);
     if (!csv || !list)
@@ -92,12 +63,12 @@ int main(int argc, char **argv) {
     known known_rows[MAX_KNOWN];
     int known_count = 0;
     char *lines[MAX_ROWS];
-    int nl = split(list, '\n', lines, MAX_ROWS);
+    int nl = text_split(list, '\n', lines, MAX_ROWS);
     for (int i = 0; i < nl && known_count < MAX_KNOWN; ++i) {
         if (!lines[i][0] || lines[i][0] == '#')
             continue;
         char *f[4];
-        if (split(lines[i], '|', f, 4) != 4) {
+        if (text_split(lines[i], '|', f, 4) != 4) {
             fprintf(stderr, "%s: line %d is not dimension|value|solver|why\n", argv[2], i + 1);
             CHECK(0);
             continue;
@@ -106,11 +77,11 @@ int main(int argc, char **argv) {
     }
 
     static row rows[MAX_ROWS];
-    int n = split(csv, '\n', lines, MAX_ROWS);
+    int n = text_split(csv, '\n', lines, MAX_ROWS);
     int row_count = 0;
     for (int i = 0; i < n; ++i)
         if (lines[i][0])
-            rows[row_count].count = split(lines[i], ',', rows[row_count].field, MAX_COLS), ++row_count;
+            rows[row_count].count = text_split(lines[i], ',', rows[row_count].field, MAX_COLS), ++row_count;
     CHECK(row_count > 1);
     if (row_count < 2)
         return check_report("bench_stability");
