@@ -416,7 +416,12 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
     st.linear_residual = res_den > 0.0 ? sqrt(res_num / res_den) : 0.0;
     if (s->settings.kind == RBC_SOLVER_RBGS_SOR && s->cloth_count) {
         rbc_cloth_state *c0 = s->cloths[0];
-        st.omega = c0->h_cached > 0.0f ? rbc_solver_sor_omega(s, c0, c0->h_cached) : s->settings.omega;
+        /* The omega of the last step: given, or Young's optimum from the cached rho_J
+         * (stats never estimate: reading them must not change the world). */
+        double rho = c0->rho_est;
+        st.omega = s->settings.omega > 0.0f ? s->settings.omega
+                   : rho > 0.0           ? 2.0 / (1.0 + sqrt(1.0 - rho * rho))
+                                         : 0.0;
     }
     st.substeps = s->last_substeps;
     st.nonlinear_iterations = s->last_nonlinear;
