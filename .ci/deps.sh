@@ -5,7 +5,8 @@ set -euo pipefail
 pkgs=(cmake make gcc libc6-dev pkg-config libcjson-dev libsuitesparse-dev abigail-tools binutils)
 missing=()
 for p in "${pkgs[@]}"; do
-  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  status=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)
+  [ "$status" = "install ok installed" ] || missing+=("$p")
 done
 [ ${#missing[@]} -eq 0 ] && exit 0
 echo "rbcloth: installing ${missing[*]}" >&2

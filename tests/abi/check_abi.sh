@@ -40,7 +40,10 @@ if [ ! -s "$baseline" ]; then
   exit 1
 fi
 
-if ! readelf -S "$so" | grep -q '\.debug_info'; then
+# (readelf's output is captured first: with pipefail, `readelf | grep -q` fails at
+# random when grep exits early and readelf dies of SIGPIPE.)
+sections=$(readelf -S "$so")
+if ! grep -q '\.debug_info' <<< "$sections"; then
   echo "FAIL: $so has no DWARF (.debug_info): build with -g, abidiff cannot see types without it" >&2
   exit 1
 fi
