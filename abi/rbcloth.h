@@ -208,7 +208,8 @@ enum {
     /// linear_iterations of the world (Alg. 1's fixed counts). The default.
     RBC_ITERATE_FIXED = 0,
     /// Until the relative residual of the global system falls below `tolerance`
-    /// (checked after every iteration; the check costs about half an iteration),
+    /// (checked after every iteration; the check costs about half an iteration for
+    /// the Gauss-Seidel solvers, whose last color is exact, and one for Jacobi),
     /// or max_linear_iterations.
     RBC_ITERATE_TOLERANCE = 1,
     /// As many iterations as fit in budget_ms per rbc_world_step (the paper's
@@ -266,7 +267,8 @@ typedef struct rbc_solver_def {
     /// omega* = 2 / (1 + sqrt(1 - rho_J^2)) from the estimated Jacobi spectral radius
     /// rho_J. Default 0.
     float omega;
-    /// Jacobi spectral radius for the Chebyshev solvers, in (0, 1); 0 = estimated
+    /// Jacobi spectral radius rho_J for the Chebyshev solvers (RBGS_CHEBYSHEV uses
+    /// rho_J^2, Gauss-Seidel's radius under red-black ordering), in (0, 1); 0 = estimated
     /// by the library (power iteration on the global system, redone when h or the
     /// topology change). Default 0.
     float rho;

@@ -958,13 +958,10 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
         uint32_t ki = k < 64 ? k : 63;
         if (st->kind == RBC_SOLVER_RBGS_SOR) ctx.sor_omega[ki] = rbc_solver_sor_omega(s, c, ctx.h);
         if (st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV || st->kind == RBC_SOLVER_RBGS_CHEBYSHEV) {
-            float rho = st->rho;
-            if (!(rho > 0.0f)) {
-                rho = rbc_cloth_state_spectral_radius(c, ctx.h);
-                /* Gauss-Seidel's radius is rho_J^2 for a consistently ordered (two
-                 * color) matrix; used as the estimate with more colors too. */
-                if (st->kind == RBC_SOLVER_RBGS_CHEBYSHEV) rho = rho * rho;
-            }
+            /* rho_J, given or estimated. Gauss-Seidel's radius is rho_J^2 for a
+             * consistently ordered (two color) matrix; used with more colors too. */
+            float rho = st->rho > 0.0f ? st->rho : rbc_cloth_state_spectral_radius(c, ctx.h);
+            if (st->kind == RBC_SOLVER_RBGS_CHEBYSHEV) rho = rho * rho;
             ctx.cheb_rho[ki] = rho;
         }
         if (st->kind == RBC_SOLVER_DIRECT &&
