@@ -6,12 +6,31 @@
 #define RBC_TEST_MESHES_H
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
+
+#include "topology.h"
 
 typedef struct test_mesh {
     uint32_t nv, nq;
     float *pos;
     uint32_t *quads;
 } test_mesh;
+
+/* The solver's input for a test mesh: the paper's material (1e-4 kg per vertex,
+ * k = 1000 N/m), the given pins. */
+static inline rbc_mesh_input mesh_input(const test_mesh *m, const uint32_t *pins, uint32_t npins) {
+    rbc_mesh_input in;
+    memset(&in, 0, sizeof in);
+    in.vertex_count = m->nv;
+    in.positions = m->pos;
+    in.quad_count = m->nq;
+    in.quads = m->quads;
+    in.vertex_mass = 1e-4f;
+    in.stiffness = 1000.0f;
+    in.pins = pins;
+    in.pin_count = npins;
+    return in;
+}
 
 static inline void mesh_free(test_mesh *m) {
     free(m->pos);

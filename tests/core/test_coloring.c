@@ -23,13 +23,7 @@
 #define K_BEND 50.0f
 
 static rbc_mesh_input input_of(const test_mesh *m, float shear, float bend) {
-    rbc_mesh_input in;
-    memset(&in, 0, sizeof in);
-    in.vertex_count = m->nv;
-    in.positions = m->pos;
-    in.quad_count = m->nq;
-    in.quads = m->quads;
-    in.vertex_mass = 1e-4f;
+    rbc_mesh_input in = mesh_input(m, NULL, 0);
     in.stiffness = K_STRUCT;
     in.shear_stiffness = shear;
     in.bend_stiffness = bend;

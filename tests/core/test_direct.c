@@ -80,16 +80,7 @@ static float rnd(void) { /* xorshift32, uniform in [-1, 1] */
 static int make_sys(sys *s, const test_mesh *m, const uint32_t *pins, uint32_t npins, float h,
                     float jitter) {
     memset(s, 0, sizeof *s);
-    rbc_mesh_input in;
-    memset(&in, 0, sizeof in);
-    in.vertex_count = m->nv;
-    in.positions = m->pos;
-    in.quad_count = m->nq;
-    in.quads = m->quads;
-    in.vertex_mass = 1e-4f;
-    in.stiffness = 1000.0f;
-    in.pins = pins;
-    in.pin_count = npins;
+    rbc_mesh_input in = mesh_input(m, pins, npins);
     rbc_allocator a = rbc_allocator_default();
     char err[256];
     int32_t rc = rbc_topology_build(&in, &a, &s->t, err, sizeof err);

@@ -19,16 +19,7 @@
 
 static rbc_cloth_state *make_cloth(rbc_solver *s, const test_mesh *m, const uint32_t *pins,
                                    uint32_t npins, float damping) {
-    rbc_mesh_input in;
-    memset(&in, 0, sizeof in);
-    in.vertex_count = m->nv;
-    in.positions = m->pos;
-    in.quad_count = m->nq;
-    in.quads = m->quads;
-    in.vertex_mass = 1e-4f;
-    in.stiffness = 1000.0f;
-    in.pins = pins;
-    in.pin_count = npins;
+    rbc_mesh_input in = mesh_input(m, pins, npins);
     rbc_cloth_state *c = NULL;
     char err[256];
     int32_t rc = rbc_cloth_state_create(s, &in, damping, &c, err, sizeof err);

@@ -28,17 +28,8 @@ static void setup(void) {
     rbc_allocator a = rbc_allocator_default();
     CHECK_EQ(rbc_solver_init(&S, &a, 1), RBC_OK);
     test_mesh m = mesh_grid(40, 40, 1.0f / 39.0f);
-    rbc_mesh_input in;
-    memset(&in, 0, sizeof in);
-    in.vertex_count = m.nv;
-    in.positions = m.pos;
-    in.quad_count = m.nq;
-    in.quads = m.quads;
-    in.vertex_mass = 1e-4f;
-    in.stiffness = 1000.0f;
     uint32_t pins[2] = {0, 39};
-    in.pins = pins;
-    in.pin_count = 2;
+    rbc_mesh_input in = mesh_input(&m, pins, 2);
     char err[256];
     CHECK_EQ(rbc_cloth_state_create(&S, &in, 0.0f, &C, err, sizeof err), RBC_OK);
     /* Buffers for every solver: Jacobi (alt) and Chebyshev (prev). */
