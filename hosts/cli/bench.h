@@ -1,4 +1,4 @@
-/* bench.h -- what `rbcloth bench accuracy` and `rbcloth bench stability` share:
+/* bench.h -- what `rbcloth bench accuracy`, `stability` and `perf` share:
  * the solver list, a host-side copy of a cloth's mesh (to evaluate Eq. 7, spring
  * energy and the Projective Dynamics objective without trusting the library's
  * stats), world creation through the function table, CSV and gnuplot helpers.
@@ -24,6 +24,7 @@ typedef struct cli_bench_options {
     /// Frames per run (accuracy: per scene and solver); -1 = the bench's default.
     long frames;
     /// Worker threads of every world; -1 = the library's default (one per core).
+    /// perf measures 1 thread and this many (-1 there: 2).
     long threads;
     /// Fewer frames, budgets and cases: a smoke run for the tests.
     int quick;
@@ -38,6 +39,12 @@ int cli_bench_accuracy(const cli_plugin *plugin, const cli_bench_options *option
 /// reported on stderr and in the outputs but still returns 0 (the map is the
 /// result; tests/bench checks it).
 int cli_bench_stability(const cli_plugin *plugin, const cli_bench_options *options);
+
+/// `rbcloth bench perf`: ms per frame, per stage, particle updates per second, setup
+/// time and memory of RBGS on 1K .. 1M particle grids with 1 and N threads, an
+/// irregular quad mesh against the grid, and Jacobi and serial Gauss-Seidel at equal
+/// iterations (issue 4). Returns 0, or 1 after a message on stderr.
+int cli_bench_perf(const cli_plugin *plugin, const cli_bench_options *options);
 
 /* ------------------------------------------------------------------------- */
 /* Solvers                                                                   */

@@ -35,6 +35,12 @@ static const char usage_text[] =
     "  bench stability [OPTIONS]   a stability map of every solver over stiffness, dt,\n"
     "                              mass ratio, size, degenerate springs, stretch, pins\n"
     "                              and a moving sphere: stability.csv, stability.md\n"
+    "  bench perf [OPTIONS]        what a frame costs: ms per frame and per stage,\n"
+    "                              particle updates/s, setup time and memory of RBGS\n"
+    "                              on 1K .. 1M particle grids with 1 and N threads, an\n"
+    "                              irregular quad mesh against the grid, Jacobi and\n"
+    "                              serial Gauss-Seidel at equal iterations: perf.csv,\n"
+    "                              perf.md, perf_scaling.png\n"
     "  info                        print the plugin's path, ABI version and version\n"
     "\n"
     "Options of run:\n"
@@ -51,13 +57,19 @@ static const char usage_text[] =
     "  --tolerance X     relative residual for --mode tolerance (default 1e-3)\n"
     "  --budget-ms X     milliseconds per frame for --mode budget (default 2)\n"
     "  --omega X         SOR factor for rbgs_sor, in (0, 2); 0 = optimal (default)\n"
+    "  --energy-guard G  when a step adds energy the cloth was not given: clamp\n"
+    "                    (default: scale velocities, log, count), fail (error, state\n"
+    "                    restored) or off\n"
     "  --quiet           no progress bar and no table of timings\n"
     "\n"
     "Options of bench:\n"
     "  --out DIR         output directory, created if missing (default: out/bench)\n"
-    "  --frames N        frames per run (accuracy: default 240; stability: 200)\n"
-    "  --threads N       worker threads of every world; 0 = one per core\n"
-    "  --quick           fewer frames, budgets and cases (a smoke run, for tests)\n"
+    "  --frames N        frames per run (accuracy: default 240; stability: 200;\n"
+    "                    perf: 200 up to 10K particles, fewer above, 20 at 1M)\n"
+    "  --threads N       worker threads of every world; 0 = one per core (perf:\n"
+    "                    measures 1 thread and N threads, default N = 2)\n"
+    "  --quick           fewer frames, budgets and cases (a smoke run, for tests;\n"
+    "                    perf: only cloths up to 10K particles)\n"
     "\n"
     "  -h, --help        show this help\n"
     "\n"
@@ -134,7 +146,8 @@ static int parse_run_args(int argc, char **argv, cli_run_options *o) {
         const char *const *choices;
         const char **target;
     } names[] = {{"--solver", rbc_scene_solver_names, &o->solver},
-                 {"--mode", rbc_scene_mode_names, &o->mode}};
+                 {"--mode", rbc_scene_mode_names, &o->mode},
+                 {"--energy-guard", rbc_scene_energy_guard_names, &o->energy_guard}};
     for (int i = 0; i < argc; ++i) {
         const char *arg = argv[i];
         if (strcmp(arg, "--quiet") == 0 || strcmp(arg, "-q") == 0) {
@@ -214,6 +227,7 @@ static int command_run(int argc, char **argv) {
         .nonlinear = -1,
         .solver = NULL,
         .mode = NULL,
+        .energy_guard = NULL,
         .tolerance = -1.0,
         .budget_ms = -1.0,
         .omega = -1.0,
@@ -288,11 +302,21 @@ static int command_bench(int argc, char **argv) {
         }
     }
     if (argc < 1)
-        return usage_error("%s", "bench needs 'accuracy' or 'stability'");
+        return usage_error("%s", "bench needs 'accuracy', 'stability' or 'perf'");
+    typedef int (*bench_fn)(const cli_plugin *, const cli_bench_options *);
+    static const struct {
+        const char *name;
+        bench_fn run;
+    } benches[] = {{"accuracy", cli_bench_accuracy},
+                   {"stability", cli_bench_stability},
+                   {"perf", cli_bench_perf}};
     const char *which = argv[0];
-    int accuracy = strcmp(which, "accuracy") == 0;
-    if (!accuracy && strcmp(which, "stability") != 0)
-        return usage_error("unknown bench '%s' (accuracy or stability)", which);
+    bench_fn run = NULL;
+    for (size_t k = 0; k < sizeof benches / sizeof benches[0]; ++k)
+        if (strcmp(which, benches[k].name) == 0)
+            run = benches[k].run;
+    if (!run)
+        return usage_error("unknown bench '%s' (accuracy, stability or perf)", which);
     int rc = parse_bench_args(argc - 1, argv + 1, &options);
     if (rc != EXIT_OK)
         return rc;
@@ -303,7 +327,7 @@ static int command_bench(int argc, char **argv) {
         fprintf(stderr, "rbcloth: %s\n", err);
         return EXIT_RUNTIME;
     }
-    rc = accuracy ? cli_bench_accuracy(&plugin, &options) : cli_bench_stability(&plugin, &options);
+    rc = run(&plugin, &options);
     cli_plugin_close(&plugin);
     return rc;
 }
