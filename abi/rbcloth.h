@@ -47,7 +47,9 @@
  *  - 1.0: worlds, cloths (structural springs), plane/sphere colliders, callback,
  *    OBJ/PC2 writers. 1.1: selectable global solvers and iteration control
  *    (rbc_solver_def), shear and bend springs, multicolor coloring, residual and
- *    PD objective in stats, cloth state get/set, color sizes.
+ *    PD objective in stats, cloth state get/set, color sizes. 1.2: the energy guard
+ *    (rbc_solver_def.energy_guard; energy, budget and clamps in stats) and the
+ *    memory a world holds (stats.memory_bytes).
  *  - The ABI version is not the library's release version (rbc_version_string).
  */
 #ifndef RBCLOTH_H
@@ -79,7 +81,7 @@ extern "C" {
 /// Major version of this ABI: incompatible changes bump it.
 #define RBC_ABI_VERSION_MAJOR 1
 /// Minor version of this ABI: appended functions or fields bump it.
-#define RBC_ABI_VERSION_MINOR 1
+#define RBC_ABI_VERSION_MINOR 2
 /// (major << 16) | minor, as returned by rbc_abi_version().
 #define RBC_ABI_VERSION ((RBC_ABI_VERSION_MAJOR << 16) | RBC_ABI_VERSION_MINOR)
 
@@ -257,6 +259,36 @@ typedef int32_t (RBC_CALL *rbc_collision_fn)(void *user, rbc_world_id world, flo
 /* Defs                                                                      */
 /* ------------------------------------------------------------------------- */
 
+/// What a world does when a step gives a cloth more energy than it was given. (1.2)
+///
+/// The guard bounds G = kinetic (free vertices, v = (x - x_prev) / h) +
+/// gravitational (-m g . x) energy by a budget: the cloth's whole mechanical energy
+/// (spring energy included) at its first step or after rbc_cloth_set_state, plus the
+/// work done on it since: by pins moving (the change of spring energy they cause), by
+/// moving built-in colliders (impulse . collider velocity; a static collider supplies
+/// nothing) and by the host callback (the change of G it makes). Physical motion
+/// never exceeds it (what G gains, the springs or a driver gave). Spring energy is
+/// left out of G: a solve that has not converged leaves springs more stretched than
+/// the energy supplied explains, an accuracy matter (Eq. 7), while a solver that adds
+/// energy (Jacobi, Chebyshev or SOR past their stable range, float rounding at very
+/// small h, post-solve collision projection) makes the cloth move faster or rise.
+/// The check is one pass over the particles per step. It lets rounding through: 2^-20
+/// of the magnitudes of its sums plus what half an ulp in every coordinate changes.
+typedef int32_t rbc_energy_guard;
+enum {
+    /// No check; the solver's result is kept as is.
+    RBC_ENERGY_GUARD_OFF = 0,
+    /// Scale the free vertices' velocities (positions stay) so that E returns to the
+    /// budget, count the step in stats.energy_clamped_steps and log a warning (at
+    /// the first clamped step and at every power of two after it). If the excess
+    /// is more than the kinetic energy (the positions alone hold more energy than
+    /// the budget), the step fails with RBC_ERR_UNSTABLE and the state is restored.
+    RBC_ENERGY_GUARD_CLAMP = 1,
+    /// Fail the step with RBC_ERR_UNSTABLE (state restored) on any excess.
+    RBC_ENERGY_GUARD_FAIL = 2,
+    RBC_ENERGY_GUARD_FORCE32 = 0x7FFFFFFF
+};
+
 /// How the global step is solved. Fill one with rbc_solver_def_init. (1.1)
 typedef struct rbc_solver_def {
     /// sizeof(rbc_solver_def) as compiled by the host.
@@ -284,7 +316,13 @@ typedef struct rbc_solver_def {
     /// Most linear iterations per non-linear iteration in the TOLERANCE and BUDGET
     /// modes, 1..100000. Default 1000.
     uint32_t max_linear_iterations;
+    /* --- 1.2 --- */
+    /// An rbc_energy_guard. Default RBC_ENERGY_GUARD_CLAMP.
+    rbc_energy_guard energy_guard;
 } rbc_solver_def;
+
+/// sizeof(rbc_solver_def) in ABI 1.1 (before `energy_guard`).
+#define RBC_SOLVER_DEF_SIZE_V1_1 ((uint32_t)offsetof(rbc_solver_def, energy_guard))
 
 /// How a world is made. Fill one with rbc_world_def_init (or rbc_world_def_default).
 typedef struct rbc_world_def {
@@ -475,7 +513,26 @@ typedef struct rbc_world_stats {
     double spectral_radius;
     /// SOR omega in use (RBGS_SOR), else 0.
     double omega;
+    /* --- 1.2 --- */
+    /// Kinetic energy of the free vertices (velocities (x - x_prev) / h of the last
+    /// step) and potential energy (springs, and gravity as -m g . x over the free
+    /// vertices) of all cloths now, joules.
+    double kinetic_energy;
+    double potential_energy;
+    /// What the energy guard lets kinetic + gravitational energy reach (see
+    /// rbc_energy_guard), joules; 0 while the guard is off or before the first step.
+    double energy_budget;
+    /// Energy the guard removed in the last step, joules (0 if it did not act).
+    double energy_removed;
+    /// Steps so far whose velocities the guard scaled (RBC_ENERGY_GUARD_CLAMP).
+    uint64_t energy_clamped_steps;
+    /// Bytes the world holds for its cloths and solver buffers (not the thread pool
+    /// or the registry).
+    uint64_t memory_bytes;
 } rbc_world_stats;
+
+/// sizeof(rbc_world_stats) in ABI 1.1 (before `kinetic_energy`).
+#define RBC_WORLD_STATS_SIZE_V1_1 ((uint32_t)offsetof(rbc_world_stats, kinetic_energy))
 
 /// sizeof(rbc_world_stats) in ABI 1.0 (before `solver`).
 #define RBC_WORLD_STATS_SIZE_V1_0 ((uint32_t)offsetof(rbc_world_stats, solver))

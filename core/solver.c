@@ -31,6 +31,7 @@
 #include <time.h>
 
 #include "direct.h"
+#include "energy.h"
 #include "global.h"
 #include "kernels/collide_kernels.h"
 #include "kernels/pd_kernels.h"
@@ -60,6 +61,7 @@ int32_t rbc_solver_init(rbc_solver *s, const rbc_allocator *a, uint32_t nthreads
     s->settings.tolerance = 1e-3f;
     s->settings.budget_ms = 2.0f;
     s->settings.max_linear_iterations = 1000;
+    s->settings.energy_guard = RBC_ENERGY_GUARD_CLAMP;
     if (rbc_pool_create(&s->pool, nthreads, a) != 0) return RBC_ERR_OUT_OF_MEMORY;
     return RBC_OK;
 }
@@ -81,7 +83,8 @@ void rbc_solver_fini(rbc_solver *s) {
     X(snap_x[0], float, n) X(snap_x[1], float, n) X(snap_x[2], float, n)                 \
     X(snap_q[0], float, n) X(snap_q[1], float, n) X(snap_q[2], float, n)                 \
     X(dx, float, 2 * (size_t)ns) X(dy, float, 2 * (size_t)ns) X(dz, float, 2 * (size_t)ns) \
-    X(w, float, n) X(inv_denom, float, n) X(pinned, uint8_t, n)
+    X(w, float, n) X(inv_denom, float, n) X(pinned, uint8_t, n)                          \
+    X(e_blk, double, rbc_energy_block_doubles((uint32_t)n, (uint32_t)ns))
 
 static void free_pins(rbc_solver *s, rbc_cloth_state *c) {
     rbc_mem_free(&s->alloc, c->pin_idx, sizeof(uint32_t) * c->pin_cap);
@@ -156,6 +159,7 @@ void rbc_cloth_state_destroy(rbc_solver *s, rbc_cloth_state *c) {
     STATE_ARRAYS(FREE_ONE)
 #undef FREE_ONE
     free_pins(s, c);
+    rbc_mem_free(&s->alloc, c->pin_springs, sizeof(uint32_t) * c->pin_spring_cap);
     free_cb_buffers(s, c);
     rbc_topology_free(&c->topo, &s->alloc);
     rbc_mem_free(&s->alloc, c, sizeof *c);
@@ -242,7 +246,13 @@ int32_t rbc_cloth_state_create(rbc_solver *s, const rbc_mesh_input *in, float da
         c->pin_target[3 * m + 1] = c->x[1][i];
         c->pin_target[3 * m + 2] = c->x[2][i];
     }
+    if (!rbc_energy_rebuild_pin_springs(c, &s->alloc)) {
+        rbc_cloth_state_destroy(s, c);
+        return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for %zu particles", n);
+    }
     c->h_cached = 0.0f;
+    c->e_valid = 0;
+    c->e_keep_slack = 0;
     *out = c;
     return RBC_OK;
 }
@@ -286,21 +296,31 @@ int32_t rbc_cloth_state_set_pin(rbc_solver *s, rbc_cloth_state *c, uint32_t host
         if (c->pin_idx[k] == i) m = k;
     if (!target) {
         if (m == c->pin_count) return RBC_OK; /* not pinned: nothing to release */
+        c->pinned[i] = 0;
+        if (!rbc_energy_rebuild_pin_springs(c, &s->alloc)) {
+            c->pinned[i] = 1;
+            return RBC_ERR_OUT_OF_MEMORY;
+        }
         uint32_t last = --c->pin_count;
         c->pin_idx[m] = c->pin_idx[last];
         memcpy(&c->pin_target[3 * m], &c->pin_target[3 * last], 3 * sizeof(float));
-        c->pinned[i] = 0;
         c->direct_dirty = 1; /* the free set changed: refactor */
         c->rho_est = 0.0f;
+        rbc_cloth_state_energy_invalidate(c, 1); /* a free particle more */
         return RBC_OK;
     }
     if (m == c->pin_count) {
         if (!grow_pins(s, c, c->pin_count + 1)) return RBC_ERR_OUT_OF_MEMORY;
+        c->pinned[i] = 1;
+        if (!rbc_energy_rebuild_pin_springs(c, &s->alloc)) {
+            c->pinned[i] = 0;
+            return RBC_ERR_OUT_OF_MEMORY;
+        }
         c->pin_idx[m] = i;
         c->pin_count++;
-        c->pinned[i] = 1;
         c->direct_dirty = 1;
         c->rho_est = 0.0f;
+        rbc_cloth_state_energy_invalidate(c, 1); /* a free particle less */
     }
     memcpy(&c->pin_target[3 * m], target, 3 * sizeof(float));
     return RBC_OK;
@@ -360,7 +380,10 @@ int32_t rbc_solver_add_collider(rbc_solver *s, const rbc_collider_state *c) {
         s->collider_cap = cap;
     }
     s->colliders[s->collider_count] = *c;
-    rbc_collider_update_frame(&s->colliders[s->collider_count]);
+    rbc_collider_state *added = &s->colliders[s->collider_count];
+    memcpy(added->last_position, added->position, sizeof added->position);
+    memset(added->velocity, 0, sizeof added->velocity);
+    rbc_collider_update_frame(added);
     s->collider_count++;
     return RBC_OK;
 }
@@ -394,6 +417,9 @@ int32_t rbc_solver_set_settings(rbc_solver *s, const rbc_solver_settings *st) {
     /* Release what the new solver does not use (a scene pays only for its solver). */
     for (uint32_t k = 0; k < s->cloth_count; ++k)
         free_solver_buffers(s, s->cloths[k], !needs_alt(st->kind), !needs_prev(st->kind));
+    if (s->settings.energy_guard == RBC_ENERGY_GUARD_OFF && st->energy_guard != RBC_ENERGY_GUARD_OFF)
+        for (uint32_t k = 0; k < s->cloth_count; ++k) /* unguarded steps: start afresh */
+            rbc_cloth_state_energy_invalidate(s->cloths[k], 0);
     s->settings = *st;
     return RBC_OK;
 }
@@ -421,6 +447,53 @@ void rbc_cloth_state_set(rbc_cloth_state *c, const float *pos, const float *prev
         }
     }
     c->system_valid = 0;
+    rbc_cloth_state_energy_invalidate(c, 0); /* a new state: a new budget */
+}
+
+size_t rbc_cloth_state_bytes(const rbc_cloth_state *c) {
+    size_t n3 = 3 * (size_t)c->topo.n * sizeof(float);
+    size_t b = sizeof *c + c->state_bytes + c->topo.bytes;
+    b += (size_t)c->pin_cap * (sizeof(uint32_t) + 6 * sizeof(float));
+    b += (size_t)c->pin_spring_cap * sizeof(uint32_t);
+    if (c->cb_pos) b += 2 * n3;
+    if (c->alt[0]) b += n3;
+    if (c->prev[0]) b += n3;
+    if (c->direct) b += rbc_direct_bytes(c->direct);
+    return b;
+}
+
+void rbc_cloth_state_energy(const rbc_cloth_state *c, const float g[3], double *kinetic,
+                            double *potential, double *budget) {
+    const rbc_topology *t = &c->topo;
+    double ke = 0.0, ug = 0.0, us = 0.0;
+    float h = c->h_cached;
+    for (uint32_t i = 0; i < t->n; ++i) {
+        if (c->pinned[i]) continue;
+        double d2 = 0.0, gp = 0.0;
+        for (int a = 0; a < 3; ++a) {
+            double d = (double)c->x[a][i] - c->q[a][i];
+            d2 += d * d;
+            gp += (double)g[a] * c->x[a][i];
+        }
+        if (h > 0.0f) ke += 0.5 * t->mass[i] * d2 / ((double)h * h);
+        ug -= t->mass[i] * gp;
+    }
+    for (uint32_t k = 0; k < t->ns; ++k) {
+        uint32_t a = t->sa[k], b = t->sb[k];
+        double ex = (double)c->x[0][a] - c->x[0][b], ey = (double)c->x[1][a] - c->x[1][b],
+               ez = (double)c->x[2][a] - c->x[2][b];
+        double v = sqrt(ex * ex + ey * ey + ez * ez) - t->rest_len[k];
+        us += 0.5 * t->stiff[k] * v * v;
+    }
+    *kinetic = ke;
+    *potential = us + ug;
+    *budget = c->e_valid ? c->e_budget : 0.0;
+}
+
+void rbc_cloth_state_energy_invalidate(rbc_cloth_state *c, int keep_slack) {
+    /* Keep the slack only if there was a budget to keep it from. */
+    c->e_keep_slack = keep_slack && (c->e_valid || c->e_keep_slack);
+    c->e_valid = 0;
 }
 
 void rbc_cloth_state_system_error(const rbc_cloth_state *c, double *res_num2, double *res_den2,
@@ -483,6 +556,7 @@ typedef struct step_ctx {
         double r2, b2;
         char pad[48];
     } part[64];
+    int clamp;            /* the energy guard scales velocities at this commit */
     float cheb_rho[64];   /* per cloth (first 64): the Chebyshev rho in use */
     float sor_omega[64];  /* per cloth: the SOR omega in use */
     rbc_step_times t;
@@ -550,23 +624,42 @@ static void phase_local(step_ctx *ctx, uint32_t tid, uint32_t nt) {
     }
 }
 
+/* Built-in colliders project the free particles out. Work is split by energy blocks
+ * (not rbc_split) so that each block's collider work, sum m (dp . u) / h (the
+ * impulse m dp / h times the collider's velocity u: what a moving collider gives; a
+ * static one gives nothing), is summed in a fixed order. */
 static void phase_collide(step_ctx *ctx, uint32_t tid, uint32_t nt) {
     rbc_solver *s = ctx->s;
+    const float inv_h = 1.0f / ctx->h;
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
-        uint32_t b, e;
-        rbc_split(c->topo.n, tid, nt, &b, &e);
-        for (uint32_t ci = 0; ci < s->collider_count; ++ci) {
-            const rbc_collider_state *col = &s->colliders[ci];
-            for (uint32_t i = b; i < e; ++i) {
-                if (c->pinned[i]) continue;
-                if (col->shape == RBC_SHAPE_PLANE)
-                    rbc_k_collide_plane(&c->p[0][i], &c->p[1][i], &c->p[2][i], col->position,
-                                        col->normal, col->thickness);
-                else
-                    rbc_k_collide_sphere(&c->p[0][i], &c->p[1][i], &c->p[2][i], col->position,
-                                         col->radius + col->thickness);
+        const uint32_t n = c->topo.n;
+        uint32_t b0, b1;
+        rbc_energy_block_range(rbc_energy_blocks_of(n), tid, nt, &b0, &b1);
+        for (uint32_t blk = b0; blk < b1; ++blk) {
+            uint32_t i0 = blk * RBC_ENERGY_BLOCK, i1 = i0 + RBC_ENERGY_BLOCK;
+            if (i1 > n) i1 = n;
+            double work = 0.0;
+            for (uint32_t ci = 0; ci < s->collider_count; ++ci) {
+                const rbc_collider_state *col = &s->colliders[ci];
+                const float *u = col->velocity;
+                int moving = u[0] != 0.0f || u[1] != 0.0f || u[2] != 0.0f;
+                for (uint32_t i = i0; i < i1; ++i) {
+                    if (c->pinned[i]) continue;
+                    float ox = c->p[0][i], oy = c->p[1][i], oz = c->p[2][i];
+                    if (col->shape == RBC_SHAPE_PLANE)
+                        rbc_k_collide_plane(&c->p[0][i], &c->p[1][i], &c->p[2][i], col->position,
+                                            col->normal, col->thickness);
+                    else
+                        rbc_k_collide_sphere(&c->p[0][i], &c->p[1][i], &c->p[2][i],
+                                             col->position, col->radius + col->thickness);
+                    if (moving)
+                        work += (double)c->topo.mass[i] * inv_h *
+                                ((double)(c->p[0][i] - ox) * u[0] + (double)(c->p[1][i] - oy) * u[1] +
+                                 (double)(c->p[2][i] - oz) * u[2]);
+                }
             }
+            c->e_blk[(size_t)RBC_EPB * blk + RBC_E_WC] = work;
         }
     }
 }
@@ -626,9 +719,13 @@ static void run_callback(step_ctx *ctx, uint32_t sub) {
 #define RBC_BLOWUP_STRETCH 1000.0f
 
 /* Record the first non-finite particle, or over-stretched spring, this thread sees. */
-static void phase_check(step_ctx *ctx, uint32_t tid, uint32_t nt) {
+static void phase_check(step_ctx *ctx, int energy, uint32_t tid, uint32_t nt) {
     rbc_solver *s = ctx->s;
     ctx->bad[tid][0] = -1;
+    if (energy)
+        for (uint32_t k = 0; k < s->cloth_count; ++k)
+            rbc_energy_blocks(s->cloths[k], s->cloths[k]->p, s->cloths[k]->x, s->gravity, 0, tid,
+                              nt);
     /* Gauss-Seidel sweeps (red-black, multicolor, serial) and the exact solve only
      * lower the PD objective, so they cannot run away; the guard (one pass over the
      * springs, ~4% of a 10K-particle RBGS frame) is paid by the solvers that can. */
@@ -836,6 +933,120 @@ static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uin
     }
 }
 
+/* ------------------------------------------------------------------------- */
+/* Energy guard (rbc_energy_guard; energy.h)                                  */
+/* ------------------------------------------------------------------------- */
+
+static int guard_on(const rbc_solver *s) {
+    return s->settings.energy_guard != RBC_ENERGY_GUARD_OFF;
+}
+
+/* The energy and budget at the step's start: cached from the last step, or
+ * recomputed (all threads) for cloths whose state, pins, gravity or h changed. */
+static void energy_start(step_ctx *ctx, uint32_t tid, uint32_t nt) {
+    rbc_solver *s = ctx->s;
+    int any = 0;
+    for (uint32_t k = 0; k < s->cloth_count; ++k) {
+        rbc_cloth_state *c = s->cloths[k];
+        if (c->e_valid && c->e_h == ctx->h) continue;
+        rbc_energy_blocks(c, c->x, c->q, s->gravity, 1, tid, nt);
+        any = 1;
+    }
+    if (any) rbc_pool_barrier(s->pool);
+    if (tid != 0) return;
+    for (uint32_t k = 0; k < s->cloth_count; ++k) {
+        rbc_cloth_state *c = s->cloths[k];
+        if (c->e_valid && c->e_h == ctx->h) {
+            c->e_start = c->e_last;
+            c->e_step_budget = c->e_budget;
+        } else {
+            rbc_energy e = rbc_energy_sum(c, ctx->h, s->gravity, 1);
+            /* A new state: everything it holds may become motion, spring energy
+             * included. Otherwise keep what the cloth had not yet spent (the springs'
+             * energy among it). */
+            double slack = e.spring;
+            if (c->e_valid || c->e_keep_slack) {
+                slack = c->e_budget - c->e_last;
+                if (slack < 0.0) slack = 0.0;
+            }
+            c->e_start = e.guarded;
+            c->e_step_budget = e.guarded + slack;
+        }
+        c->e_removed = c->e_kept = 0.0;
+        c->e_scale = 1.0f;
+    }
+}
+
+/* Thread 0, after the last substep's check: compare each cloth's energy with its
+ * budget and decide the clamp (or the failure). */
+static void energy_decide(step_ctx *ctx) {
+    rbc_solver *s = ctx->s;
+    int fail_mode = s->settings.energy_guard == RBC_ENERGY_GUARD_FAIL;
+    ctx->clamp = 0;
+    s->energy_note[0] = '\0';
+    for (uint32_t k = 0; k < s->cloth_count; ++k) {
+        rbc_cloth_state *c = s->cloths[k];
+        rbc_energy e = rbc_energy_sum(c, ctx->h, s->gravity, 0);
+        double excess = e.guarded - c->e_step_budget;
+        c->e_end = e.guarded;
+        c->e_scale = 1.0f;
+        if (!(excess > e.tolerance)) continue;
+        if (fail_mode) {
+            ctx->result = rbc_fail(
+                ctx->err, ctx->errlen, RBC_ERR_UNSTABLE,
+                "cloth 0x%08x: the step ended with %.6g J of kinetic + gravitational energy, "
+                "%.3g J more than the %.6g J the cloth was given (start, pins, colliders, "
+                "callback): the global solver added energy (more iterations, rbgs or direct, "
+                "or smaller steps keep it out); the energy guard (RBC_ENERGY_GUARD_FAIL) "
+                "restored the world to its state before the step",
+                c->public_id, e.guarded, excess, c->e_step_budget);
+            return;
+        }
+        if (excess < e.kinetic) {
+            /* Scale the velocities: kinetic energy s^2 KE = KE - excess. */
+            c->e_scale = (float)sqrt(1.0 - excess / e.kinetic);
+            c->e_removed = excess;
+            c->e_end = c->e_step_budget;
+        } else {
+            /* The positions alone hold more than the budget: stop every free particle
+             * and keep the rest (reported; the budget grows by it). */
+            c->e_scale = 0.0f;
+            c->e_removed = e.kinetic;
+            c->e_kept = excess - e.kinetic;
+            c->e_end = e.guarded - e.kinetic;
+            c->e_step_budget += c->e_kept;
+        }
+        ctx->clamp = 1;
+        if (!s->energy_note[0])
+            snprintf(s->energy_note, sizeof s->energy_note,
+                     "cloth 0x%08x: the step added %.3g J of kinetic + gravitational energy "
+                     "beyond the %.6g J the cloth was given; the energy guard removed %.3g J "
+                     "of kinetic energy (velocities scaled by %.6g)%s",
+                     c->public_id, excess, c->e_step_budget - c->e_kept, c->e_removed,
+                     (double)c->e_scale,
+                     c->e_kept > 0.0 ? " and kept the rest, held in the positions" : "");
+    }
+}
+
+/* All threads: the clamp's new previous positions x = p - scale (p - x), so that
+ * after the commit (q <- x, x <- p) the velocities are scaled and positions kept. */
+static void energy_apply(step_ctx *ctx, uint32_t tid, uint32_t nt) {
+    rbc_solver *s = ctx->s;
+    for (uint32_t k = 0; k < s->cloth_count; ++k) {
+        rbc_cloth_state *c = s->cloths[k];
+        if (c->e_scale == 1.0f) continue;
+        const float f = c->e_scale;
+        uint32_t b, e;
+        rbc_split(c->topo.n, tid, nt, &b, &e);
+        for (int a = 0; a < 3; ++a) {
+            float *x = c->x[a];
+            const float *p = c->p[a];
+            for (uint32_t i = b; i < e; ++i)
+                if (!c->pinned[i]) x[i] = p[i] - f * (p[i] - x[i]);
+        }
+    }
+}
+
 static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
     step_ctx *ctx = arg;
     rbc_solver *s = ctx->s;
@@ -852,11 +1063,23 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
     } while (0)
 
     const uint32_t nl_count = s->nonlinear_iterations;
+    const int guard = guard_on(s);
+    if (guard) {
+        STAGE_BEGIN();
+        energy_start(ctx, tid, nt);
+        if (tid == 0) ctx->t.other += now_ms() - t0;
+    }
     for (uint32_t sub = 0; sub < ctx->substeps; ++sub) {
+        const int last = sub + 1 == ctx->substeps;
         STAGE_BEGIN();
         phase_integrate(ctx, tid, nt);
         place_pins(ctx, sub, tid, nt);
         STAGE_END(integrate);
+        if (guard && tid == 0) /* the pins' work: they moved from x to p */
+            for (uint32_t k = 0; k < s->cloth_count; ++k) {
+                rbc_cloth_state *c = s->cloths[k];
+                if (c->pin_spring_count) c->e_step_budget += rbc_energy_pin_work(c, c->x, c->p);
+            }
 
         for (uint32_t nl = 0; nl < nl_count; ++nl) {
             STAGE_BEGIN();
@@ -880,10 +1103,29 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
 
         if (s->collider_count) {
             STAGE_BEGIN();
+            /* The impulse of the projection times the collider's velocity is the work a
+             * moving collider does (energy.h); a static one supplies nothing. The
+             * spring energy a projection stores is not counted (the guard cannot tell it
+             * from the solve's own): collisions inside the solve will remove it. */
             phase_collide(ctx, tid, nt);
+            rbc_pool_barrier(pool);
+            if (guard && tid == 0)
+                for (uint32_t k = 0; k < s->cloth_count; ++k)
+                    s->cloths[k]->e_step_budget += rbc_energy_sum_work(s->cloths[k]);
             STAGE_END(collide);
         }
         if (s->callback) {
+            /* The host's corrections count as work it does: the change of energy. */
+            if (guard) {
+                for (uint32_t k = 0; k < s->cloth_count; ++k)
+                    rbc_energy_blocks(s->cloths[k], s->cloths[k]->p, s->cloths[k]->x, s->gravity,
+                                      0, tid, nt);
+                rbc_pool_barrier(pool);
+                if (tid == 0)
+                    for (uint32_t k = 0; k < s->cloth_count; ++k)
+                        s->cloths[k]->e_step_budget -=
+                            rbc_energy_sum(s->cloths[k], ctx->h, s->gravity, 0).guarded;
+            }
             if (tid == 0) {
                 t0 = now_ms();
                 run_callback(ctx, sub);
@@ -891,10 +1133,20 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
             }
             rbc_pool_barrier(pool);
             if (ctx->result != RBC_OK) return;
+            if (guard) {
+                for (uint32_t k = 0; k < s->cloth_count; ++k)
+                    rbc_energy_blocks(s->cloths[k], s->cloths[k]->p, s->cloths[k]->x, s->gravity,
+                                      0, tid, nt);
+                rbc_pool_barrier(pool);
+                if (tid == 0)
+                    for (uint32_t k = 0; k < s->cloth_count; ++k)
+                        s->cloths[k]->e_step_budget +=
+                            rbc_energy_sum(s->cloths[k], ctx->h, s->gravity, 0).guarded;
+            }
         }
 
         STAGE_BEGIN();
-        phase_check(ctx, tid, nt);
+        phase_check(ctx, guard && last, tid, nt);
         rbc_pool_barrier(pool);
         if (tid == 0) {
             for (uint32_t th = 0; th < nt; ++th) {
@@ -921,12 +1173,20 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
                                    (double)ctx->h, (double)(c->topo.ksum[i] / c->w[i]));
                 break;
             }
-            if (ctx->result == RBC_OK) commit(s);
+            if (ctx->result == RBC_OK && guard && last) energy_decide(ctx);
+        }
+        rbc_pool_barrier(pool);
+        if (ctx->result != RBC_OK) return;
+        if (ctx->clamp) {
+            energy_apply(ctx, tid, nt);
+            rbc_pool_barrier(pool);
+        }
+        if (tid == 0) {
+            commit(s);
             t1 = now_ms();
             ctx->t.other += t1 - t0;
         }
         rbc_pool_barrier(pool);
-        if (ctx->result != RBC_OK) return;
     }
 #undef STAGE_BEGIN
 #undef STAGE_END
@@ -976,6 +1236,10 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
         }
     }
 
+    for (uint32_t k = 0; k < s->collider_count; ++k) {
+        rbc_collider_state *col = &s->colliders[k];
+        for (int a = 0; a < 3; ++a) col->velocity[a] = (col->position[a] - col->last_position[a]) / dt;
+    }
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
         for (uint32_t m = 0; m < c->pin_count; ++m)
@@ -993,6 +1257,25 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
         return ctx.result;
     }
     for (uint32_t k = 0; k < s->cloth_count; ++k) s->cloths[k]->system_valid = 1;
+    for (uint32_t k = 0; k < s->collider_count; ++k)
+        memcpy(s->colliders[k].last_position, s->colliders[k].position, 3 * sizeof(float));
+    s->energy_removed_last = 0.0;
+    s->energy_clamped_last = 0;
+    for (uint32_t k = 0; k < s->cloth_count; ++k) {
+        rbc_cloth_state *c = s->cloths[k];
+        if (!guard_on(s)) {
+            c->e_valid = 0;
+            continue;
+        }
+        c->e_last = c->e_end;
+        c->e_budget = c->e_step_budget;
+        c->e_h = ctx.h;
+        c->e_valid = 1;
+        c->e_keep_slack = 1;
+        s->energy_removed_last += c->e_removed;
+        if (c->e_scale != 1.0f) s->energy_clamped_last = 1;
+    }
+    if (s->energy_clamped_last) s->energy_clamped_steps++;
     ctx.t.step = now_ms() - start;
     s->last = ctx.t;
     s->last_substeps = ctx.substeps;

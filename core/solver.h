@@ -26,6 +26,7 @@ typedef struct rbc_solver_settings {
     float tolerance;
     float budget_ms;
     uint32_t max_linear_iterations;
+    rbc_energy_guard energy_guard;
 } rbc_solver_settings;
 
 /* One cloth: immutable topology plus the state that a step changes. */
@@ -69,6 +70,21 @@ typedef struct rbc_cloth_state {
      * before the first step and after set_state). */
     int system_valid;
 
+    /* Energy guard (energy.h). Committed at the end of a successful step: e_last,
+     * kinetic + gravitational energy then (velocities over e_h), and e_budget, what
+     * the cloth was given so far. e_valid 0: recompute the energy at the next step (new cloth, state,
+     * pins or gravity); e_keep_slack 1: keep budget - energy across that (a pin or
+     * gravity change), 0: budget = energy (new cloth, set_state). */
+    double e_last, e_budget;
+    float e_h;
+    int e_valid, e_keep_slack;
+    double *e_blk;              /* [rbc_energy_block_doubles] per-block partial sums */
+    uint32_t *pin_springs;      /* springs with a pinned end (pin work) */
+    uint32_t pin_spring_count, pin_spring_cap;
+    /* During a step: energy at its start, its budget, and the guard's action. */
+    double e_start, e_step_budget, e_end, e_removed, e_kept;
+    float e_scale;              /* velocity scale of the clamp (1 = none) */
+
     size_t state_bytes;
 } rbc_cloth_state;
 
@@ -78,6 +94,10 @@ typedef struct rbc_collider_state {
     float radius, thickness;
     float position[3], rotation[4];
     float normal[3];            /* plane normal: rotation applied to +y */
+    /* Where it was at the end of the last step; its velocity over the current step
+     * ((position - last_position) / dt) sets the work it does (energy guard). */
+    float last_position[3];
+    float velocity[3];
 } rbc_collider_state;
 
 typedef struct rbc_step_times {
@@ -104,6 +124,12 @@ typedef struct rbc_solver {
     rbc_step_times last;        /* of the last successful step */
     uint32_t last_substeps, last_nonlinear, last_linear; /* done by it (totals) */
     uint64_t step_count;
+    /* Energy guard: steps whose velocities it scaled, and energy it removed in the
+     * last step (J). */
+    uint64_t energy_clamped_steps;
+    double energy_removed_last;
+    int energy_clamped_last;    /* 1 if the last step was clamped */
+    char energy_note[320];      /* what the guard did in the last step, for the log */
 } rbc_solver;
 
 /* Solver life cycle. nthreads >= 1. */
@@ -148,6 +174,18 @@ void rbc_cloth_state_system_error(const rbc_cloth_state *c, double *res_num2, do
 float rbc_cloth_state_spectral_radius(rbc_cloth_state *c, float h);
 /* The omega SOR uses for this cloth (given, or optimal from its rho). */
 float rbc_solver_sor_omega(const rbc_solver *s, rbc_cloth_state *c, float h);
+
+/* Bytes a cloth holds: state, topology, pins, solver and callback buffers, and the
+ * direct solver's factor. */
+size_t rbc_cloth_state_bytes(const rbc_cloth_state *c);
+/* Kinetic energy (velocities over the last h; 0 before the first step), potential
+ * energy (springs + gravity, -m g . x) of the current state, and the energy guard's
+ * budget for kinetic + gravitational energy (0 before the first guarded step). */
+void rbc_cloth_state_energy(const rbc_cloth_state *c, const float g[3], double *kinetic,
+                            double *potential, double *budget);
+/* The state, pins or gravity changed: recompute the energy at the next step;
+ * keep_slack 0 also resets the budget to it. */
+void rbc_cloth_state_energy_invalidate(rbc_cloth_state *c, int keep_slack);
 
 /* Install or remove the host collision callback (allocates host-order buffers). */
 int32_t rbc_solver_set_callback(rbc_solver *s, rbc_collision_fn fn, void *user);

@@ -69,9 +69,9 @@ static rbc_result read_def(void *dst, size_t dst_size, size_t old_size, const vo
     if (size != dst_size && (old_size == 0 || size != old_size))
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                              "%s: %s->struct_size is %u, which matches no released version "
-                             "(this library knows %zu%s); set it to sizeof(%s)",
-                             fn, what, size, dst_size, old_size ? " and the 1.0 size" : "",
-                             what);
+                             "(this library knows %zu and the older size %zu); set it to "
+                             "sizeof(%s)",
+                             fn, what, size, dst_size, old_size, what);
     memcpy(dst, src, size);
     return RBC_OK;
 }
@@ -126,8 +126,8 @@ rbc_result rbc_def_init_common(void *def, uint32_t struct_size, const void *defa
     if (struct_size != released_size && (old_size == 0 || struct_size != old_size))
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                              "%s: struct_size is %u, which matches no released version of %s "
-                             "(this library knows %zu)",
-                             fn, struct_size, what, released_size);
+                             "(this library knows %zu and the older size %zu)",
+                             fn, struct_size, what, released_size, old_size);
     memcpy(def, defaults, struct_size);
     memcpy(def, &struct_size, sizeof struct_size);
     return RBC_OK;
@@ -165,13 +165,21 @@ static rbc_solver_def solver_def_defaults(void) {
     d.tolerance = 1e-3f;
     d.budget_ms = 2.0f;
     d.max_linear_iterations = 1000;
+    d.energy_guard = RBC_ENERGY_GUARD_CLAMP;
     return d;
 }
 
 RBC_API rbc_result RBC_CALL rbc_solver_def_init(rbc_solver_def *def, uint32_t struct_size) {
     rbc_solver_def d = solver_def_defaults();
-    return rbc_def_init_common(def, struct_size, &d, sizeof d, 0, "rbc_solver_def_init",
-                               "rbc_solver_def");
+    return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_SOLVER_DEF_SIZE_V1_1,
+                               "rbc_solver_def_init", "rbc_solver_def");
+}
+
+static const char *solver_name(rbc_solver_kind k) {
+    static const char *const names[] = {"rbgs",          "jacobi",         "jacobi_chebyshev",
+                                        "gauss_seidel",  "rbgs_sor",       "rbgs_chebyshev",
+                                        "multicolor_gs", "direct"};
+    return k >= 0 && k <= RBC_SOLVER_DIRECT ? names[k] : "?";
 }
 
 /* Validate a solver def (already read at a released size) into core settings. */
@@ -206,7 +214,12 @@ static rbc_result solver_settings_from(rbc_world *w, const char *fn, const rbc_s
         return world_error(w, RBC_ERR_INVALID_ARGUMENT,
                            "%s: max_linear_iterations is %u; range 1..100000", fn,
                            d->max_linear_iterations);
+    if (d->energy_guard < RBC_ENERGY_GUARD_OFF || d->energy_guard > RBC_ENERGY_GUARD_FAIL)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: energy_guard %d is not an rbc_energy_guard", fn,
+                           (int)d->energy_guard);
     out->kind = d->solver;
+    out->energy_guard = d->energy_guard;
     out->omega = d->omega;
     out->rho = d->rho;
     out->chebyshev_delay = d->chebyshev_delay;
@@ -272,7 +285,8 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     rbc_solver_def sdef = solver_def_defaults();
     rbc_solver_settings settings;
     if (def.solver &&
-        (rc = read_def(&sdef, sizeof sdef, 0, def.solver, fn, "rbc_world_def.solver")))
+        (rc = read_def(&sdef, sizeof sdef, RBC_SOLVER_DEF_SIZE_V1_1, def.solver, fn,
+                        "rbc_world_def.solver")))
         return rc;
     if ((rc = solver_settings_from(NULL, fn, &sdef, &settings))) return rc;
 
@@ -341,6 +355,18 @@ RBC_API rbc_result RBC_CALL rbc_world_step(rbc_world_id id, float dt) {
     char msg[RBC_ERROR_CAP - 64];
     rc = rbc_solver_step(&w->solver, dt, msg, sizeof msg);
     if (rc) return world_error(w, rc, "%s: world 0x%08x: %s", fn, w->id, msg);
+    uint64_t clamps = w->solver.energy_clamped_steps;
+    /* Warn at the first clamped step and at every power of two after it: the
+     * host hears of it without a message per step; stats count every one. */
+    if (w->solver.energy_clamped_last && (clamps & (clamps - 1)) == 0) {
+        char note[sizeof w->solver.energy_note + 160];
+        snprintf(note, sizeof note,
+                 "world 0x%08x step %llu (%llu clamped so far): %s; solver %s (more iterations, "
+                 "rbgs or direct, or smaller steps avoid it)",
+                 w->id, (unsigned long long)w->solver.step_count, (unsigned long long)clamps,
+                 w->solver.energy_note, solver_name(w->solver.settings.kind));
+        world_log(w, RBC_LOG_WARNING, note);
+    }
     return RBC_OK;
 }
 
@@ -367,6 +393,8 @@ RBC_API rbc_result RBC_CALL rbc_world_set_gravity(rbc_world_id id, const float g
         return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: gravity (%g, %g, %g) is not finite",
                            fn, (double)gravity[0], (double)gravity[1], (double)gravity[2]);
     memcpy(w->solver.gravity, gravity, 3 * sizeof(float));
+    for (uint32_t k = 0; k < w->solver.cloth_count; ++k) /* a new potential: recompute E */
+        rbc_cloth_state_energy_invalidate(w->solver.cloths[k], 1);
     return RBC_OK;
 }
 
@@ -377,12 +405,13 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
     if (rc) return rc;
     if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: stats is NULL", fn);
     if (out->struct_size != sizeof(rbc_world_stats) &&
+        out->struct_size != RBC_WORLD_STATS_SIZE_V1_1 &&
         out->struct_size != RBC_WORLD_STATS_SIZE_V1_0)
         return world_error(w, RBC_ERR_INVALID_ARGUMENT,
                            "%s: stats->struct_size is %u, which matches no released version "
-                           "(this library knows %zu and the 1.0 size %u)",
+                           "(this library knows %zu, the 1.1 size %u and the 1.0 size %u)",
                            fn, out->struct_size, sizeof(rbc_world_stats),
-                           RBC_WORLD_STATS_SIZE_V1_0);
+                           RBC_WORLD_STATS_SIZE_V1_1, RBC_WORLD_STATS_SIZE_V1_0);
     rbc_solver *s = &w->solver;
     double res_num = 0.0, res_den = 0.0;
     rbc_world_stats st;
@@ -402,7 +431,13 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
         rbc_cloth_state_error(c, &e, &strain);
         st.error_eq7 += e;
         if (strain > st.max_strain) st.max_strain = strain;
-        if (out->struct_size >= sizeof(rbc_world_stats)) {
+        double ke, pe, e_budget;
+        rbc_cloth_state_energy(c, s->gravity, &ke, &pe, &e_budget);
+        st.kinetic_energy += ke;
+        st.potential_energy += pe;
+        st.energy_budget += e_budget;
+        st.memory_bytes += rbc_cloth_state_bytes(c);
+        if (out->struct_size >= RBC_WORLD_STATS_SIZE_V1_1) {
             double r2, b2, obj;
             rbc_cloth_state_system_error(c, &r2, &b2, &obj);
             res_num += r2;
@@ -433,6 +468,8 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
     st.collide_ms = s->last.collide;
     st.callback_ms = s->last.callback;
     st.other_ms = s->last.other;
+    st.energy_removed = s->energy_removed_last;
+    st.energy_clamped_steps = s->energy_clamped_steps;
     memcpy(out, &st, out->struct_size); /* only what the host's struct holds */
     return RBC_OK;
 }
@@ -719,7 +756,8 @@ RBC_API rbc_result RBC_CALL rbc_world_set_solver(rbc_world_id id, const rbc_solv
     rbc_result rc = lookup_world(id, fn, &w);
     if (rc) return rc;
     rbc_solver_def def = solver_def_defaults();
-    if ((rc = read_def(&def, sizeof def, 0, user_def, fn, "rbc_solver_def"))) {
+    if ((rc = read_def(&def, sizeof def, RBC_SOLVER_DEF_SIZE_V1_1, user_def, fn,
+                       "rbc_solver_def"))) {
         world_log(w, RBC_LOG_ERROR, rbc_last_error());
         return rc;
     }
@@ -736,11 +774,11 @@ RBC_API rbc_result RBC_CALL rbc_world_get_solver(rbc_world_id id, rbc_solver_def
     rbc_result rc = lookup_world(id, fn, &w);
     if (rc) return rc;
     if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: def is NULL", fn);
-    if (out->struct_size != sizeof(rbc_solver_def))
+    if (out->struct_size != sizeof(rbc_solver_def) && out->struct_size != RBC_SOLVER_DEF_SIZE_V1_1)
         return world_error(w, RBC_ERR_INVALID_ARGUMENT,
                            "%s: def->struct_size is %u, which matches no released version "
-                           "(this library knows %zu)",
-                           fn, out->struct_size, sizeof(rbc_solver_def));
+                           "(this library knows %zu and the 1.1 size %u)",
+                           fn, out->struct_size, sizeof(rbc_solver_def), RBC_SOLVER_DEF_SIZE_V1_1);
     const rbc_solver_settings *st = &w->solver.settings;
     rbc_solver_def d = solver_def_defaults();
     d.solver = st->kind;
@@ -751,7 +789,9 @@ RBC_API rbc_result RBC_CALL rbc_world_get_solver(rbc_world_id id, rbc_solver_def
     d.tolerance = st->tolerance;
     d.budget_ms = st->budget_ms;
     d.max_linear_iterations = st->max_linear_iterations;
-    *out = d;
+    d.energy_guard = st->energy_guard;
+    d.struct_size = out->struct_size;
+    memcpy(out, &d, out->struct_size); /* only what the host's struct holds */
     return RBC_OK;
 }
 

@@ -331,11 +331,14 @@ const char *const rbc_scene_solver_names[] = {"rbgs",     "jacobi",          "ja
                                               "gauss_seidel", "rbgs_sor",    "rbgs_chebyshev",
                                               "multicolor_gs", "direct",     NULL};
 const char *const rbc_scene_mode_names[] = {"fixed", "tolerance", "budget", NULL};
+/* Indexed by rbc_energy_guard. */
+const char *const rbc_scene_energy_guard_names[] = {"off", "clamp", "fail", NULL};
 
 static int parse_solver(parser *p, const cJSON *obj, const char *key, rbc_solver_def *d) {
     static const char *const keys[] = {"kind",      "omega",     "rho",
                                        "chebyshev_delay", "mode", "tolerance",
-                                       "budget_ms", "max_linear_iterations", NULL};
+                                       "budget_ms", "max_linear_iterations", "energy_guard",
+                                       NULL};
     const cJSON *item;
     char k[KEY_MAX];
     int choice;
@@ -352,6 +355,12 @@ static int parse_solver(parser *p, const cJSON *obj, const char *key, rbc_solver
         if (read_choice(p, item, k, rbc_scene_mode_names, &choice))
             return -1;
         d->mode = (rbc_iteration_mode)choice;
+    }
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "energy_guard"))) {
+        key_join(k, key, "energy_guard");
+        if (read_choice(p, item, k, rbc_scene_energy_guard_names, &choice))
+            return -1;
+        d->energy_guard = (rbc_energy_guard)choice;
     }
     if ((item = cJSON_GetObjectItemCaseSensitive(obj, "omega")) &&
         (key_join(k, key, "omega"), read_float(p, item, k, RANGE_NON_NEGATIVE, &d->omega)))
@@ -704,6 +713,7 @@ static int parse_root(parser *p, const cJSON *root, rbc_scene *s) {
     s->world.solver.tolerance = 1e-3f;
     s->world.solver.budget_ms = 2.0f;
     s->world.solver.max_linear_iterations = 1000;
+    s->world.solver.energy_guard = RBC_ENERGY_GUARD_CLAMP;
     if (world && parse_world(p, world, &s->world))
         return -1;
 

@@ -102,6 +102,8 @@ int rbc_scene_load_file(const char *path, rbc_scene *out, char *err, size_t err_
 /// rbc_solver_kind / rbc_iteration_mode, NULL-terminated.
 extern const char *const rbc_scene_solver_names[];
 extern const char *const rbc_scene_mode_names[];
+/// "off", "clamp", "fail": rbc_energy_guard values by index, NULL-terminated.
+extern const char *const rbc_scene_energy_guard_names[];
 
 /// The built-in default scene, identical to samples/scenes/hanging_cloth.json: the
 /// paper's 100 x 100 hanging cloth. Returns 0 or -1 as rbc_scene_parse.

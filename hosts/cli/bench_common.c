@@ -447,7 +447,9 @@ int bench_stats_finite(const rbc_world_stats *st, const char **bad_field) {
         {"other_ms", st->other_ms},         {"error_eq7", st->error_eq7},
         {"max_strain", st->max_strain},     {"linear_residual", st->linear_residual},
         {"pd_objective", st->pd_objective}, {"spectral_radius", st->spectral_radius},
-        {"omega", st->omega},
+        {"omega", st->omega},               {"kinetic_energy", st->kinetic_energy},
+        {"potential_energy", st->potential_energy}, {"energy_budget", st->energy_budget},
+        {"energy_removed", st->energy_removed},
     };
     for (size_t k = 0; k < sizeof fields / sizeof fields[0]; ++k)
         if (!isfinite(fields[k].value)) {

@@ -70,6 +70,7 @@ typedef struct stab_case {
 typedef enum stab_status {
     ST_OK,
     ST_UNSTABLE,
+    ST_CLAMPED,
     ST_ENERGY,
     ST_NAN,
     ST_SKIPPED,
@@ -77,9 +78,10 @@ typedef enum stab_status {
     ST_ERROR
 } stab_status;
 
-static const char *const status_names[] = {"ok",       "unstable-reported", "energy-growth",
-                                           "NaN-leak", "skipped",           "rejected",
-                                           "error"};
+static const char *const status_names[] = {"ok",      "unstable-reported", "clamped-reported",
+                                           "energy-growth", "NaN-leak",   "skipped",
+                                           "rejected", "error"};
+enum { ST_COUNT = 8 };
 
 typedef struct stab_result {
     stab_status status;
@@ -90,6 +92,10 @@ typedef struct stab_result {
     double final_eq7, final_strain, peak_strain;
     double median_ms, wall_s;
     uint32_t particles, springs;
+    /// Steps the library's energy guard clamped (stats.energy_clamped_steps) and the
+    /// energy it removed in all of them (J).
+    uint64_t clamped_steps;
+    double energy_removed;
     char note[256];
 } stab_result;
 
@@ -492,6 +498,8 @@ static int run_case(stab_ctx *ctx, const stab_case *c, uint32_t solver, stab_res
             break;
         }
         ms[f] = st.step_ms;
+        res->clamped_steps = st.energy_clamped_steps;
+        res->energy_removed += st.energy_removed;
         const char *bad_field = NULL;
         long bad = bench_first_nonfinite(x, n3);
         long badq = bad < 0 ? bench_first_nonfinite(q, n3) : -1;
@@ -549,6 +557,9 @@ static int run_case(stab_ctx *ctx, const stab_case *c, uint32_t solver, stab_res
     }
     if (status == ST_OK && res->ke_ratio > STAB_KE_BOUND)
         status = ST_ENERGY;
+    /* Bounded, and the library said it had to act (stats and log): reported. */
+    if (status == ST_OK && res->clamped_steps > 0)
+        status = ST_CLAMPED;
     res->status = status;
     res->median_ms = bench_median(ms, res->frames_run);
 
@@ -580,7 +591,8 @@ static int write_csv(stab_ctx *ctx) {
         return 1;
     fprintf(f, "dimension,value,solver,nx,ny,particles,springs,dt,khm,mass_ratio,frames_planned,"
                "frames_run,status,first_unstable_frame,nonfinite_frame,ke_max,energy_ref,ke_ratio,"
-               "final_eq7,final_max_strain,peak_max_strain,median_step_ms,wall_s,note\n");
+               "final_eq7,final_max_strain,peak_max_strain,median_step_ms,wall_s,clamped_steps,"
+               "energy_removed,note\n");
     for (uint32_t i = 0; i < ctx->case_count; ++i) {
         const stab_case *c = &ctx->cases[i];
         for (uint32_t k = 0; k < BENCH_SOLVER_COUNT; ++k) {
@@ -588,13 +600,14 @@ static int write_csv(stab_ctx *ctx) {
             double khm = c->khm > 0.0 ? c->khm : 1000.0 * (double)c->dt * c->dt / 1e-4;
             char d1[96], d2[96];
             fprintf(f, "%s,%s,%s,%u,%u,%u,%u,%.9g,%.6g,%g,%u,%u,%s,%ld,%ld,%.6e,%.6e,%.6g,%.6e,%.6e,"
-                       "%.6e,%.5f,%.3f,%s\n",
+                       "%.6e,%.5f,%.3f,%llu,%.6e,%s\n",
                     csv_text(c->dimension, d1, sizeof d1), csv_text(c->value, d2, sizeof d2),
                     bench_solvers[k].name, c->nx, c->ny, r->particles,
                     r->springs, (double)c->dt, khm, c->mass_ratio, c->frames, r->frames_run,
                     status_names[r->status], r->first_unstable, r->nonfinite_frame, r->ke_max,
                     r->energy_ref, r->ke_ratio, r->final_eq7, r->final_strain, r->peak_strain,
-                    r->median_ms, r->wall_s, r->note);
+                    r->median_ms, r->wall_s, (unsigned long long)r->clamped_steps,
+                    r->energy_removed, r->note);
         }
     }
     return bench_close(f, ctx->dir, "stability.csv") ? 1 : 0;
@@ -616,6 +629,9 @@ static void md_map(stab_ctx *ctx, FILE *f, int what) {
             if (what == 0) {
                 if (r->status == ST_UNSTABLE)
                     fprintf(f, " unstable-reported (frame %ld) |", r->first_unstable);
+                else if (r->status == ST_CLAMPED)
+                    fprintf(f, " clamped-reported (%llu of %u steps) |",
+                            (unsigned long long)r->clamped_steps, r->frames_run);
                 else if (r->status == ST_OK)
                     fprintf(f, " ok |");
                 else
@@ -641,7 +657,10 @@ static int write_md(stab_ctx *ctx) {
                "%ux%u cloth, 1 m square, hanging from two corners, 1e-4 kg per vertex, "
                "k = 1000 N/m, h = 2 ms, 11 linear iterations, no damping; each row changes one "
                "thing. Cells: **ok**; **unstable-reported** (a step returned RBC_ERR_UNSTABLE and "
-               "the library restored the state; the run stops there); **energy-growth** (every "
+               "the library restored the state; the run stops there); **clamped-reported** "
+               "(every step returned OK, the energy stayed bounded, and the library's energy "
+               "guard scaled velocities in the steps counted, reporting each through stats "
+               "and the log: the solver added energy there); **energy-growth** (every "
                "step returned OK but the kinetic energy exceeded what the configuration can "
                "supply, ke_ratio > %g); **NaN-leak** (a non-finite value reached the host: a "
                "library bug); skipped, rejected (the library refused the mesh) or error.\n\n",
@@ -671,9 +690,10 @@ static int write_md(stab_ctx *ctx) {
 static int status_code(stab_status s) {
     switch (s) {
     case ST_OK: return 0;
-    case ST_UNSTABLE: return 1;
-    case ST_ENERGY: return 2;
-    case ST_NAN: return 3;
+    case ST_CLAMPED: return 1;
+    case ST_UNSTABLE: return 2;
+    case ST_ENERGY: return 3;
+    case ST_NAN: return 4;
     default: return -1;
     }
 }
@@ -689,6 +709,8 @@ static int write_plot(stab_ctx *ctx) {
             char label[32];
             if (r->status == ST_OK || r->status == ST_ENERGY)
                 snprintf(label, sizeof label, "%.3g", r->ke_ratio);
+            else if (r->status == ST_CLAMPED)
+                snprintf(label, sizeof label, "C %.3g", r->ke_ratio);
             else if (r->status == ST_UNSTABLE)
                 snprintf(label, sizeof label, "U@%ld", r->first_unstable);
             else
@@ -707,9 +729,9 @@ static int write_plot(stab_ctx *ctx) {
     fprintf(f, "# Generated by `rbcloth bench stability`; run `gnuplot stability.gp` here.\n");
     fprintf(f, "set terminal pngcairo size 1500,%d font 'sans,9'\n", height);
     fprintf(f, "set output 'stability.png'\nset termoption noenhanced\n");
-    fprintf(f, "set title 'Stability map: colour = outcome; text = max kinetic energy / energy supplied (U@n: RBC_ERR_UNSTABLE at frame n)'\n");
-    fprintf(f, "set cbrange [-1.5:3.5]\nset palette defined (-1.5 '#cccccc', -0.5 '#cccccc', -0.5 '#8fd18f', 0.5 '#8fd18f', 0.5 '#f7e27a', 1.5 '#f7e27a', 1.5 '#f5a04a', 2.5 '#f5a04a', 2.5 '#e0474c', 3.5 '#e0474c')\n");
-    fprintf(f, "set cbtics ('skipped' -1, 'ok' 0, 'unstable-reported' 1, 'energy-growth' 2, 'NaN-leak' 3)\n");
+    fprintf(f, "set title 'Stability map: colour = outcome; text = max kinetic energy / energy supplied (C: the energy guard clamped; U@n: RBC_ERR_UNSTABLE at frame n)'\n");
+    fprintf(f, "set cbrange [-1.5:4.5]\nset palette defined (-1.5 '#cccccc', -0.5 '#cccccc', -0.5 '#8fd18f', 0.5 '#8fd18f', 0.5 '#b5d98a', 1.5 '#b5d98a', 1.5 '#f7e27a', 2.5 '#f7e27a', 2.5 '#f5a04a', 3.5 '#f5a04a', 3.5 '#e0474c', 4.5 '#e0474c')\n");
+    fprintf(f, "set cbtics ('skipped' -1, 'ok' 0, 'clamped-reported' 1, 'unstable-reported' 2, 'energy-growth' 3, 'NaN-leak' 4)\n");
     fprintf(f, "set xrange [-0.5:%d.5]\nset yrange [-0.5:%u.5]\n", BENCH_SOLVER_COUNT - 1, ctx->case_count - 1);
     fprintf(f, "set x2tics (");
     for (uint32_t k = 0; k < BENCH_SOLVER_COUNT; ++k)
@@ -733,6 +755,7 @@ static const char *short_status(const stab_result *r, char *buf, size_t size) {
     switch (r->status) {
     case ST_OK: snprintf(buf, size, "ok %.2g", r->ke_ratio); break;
     case ST_UNSTABLE: snprintf(buf, size, "UNST@%ld", r->first_unstable); break;
+    case ST_CLAMPED: snprintf(buf, size, "CLMP %.2g", r->ke_ratio); break;
     case ST_ENERGY: snprintf(buf, size, "GROW %.2g", r->ke_ratio); break;
     case ST_NAN: snprintf(buf, size, "NaN!"); break;
     case ST_SKIPPED: snprintf(buf, size, "skip"); break;
@@ -746,8 +769,8 @@ static void print_summary(const stab_ctx *ctx, double seconds) {
     static const char *const abbrev[BENCH_SOLVER_COUNT] = {"rbgs",   "jacobi", "jac_cheb",
                                                            "gs",     "rbgs_sor", "rbgs_cheb",
                                                            "mc_gs",  "direct"};
-    printf("\nStability map (cell: outcome and max KE / energy supplied; UNST@n = "
-           "RBC_ERR_UNSTABLE at frame n)\n");
+    printf("\nStability map (cell: outcome and max KE / energy supplied; CLMP: the energy "
+           "guard clamped; UNST@n = RBC_ERR_UNSTABLE at frame n)\n");
     printf("%-44s", "case");
     for (uint32_t k = 0; k < BENCH_SOLVER_COUNT; ++k)
         printf(" %10s", abbrev[k]);
@@ -762,12 +785,13 @@ static void print_summary(const stab_ctx *ctx, double seconds) {
         }
         printf("\n");
     }
-    uint32_t counts[7] = {0};
+    uint32_t counts[ST_COUNT] = {0};
     for (uint32_t i = 0; i < ctx->case_count * BENCH_SOLVER_COUNT; ++i)
         ++counts[ctx->results[i].status];
-    printf("\n%u runs: %u ok, %u unstable-reported, %u energy-growth, %u NaN-leak, %u skipped, "
-           "%u rejected, %u error; %.1f s\n",
-           ctx->case_count * BENCH_SOLVER_COUNT, counts[ST_OK], counts[ST_UNSTABLE], counts[ST_ENERGY],
+    printf("\n%u runs: %u ok, %u clamped-reported, %u unstable-reported, %u energy-growth, "
+           "%u NaN-leak, %u skipped, %u rejected, %u error; %.1f s\n",
+           ctx->case_count * BENCH_SOLVER_COUNT, counts[ST_OK], counts[ST_CLAMPED],
+           counts[ST_UNSTABLE], counts[ST_ENERGY],
            counts[ST_NAN], counts[ST_SKIPPED], counts[ST_REJECTED], counts[ST_ERROR], seconds);
     if (ctx->nan_leaks)
         printf("LIBRARY BUG: %u run%s read a non-finite value back (see stability.md, Notes)\n",

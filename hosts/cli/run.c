@@ -169,6 +169,9 @@ static int load_scene(run_state *s) {
         if (strcmp(o->solver, rbc_scene_solver_names[k]) == 0) sd->solver = (rbc_solver_kind)k;
     for (int k = 0; o->mode && rbc_scene_mode_names[k]; ++k)
         if (strcmp(o->mode, rbc_scene_mode_names[k]) == 0) sd->mode = (rbc_iteration_mode)k;
+    for (int k = 0; o->energy_guard && rbc_scene_energy_guard_names[k]; ++k)
+        if (strcmp(o->energy_guard, rbc_scene_energy_guard_names[k]) == 0)
+            sd->energy_guard = (rbc_energy_guard)k;
     if (o->tolerance >= 0.0) sd->tolerance = (float)o->tolerance;
     if (o->budget_ms >= 0.0) sd->budget_ms = (float)o->budget_ms;
     if (o->omega >= 0.0) sd->omega = (float)o->omega;
@@ -418,6 +421,11 @@ static cJSON *build_summary(const run_state *s, json_builder *b) {
     cJSON *final = jcheck(b, cJSON_AddObjectToObject(root, "final"));
     jnum(b, final, "error_eq7", st->error_eq7);
     jnum(b, final, "max_strain", st->max_strain);
+    jnum(b, final, "kinetic_energy", st->kinetic_energy);
+    jnum(b, final, "potential_energy", st->potential_energy);
+    jnum(b, final, "energy_budget", st->energy_budget);
+    jnum(b, final, "energy_clamped_steps", (double)st->energy_clamped_steps);
+    jnum(b, final, "memory_bytes", (double)st->memory_bytes);
 
     cJSON *outputs = jcheck(b, cJSON_AddObjectToObject(root, "outputs"));
     cJSON *objs = outputs ? jcheck(b, cJSON_AddArrayToObject(outputs, "obj")) : NULL;
@@ -468,6 +476,12 @@ static void print_table(const run_state *s) {
         printf("  %-10s %12.4f %12.4f\n", cli_stage_names[stage], median, mean);
     }
     printf("  Eq. 7 error %.6e m^2, max strain %.4e\n", st->error_eq7, st->max_strain);
+    printf("  energy: kinetic %.6g J, potential %.6g J (kinetic + gravity budget %.6g J); "
+           "steps clamped by the energy guard: %llu\n",
+           st->kinetic_energy, st->potential_energy, st->energy_budget,
+           (unsigned long long)st->energy_clamped_steps);
+    printf("  memory %.2f MB (%.0f bytes per particle)\n", (double)st->memory_bytes / 1e6,
+           st->particle_count ? (double)st->memory_bytes / st->particle_count : 0.0);
     for (uint32_t i = 0; i < sc->cloth_count; ++i)
         printf("  wrote %s, %s\n", s->outputs[i].obj_path, s->outputs[i].pc2_path);
     printf("  wrote %s\n", s->summary_path);

@@ -21,6 +21,8 @@ typedef struct cli_run_options {
     /// rbc_scene_mode_names), or NULL to keep the scene's.
     const char *solver;
     const char *mode;
+    /// Energy guard by name (rbc_scene_energy_guard_names), or NULL for the scene's.
+    const char *energy_guard;
     /// Mode parameters and SOR omega; < 0 = keep the scene's.
     double tolerance, budget_ms, omega;
     /// No progress bar and no table on stdout.

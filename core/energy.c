@@ -1,0 +1,172 @@
+/* energy.c -- mechanical energy of a cloth in fixed blocks (see energy.h). */
+#include "energy.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "solver.h"
+
+void rbc_energy_blocks(rbc_cloth_state *c, float *const pos[3], float *const prev[3],
+                       const float g[3], int springs, uint32_t tid, uint32_t nt) {
+    const rbc_topology *t = &c->topo;
+    const uint32_t nbp = rbc_energy_blocks_of(t->n), nbs = rbc_energy_blocks_of(t->ns);
+    double *pb = c->e_blk, *sbk = c->e_blk + (size_t)RBC_EPB * nbp;
+    const double gx = g[0], gy = g[1], gz = g[2];
+    const double gn = sqrt(gx * gx + gy * gy + gz * gz);
+    uint32_t b0, b1;
+    rbc_energy_block_range(nbp, tid, nt, &b0, &b1);
+    for (uint32_t b = b0; b < b1; ++b) {
+        uint32_t i0 = b * RBC_ENERGY_BLOCK, i1 = i0 + RBC_ENERGY_BLOCK;
+        if (i1 > t->n) i1 = t->n;
+        /* Branch-free, per-particle terms in float (each is exact to a float ulp,
+         * far inside the tolerance), sums in double. Upper bounds stand in for norms
+         * in the tolerance terms (|a|+|b|+|c| >= |(a, b, c)|): no square roots. */
+        double ke = 0.0, ug = 0.0, mag = 0.0, wsum = 0.0, md = 0.0;
+        float xmax = 0.0f;
+        const float *X = pos[0], *Y = pos[1], *Z = pos[2];
+        const float *QX = prev[0], *QY = prev[1], *QZ = prev[2];
+        const float gxf = g[0], gyf = g[1], gzf = g[2];
+        for (uint32_t i = i0; i < i1; ++i) {
+            float ax = fabsf(X[i]), ay = fabsf(Y[i]), az = fabsf(Z[i]);
+            /* Plain compares: fmaxf is a libm call without -ffast-math. */
+            float am = ax > ay ? ax : ay;
+            am = am > az ? am : az;
+            xmax = xmax > am ? xmax : am;
+            float f = c->pinned[i] ? 0.0f : 1.0f;
+            float vx = X[i] - QX[i], vy = Y[i] - QY[i], vz = Z[i] - QZ[i];
+            float w = f * c->w[i], m = f * t->mass[i];
+            ke += (double)(w * (vx * vx + vy * vy + vz * vz));
+            /* In double: |g . x| is large against the energies that move (a 1 m
+             * drop holds ~10 J/kg), so its rounding must stay far below theirs. */
+            ug -= (double)m * ((double)gxf * X[i] + (double)gyf * Y[i] + (double)gzf * Z[i]);
+            mag += (double)(m * (ax + ay + az));
+            md += (double)(m * (fabsf(vx) + fabsf(vy) + fabsf(vz)));
+            wsum += (double)w;
+        }
+        mag *= gn;
+        double *o = pb + (size_t)RBC_EPB * b;
+        o[RBC_E_KE] = 0.5 * ke;
+        o[RBC_E_UG] = ug;
+        o[RBC_E_MAG] = mag;
+        o[RBC_E_WSUM] = wsum;
+        o[RBC_E_MD] = md;
+        o[RBC_E_XMAX] = xmax;
+    }
+    if (!springs) return;
+    rbc_energy_block_range(nbs, tid, nt, &b0, &b1);
+    for (uint32_t b = b0; b < b1; ++b) {
+        uint32_t s0 = b * RBC_ENERGY_BLOCK, s1 = s0 + RBC_ENERGY_BLOCK;
+        if (s1 > t->ns) s1 = t->ns;
+        double us = 0.0, ks = 0.0, kext = 0.0;
+        for (uint32_t k = s0; k < s1; ++k) {
+            uint32_t a = t->sa[k], bb = t->sb[k];
+            double ex = (double)pos[0][a] - pos[0][bb], ey = (double)pos[1][a] - pos[1][bb],
+                   ez = (double)pos[2][a] - pos[2][bb];
+            double v = sqrt(ex * ex + ey * ey + ez * ez) - t->rest_len[k];
+            us += t->stiff[k] * v * v;
+            ks += t->stiff[k];
+            kext += t->stiff[k] * fabs(v);
+        }
+        double *o = sbk + (size_t)RBC_ESB * b;
+        o[RBC_E_US] = 0.5 * us;
+        o[RBC_E_KSUM] = ks;
+        o[RBC_E_KEXT] = kext;
+    }
+}
+
+rbc_energy rbc_energy_sum(const rbc_cloth_state *c, float h, const float g[3], int springs) {
+    const rbc_topology *t = &c->topo;
+    const uint32_t nbp = rbc_energy_blocks_of(t->n), nbs = rbc_energy_blocks_of(t->ns);
+    const double *pb = c->e_blk, *sbk = c->e_blk + (size_t)RBC_EPB * nbp;
+    double ke = 0.0, ug = 0.0, mag = 0.0, wsum = 0.0, md = 0.0, xmax = 0.0, us = 0.0, ks = 0.0,
+           kext = 0.0;
+    for (uint32_t b = 0; b < nbp; ++b) {
+        const double *o = pb + (size_t)RBC_EPB * b;
+        ke += o[RBC_E_KE];
+        ug += o[RBC_E_UG];
+        mag += o[RBC_E_MAG];
+        wsum += o[RBC_E_WSUM];
+        md += o[RBC_E_MD];
+        if (o[RBC_E_XMAX] > xmax) xmax = o[RBC_E_XMAX];
+    }
+    for (uint32_t b = 0; springs && b < nbs; ++b) {
+        const double *o = sbk + (size_t)RBC_ESB * b;
+        us += o[RBC_E_US];
+        ks += o[RBC_E_KSUM];
+        kext += o[RBC_E_KEXT];
+    }
+    rbc_energy e;
+    e.kinetic = ke;
+    e.spring = us;
+    e.gravity = ug;
+    e.guarded = ke + ug;
+    /* What rounding the float state to nearest can change: a coordinate is known to
+     * half an ulp, delta = 2^-24 X (|coordinates| <= X), so a velocity component to
+     * 2 delta / h and a spring's extension to e = 2 sqrt(3) delta. First order:
+     * sum m |v|_1 2 delta / h (|v|_1 = |vx| + |vy| + |vz|, the exact bound of v . dv)
+     * + sum s |ext| e + sum m |g| sqrt(3) delta; second order: (sum m/h^2 + sum s)
+     * e^2 / 2; and relative 2^-20 of the kinetic and spring sums (float products per
+     * particle, each within 2^-22 of exact, summed in double), 2^-40 of the
+     * gravitational one (double products). */
+    const double delta = ldexp(xmax, -24), eps = 2.0 * sqrt(3.0) * delta;
+    const double hd = h, gn = sqrt((double)g[0] * g[0] + (double)g[1] * g[1] + (double)g[2] * g[2]);
+    const double mass = wsum * hd * hd;
+    e.tolerance = ldexp(ke + us, -20) + ldexp(mag, -40) + md / (hd * hd) * 2.0 * delta +
+                  kext * eps +
+                  gn * mass * sqrt(3.0) * delta + 0.5 * (wsum + ks) * eps * eps;
+    return e;
+}
+
+void rbc_energy_clear_work(rbc_cloth_state *c, uint32_t tid, uint32_t nt) {
+    const uint32_t nbp = rbc_energy_blocks_of(c->topo.n);
+    uint32_t b0, b1;
+    rbc_energy_block_range(nbp, tid, nt, &b0, &b1);
+    for (uint32_t b = b0; b < b1; ++b) c->e_blk[(size_t)RBC_EPB * b + RBC_E_WC] = 0.0;
+}
+
+double rbc_energy_sum_work(const rbc_cloth_state *c) {
+    const uint32_t nbp = rbc_energy_blocks_of(c->topo.n);
+    double w = 0.0;
+    for (uint32_t b = 0; b < nbp; ++b) w += c->e_blk[(size_t)RBC_EPB * b + RBC_E_WC];
+    return w;
+}
+
+static double spring_energy_at(const rbc_topology *t, uint32_t k, const uint8_t *pinned,
+                               float *const before[3], float *const after[3]) {
+    uint32_t a = t->sa[k], b = t->sb[k];
+    float *const *pa = pinned[a] ? after : before;
+    float *const *pb = pinned[b] ? after : before;
+    double ex = (double)pa[0][a] - pb[0][b], ey = (double)pa[1][a] - pb[1][b],
+           ez = (double)pa[2][a] - pb[2][b];
+    double v = sqrt(ex * ex + ey * ey + ez * ez) - t->rest_len[k];
+    return 0.5 * t->stiff[k] * v * v;
+}
+
+double rbc_energy_pin_work(const rbc_cloth_state *c, float *const before[3],
+                           float *const after[3]) {
+    double w = 0.0;
+    for (uint32_t m = 0; m < c->pin_spring_count; ++m) {
+        uint32_t k = c->pin_springs[m];
+        w += spring_energy_at(&c->topo, k, c->pinned, before, after) -
+             spring_energy_at(&c->topo, k, c->pinned, before, before);
+    }
+    return w;
+}
+
+int rbc_energy_rebuild_pin_springs(rbc_cloth_state *c, const rbc_allocator *a) {
+    const rbc_topology *t = &c->topo;
+    uint32_t count = 0;
+    for (uint32_t k = 0; k < t->ns; ++k) count += c->pinned[t->sa[k]] || c->pinned[t->sb[k]];
+    uint32_t *list = NULL;
+    if (count) {
+        list = rbc_mem_alloc(a, sizeof(uint32_t) * count);
+        if (!list) return 0;
+        uint32_t m = 0;
+        for (uint32_t k = 0; k < t->ns; ++k)
+            if (c->pinned[t->sa[k]] || c->pinned[t->sb[k]]) list[m++] = k;
+    }
+    rbc_mem_free(a, c->pin_springs, sizeof(uint32_t) * c->pin_spring_cap);
+    c->pin_springs = list;
+    c->pin_spring_count = c->pin_spring_cap = count;
+    return 1;
+}

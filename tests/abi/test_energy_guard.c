@@ -1,0 +1,304 @@
+/* The energy guard (ABI 1.2, rbc_energy_guard) as a host sees it:
+ *  - 1.1 hosts (solver defs and stats at the 1.1 sizes) get the default guard and no
+ *    byte past their structs; a bad guard value is refused and changes nothing;
+ *  - on the paper's hanging cloth the default solvers (rbgs, direct) never trigger
+ *    it: the clamped run is bitwise the run with the guard off;
+ *  - a diverging solver (Jacobi, 1 iteration per 2 ms step) is held: every step
+ *    returns OK, kinetic + gravitational energy (the host's own sums) never exceeds
+ *    the reported budget, the clamps are counted and logged at 1, 2, 4, ... and the
+ *    result does not depend on the thread count;
+ *  - fail mode refuses the first such step and restores the state bitwise;
+ *  - the work of moving pins is part of the budget: pins pulled slowly apart under
+ *    the exact solver trigger nothing;
+ *  - rbc_cloth_set_state starts a new budget that counts the spring energy it holds.
+ */
+#include "abi_util.h"
+
+#define N 100       /* the paper's 100 x 100 cloth */
+#define MASS 1e-4f  /* kg per vertex */
+#define STIFF 1000.0f
+#define DT 0.002f
+
+typedef struct log_count {
+    int warnings;
+    uint64_t clamps_at_warning[64];
+} log_count;
+
+static void RBC_CALL count_log(void *user, rbc_log_level level, const char *msg) {
+    log_count *lc = (log_count *)user;
+    if (level != RBC_LOG_WARNING || !strstr(msg, "energy guard")) return;
+    /* "... (K clamped so far) ..." */
+    const char *p = strstr(msg, " clamped so far");
+    uint64_t k = 0;
+    if (p) {
+        const char *q = p;
+        while (q > msg && q[-1] >= '0' && q[-1] <= '9') --q;
+        k = strtoull(q, NULL, 10);
+    }
+    if (lc->warnings < 64) lc->clamps_at_warning[lc->warnings] = k;
+    lc->warnings++;
+}
+
+static rbc_world_id make_world(rbc_solver_kind kind, uint32_t linear, rbc_energy_guard guard,
+                               uint32_t threads, log_count *lc) {
+    rbc_world_def wd = rbc_world_def_default();
+    rbc_solver_def sd = rbc_solver_def_default();
+    sd.solver = kind;
+    sd.energy_guard = guard;
+    wd.solver = &sd;
+    wd.thread_count = threads;
+    wd.linear_iterations = linear;
+    if (lc) {
+        wd.log = count_log;
+        wd.log_user = lc;
+        wd.log_level = RBC_LOG_WARNING;
+    }
+    rbc_world_id w = 0;
+    CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
+    return w;
+}
+
+static rbc_cloth_id add_cloth(rbc_world_id w, const test_grid *g, const uint32_t *pins,
+                              uint32_t pin_count) {
+    rbc_cloth_def cd = test_grid_def(g, pins, pin_count);
+    cd.vertex_mass = MASS;
+    cd.stiffness = STIFF;
+    rbc_cloth_id c = 0;
+    CHECK_EQ(rbc_cloth_create(w, &cd, &c), RBC_OK);
+    return c;
+}
+
+/* Kinetic + gravitational energy of the free vertices, computed by the host; *mag
+ * gets sum m |g| (|x| + |y| + |z|), the scale of the gravitational sum. */
+static double guarded_energy(rbc_world_id w, rbc_cloth_id c, const uint8_t *pinned, double h,
+                             double *mag) {
+    uint32_t n = 0;
+    CHECK_EQ(rbc_cloth_get_vertex_count(w, c, &n), RBC_OK);
+    float *x = malloc(sizeof(float) * 3 * n), *q = malloc(sizeof(float) * 3 * n);
+    CHECK_EQ(rbc_cloth_get_state(w, c, x, q, 3 * (size_t)n), RBC_OK);
+    double e = 0.0;
+    *mag = 0.0;
+    for (uint32_t v = 0; v < n; ++v) {
+        if (pinned && pinned[v]) continue;
+        *mag += MASS * 9.81 * (fabs(x[3 * v]) + fabs(x[3 * v + 1]) + fabs(x[3 * v + 2]));
+        double d2 = 0.0;
+        for (int a = 0; a < 3; ++a) {
+            double d = (double)x[3 * v + a] - q[3 * v + a];
+            d2 += d * d;
+        }
+        e += 0.5 * MASS * d2 / (h * h) + MASS * 9.81 * x[3 * v + 1];
+    }
+    free(x);
+    free(q);
+    return e;
+}
+
+static void test_abi_sizes(const test_grid *g) {
+    /* A 1.1 host's solver def: garbage past the 1.1 size, default guard applies. */
+    struct {
+        rbc_solver_def d;
+        char tail[32];
+    } sbuf;
+    memset(&sbuf, 0xAB, sizeof sbuf);
+    CHECK_EQ(rbc_solver_def_init(&sbuf.d, RBC_SOLVER_DEF_SIZE_V1_1), RBC_OK);
+    const unsigned char *raw = (const unsigned char *)&sbuf;
+    int untouched = 1;
+    for (size_t k = RBC_SOLVER_DEF_SIZE_V1_1; k < sizeof sbuf; ++k) untouched &= raw[k] == 0xAB;
+    CHECK(untouched);
+    rbc_world_def wd = rbc_world_def_default();
+    wd.solver = &sbuf.d;
+    rbc_world_id w = 0;
+    CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
+    rbc_solver_def got = rbc_solver_def_default();
+    got.energy_guard = RBC_ENERGY_GUARD_OFF;
+    CHECK_EQ(rbc_world_get_solver(w, &got), RBC_OK);
+    CHECK_EQ(got.energy_guard, RBC_ENERGY_GUARD_CLAMP);
+    /* get_solver into a 1.1 struct writes only its bytes */
+    memset(&sbuf, 0xAB, sizeof sbuf);
+    sbuf.d.struct_size = RBC_SOLVER_DEF_SIZE_V1_1;
+    CHECK_EQ(rbc_world_get_solver(w, &sbuf.d), RBC_OK);
+    untouched = 1;
+    for (size_t k = RBC_SOLVER_DEF_SIZE_V1_1; k < sizeof sbuf; ++k) untouched &= raw[k] == 0xAB;
+    CHECK(untouched);
+    CHECK_EQ(sbuf.d.solver, RBC_SOLVER_RBGS);
+
+    /* A bad guard is refused, names the field, and changes nothing. */
+    rbc_solver_def bad = rbc_solver_def_default();
+    bad.solver = RBC_SOLVER_JACOBI;
+    bad.energy_guard = 7;
+    CHECK_EQ(rbc_world_set_solver(w, &bad), RBC_ERR_INVALID_ARGUMENT);
+    CHECK(strstr(rbc_last_error(), "energy_guard 7") != NULL);
+    CHECK_EQ(rbc_world_get_solver(w, &got), RBC_OK);
+    CHECK_EQ(got.solver, RBC_SOLVER_RBGS);
+    CHECK_EQ(got.energy_guard, RBC_ENERGY_GUARD_CLAMP);
+
+    /* 1.1 stats: nothing past their size. */
+    add_cloth(w, g, NULL, 0);
+    CHECK_EQ(rbc_world_step(w, DT), RBC_OK);
+    struct {
+        rbc_world_stats s;
+        char tail[32];
+    } st;
+    memset(&st, 0xEF, sizeof st);
+    st.s.struct_size = RBC_WORLD_STATS_SIZE_V1_1;
+    CHECK_EQ(rbc_world_get_stats(w, &st.s), RBC_OK);
+    raw = (const unsigned char *)&st;
+    untouched = 1;
+    for (size_t k = RBC_WORLD_STATS_SIZE_V1_1; k < sizeof st; ++k) untouched &= raw[k] == 0xEF;
+    CHECK(untouched);
+    CHECK_EQ(st.s.step_count, 1);
+    rbc_world_destroy(w);
+}
+
+/* The paper's hanging cloth, 240 frames: the default solver and the exact one stay
+ * inside the budget (implicit Euler dissipates), so the guard must not act. */
+static void test_paper_scene_untouched(const test_grid *g, rbc_solver_kind kind) {
+    const uint32_t pins[2] = {0, N - 1};
+    rbc_world_id w0 = make_world(kind, 11, RBC_ENERGY_GUARD_OFF, 1, NULL);
+    rbc_world_id w1 = make_world(kind, 11, RBC_ENERGY_GUARD_CLAMP, 1, NULL);
+    rbc_cloth_id c0 = add_cloth(w0, g, pins, 2), c1 = add_cloth(w1, g, pins, 2);
+    for (int f = 0; f < 240; ++f) {
+        CHECK_EQ(rbc_world_step(w0, DT), RBC_OK);
+        CHECK_EQ(rbc_world_step(w1, DT), RBC_OK);
+    }
+    float *a = test_read(w0, c0, NULL), *b = test_read(w1, c1, NULL);
+    CHECK(memcmp(a, b, sizeof(float) * 3 * g->vertex_count) == 0);
+    rbc_world_stats s0 = test_stats(w0), s1 = test_stats(w1);
+    CHECK_EQ(s1.energy_clamped_steps, 0);
+    CHECK_EQ(s0.energy_clamped_steps, 0);
+    CHECK(s0.energy_budget == 0.0);   /* guard off: no budget kept */
+    /* At rest at the start (no spring energy, no motion): the budget is 0 J and
+     * kinetic + gravitational energy must be at most that. */
+    CHECK(s1.energy_budget == 0.0);
+    CHECK(s1.kinetic_energy > 0.0);
+    free(a);
+    free(b);
+    rbc_world_destroy(w0);
+    rbc_world_destroy(w1);
+}
+
+/* One Jacobi iteration per 2 ms step diverges on this cloth (k h^2 / m = 40). */
+static void test_diverging_jacobi_held(const test_grid *g) {
+    const uint32_t pins[2] = {0, N - 1};
+    uint8_t *pinned = calloc(g->vertex_count, 1);
+    pinned[0] = pinned[N - 1] = 1;
+    log_count lc;
+    memset(&lc, 0, sizeof lc);
+    rbc_world_id w = make_world(RBC_SOLVER_JACOBI, 1, RBC_ENERGY_GUARD_CLAMP, 2, &lc);
+    rbc_world_id w1 = make_world(RBC_SOLVER_JACOBI, 1, RBC_ENERGY_GUARD_CLAMP, 1, NULL);
+    rbc_cloth_id c = add_cloth(w, g, pins, 2), c1 = add_cloth(w1, g, pins, 2);
+    double worst = -1e300;
+    for (int f = 0; f < 240; ++f) {
+        CHECK_EQ(rbc_world_step(w, DT), RBC_OK);
+        CHECK_EQ(rbc_world_step(w1, DT), RBC_OK);
+        rbc_world_stats st = test_stats(w);
+        double mag;
+        double e = guarded_energy(w, c, pinned, DT, &mag);
+        /* The library lets rounding through: 2^-20 of the magnitudes of its sums
+         * plus what half an ulp of each coordinate changes (rbc_energy_guard); 1e-5
+         * of the magnitudes (KE + sum m |g| |x|_1, ~10 J here) is ten times the
+         * first and covers the second at these speeds. */
+        double over = e - st.energy_budget - 1e-5 * (st.kinetic_energy + mag);
+        if (over > worst) worst = over;
+    }
+    CHECK(worst <= 0.0);
+    rbc_world_stats st = test_stats(w);
+    CHECK(st.energy_clamped_steps > 10);
+    /* Logged at the 1st, 2nd, 4th, ... clamp: floor(log2(count)) + 1 warnings. */
+    int expect = 0;
+    for (uint64_t k = st.energy_clamped_steps; k; k >>= 1) ++expect;
+    CHECK_EQ(lc.warnings, expect);
+    for (int k = 0; k < lc.warnings && k < 64; ++k) CHECK_EQ(lc.clamps_at_warning[k], 1ull << k);
+    uint32_t n = 0;
+    float *x = test_read(w, c, &n), *x1 = test_read(w1, c1, NULL);
+    CHECK(test_all_finite(x, 3 * (size_t)n));
+    /* Threads do not change the result, clamps included. */
+    CHECK(memcmp(x, x1, sizeof(float) * 3 * n) == 0);
+    free(x);
+    free(x1);
+    free(pinned);
+    rbc_world_destroy(w);
+    rbc_world_destroy(w1);
+
+    /* Fail mode: the first step over the budget is refused, state kept bitwise. */
+    rbc_world_id wf = make_world(RBC_SOLVER_JACOBI, 1, RBC_ENERGY_GUARD_FAIL, 2, NULL);
+    rbc_cloth_id cf = add_cloth(wf, g, pins, 2);
+    float *before = malloc(sizeof(float) * 6 * g->vertex_count);
+    float *after = malloc(sizeof(float) * 6 * g->vertex_count);
+    rbc_result r = RBC_OK;
+    int steps = 0;
+    for (; steps < 240; ++steps) {
+        CHECK_EQ(rbc_cloth_get_state(wf, cf, before, before + 3 * g->vertex_count,
+                                     3 * (size_t)g->vertex_count), RBC_OK);
+        if ((r = rbc_world_step(wf, DT)) != RBC_OK) break;
+    }
+    CHECK_EQ(r, RBC_ERR_UNSTABLE);
+    CHECK(strstr(rbc_last_error(), "RBC_ENERGY_GUARD_FAIL") != NULL);
+    CHECK_EQ(rbc_cloth_get_state(wf, cf, after, after + 3 * g->vertex_count,
+                                 3 * (size_t)g->vertex_count), RBC_OK);
+    CHECK(memcmp(before, after, sizeof(float) * 6 * g->vertex_count) == 0);
+    CHECK_EQ(test_stats(wf).step_count, (uint64_t)steps);
+    free(before);
+    free(after);
+    rbc_world_destroy(wf);
+}
+
+/* Pins pulled apart by 0.3 m over 0.6 s under the exact solver: the pins do work
+ * (the springs they stretch), counted in the budget, so nothing is clamped; the
+ * budget grew by that work. */
+static void test_pin_work_counted(const test_grid *g) {
+    const uint32_t pins[2] = {0, N - 1};
+    rbc_world_id w = make_world(RBC_SOLVER_DIRECT, 1, RBC_ENERGY_GUARD_CLAMP, 1, NULL);
+    rbc_cloth_id c = add_cloth(w, g, pins, 2);
+    const float spacing = 1.0f / (N - 1);
+    double budget0 = 0.0;
+    for (int f = 0; f < 300; ++f) {
+        float s = 0.15f * (float)(f < 150 ? f + 1 : 150) / 150.0f;
+        const float left[3] = {-s, 0.0f, 0.0f}, right[3] = {(N - 1) * spacing + s, 0.0f, 0.0f};
+        CHECK_EQ(rbc_cloth_set_pin(w, c, 0, left), RBC_OK);
+        CHECK_EQ(rbc_cloth_set_pin(w, c, N - 1, right), RBC_OK);
+        CHECK_EQ(rbc_world_step(w, DT), RBC_OK);
+        if (f == 0) budget0 = test_stats(w).energy_budget;
+    }
+    rbc_world_stats st = test_stats(w);
+    CHECK_EQ(st.energy_clamped_steps, 0);
+    CHECK(st.energy_budget > budget0);
+    rbc_world_destroy(w);
+}
+
+/* set_state: a state stretched 10% in its plane holds spring energy; the budget at
+ * the next step is the state's whole energy (kinetic 0, spring, gravity). */
+static void test_set_state_budget(const test_grid *g) {
+    rbc_world_id w = make_world(RBC_SOLVER_RBGS, 11, RBC_ENERGY_GUARD_CLAMP, 1, NULL);
+    rbc_cloth_id c = add_cloth(w, g, NULL, 0);
+    float *x = malloc(sizeof(float) * 3 * g->vertex_count);
+    for (uint32_t v = 0; v < g->vertex_count; ++v) {
+        x[3 * v] = 1.1f * g->positions[3 * v];
+        x[3 * v + 1] = g->positions[3 * v + 1];
+        x[3 * v + 2] = 1.1f * g->positions[3 * v + 2];
+    }
+    CHECK_EQ(rbc_cloth_set_state(w, c, x, NULL), RBC_OK);
+    rbc_world_stats s0 = test_stats(w); /* before the step: potential of the state */
+    CHECK_EQ(rbc_world_step(w, DT), RBC_OK);
+    rbc_world_stats s1 = test_stats(w);
+    /* Spring energy: every spring 10% long, sum s/2 (0.1 L)^2; gravity 0 at y = 0. */
+    uint32_t springs = test_grid_spring_count(g);
+    double L = 1.0 / (N - 1), expect = springs * 0.5 * STIFF * (0.1 * L) * (0.1 * L);
+    CHECK_NEAR(s0.potential_energy, expect, 1e-3 * expect);
+    CHECK_NEAR(s1.energy_budget, s0.potential_energy, 1e-6 * expect);
+    CHECK_EQ(s1.energy_clamped_steps, 0);
+    free(x);
+    rbc_world_destroy(w);
+}
+
+int main(void) {
+    test_grid g = test_grid_make(N, N, 1.0f / (N - 1), 0.0f, 0.0f, 0.0f);
+    test_abi_sizes(&g);
+    test_paper_scene_untouched(&g, RBC_SOLVER_RBGS);
+    test_paper_scene_untouched(&g, RBC_SOLVER_DIRECT);
+    test_diverging_jacobi_held(&g);
+    test_pin_work_counted(&g);
+    test_set_state_budget(&g);
+    test_grid_free(&g);
+    return check_report("abi_energy_guard");
+}
