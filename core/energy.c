@@ -4,8 +4,10 @@
 #include <math.h>
 #include <string.h>
 
+#include "simd.h"
 #include "solver.h"
 
+RBC_VECTOR_CLONES
 void rbc_energy_blocks(rbc_cloth_state *c, float *const pos[3], float *const prev[3],
                        const float g[3], int springs, uint32_t tid, uint32_t nt) {
     const rbc_topology *t = &c->topo;
@@ -22,24 +24,34 @@ void rbc_energy_blocks(rbc_cloth_state *c, float *const pos[3], float *const pre
          * far inside the tolerance), sums in double. Upper bounds stand in for norms
          * in the tolerance terms (|a|+|b|+|c| >= |(a, b, c)|): no square roots. */
         double ke = 0.0, ug = 0.0, mag = 0.0, wsum = 0.0, md = 0.0;
-        float xmax = 0.0f;
-        const float *X = pos[0], *Y = pos[1], *Z = pos[2];
-        const float *QX = prev[0], *QY = prev[1], *QZ = prev[2];
+        const float *restrict X = pos[0], *restrict Y = pos[1], *restrict Z = pos[2];
+        const float *restrict QX = prev[0], *restrict QY = prev[1], *restrict QZ = prev[2];
+        const float *restrict W = c->w, *restrict M = t->mass;
+        const uint8_t *restrict pin = c->pinned;
         const float gxf = g[0], gyf = g[1], gzf = g[2];
+        /* Largest |coordinate|: the bits of a non-negative float order as integers. */
+        uint32_t xbits = 0;
         for (uint32_t i = i0; i < i1; ++i) {
-            float ax = fabsf(X[i]), ay = fabsf(Y[i]), az = fabsf(Z[i]);
-            /* Plain compares: fmaxf is a libm call without -ffast-math. */
-            float am = ax > ay ? ax : ay;
-            am = am > az ? am : az;
-            xmax = xmax > am ? xmax : am;
-            float f = c->pinned[i] ? 0.0f : 1.0f;
+            uint32_t bx, by, bz;
+            memcpy(&bx, &X[i], 4);
+            memcpy(&by, &Y[i], 4);
+            memcpy(&bz, &Z[i], 4);
+            bx &= 0x7FFFFFFFu, by &= 0x7FFFFFFFu, bz &= 0x7FFFFFFFu;
+            uint32_t bm = bx > by ? bx : by;
+            bm = bm > bz ? bm : bz;
+            xbits = xbits > bm ? xbits : bm;
+        }
+        float xmax;
+        memcpy(&xmax, &xbits, 4);
+        for (uint32_t i = i0; i < i1; ++i) {
+            float f = (float)(1 - (int)pin[i]);
             float vx = X[i] - QX[i], vy = Y[i] - QY[i], vz = Z[i] - QZ[i];
-            float w = f * c->w[i], m = f * t->mass[i];
+            float w = f * W[i], m = f * M[i];
             ke += (double)(w * (vx * vx + vy * vy + vz * vz));
             /* In double: |g . x| is large against the energies that move (a 1 m
              * drop holds ~10 J/kg), so its rounding must stay far below theirs. */
             ug -= (double)m * ((double)gxf * X[i] + (double)gyf * Y[i] + (double)gzf * Z[i]);
-            mag += (double)(m * (ax + ay + az));
+            mag += (double)(m * (fabsf(X[i]) + fabsf(Y[i]) + fabsf(Z[i])));
             md += (double)(m * (fabsf(vx) + fabsf(vy) + fabsf(vz)));
             wsum += (double)w;
         }

@@ -4,40 +4,48 @@
 #include <math.h>
 #include <string.h>
 
+#include "grid.h"
 #include "kernels/pd_kernels.h"
 #include "report.h"
 
+
+void rbc_global_rhs(rbc_cloth_state *c, uint32_t tid, uint32_t nt) {
+    const rbc_topology *t = &c->topo;
+    uint32_t b, e;
+    rbc_split(t->n, tid, nt, &b, &e);
+    for (uint32_t i = b; i < e; ++i)
+        rbc_k_rhs(i, t->adj_start, t->adj_k, c->dx, c->dy, c->dz, c->w, c->y[0], c->y[1],
+                  c->y[2], c->bx, c->by, c->bz);
+}
 
 void rbc_global_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, float omega,
                          uint32_t tid, uint32_t nt) {
     const rbc_topology *t = &c->topo;
     if (color >= t->ncolors) return;
+    if (c->grid && v != RBC_GS_STASH) {
+        rbc_grid_sweep(c->grid, c, color, v == RBC_GS_SOR ? omega : 0.0f, tid, nt);
+        return;
+    }
     uint32_t c0 = t->color_start[color], count = t->color_start[color + 1] - c0;
     uint32_t b, e;
     rbc_split(count, tid, nt, &b, &e);
     /* Local copies: stores to p must not force reloads of these pointers. */
     const uint32_t *restrict adj_start = t->adj_start, *restrict adj_nbr = t->adj_nbr;
-    const float *restrict adj_k = t->adj_k, *restrict dx = c->dx, *restrict dy = c->dy,
-                          *restrict dz = c->dz, *restrict w = c->w,
-                          *restrict inv_denom = c->inv_denom, *restrict yx = c->y[0],
-                          *restrict yy = c->y[1], *restrict yz = c->y[2];
+    const float *restrict adj_k = t->adj_k, *restrict bx = c->bx, *restrict by = c->by,
+                          *restrict bz = c->bz, *restrict inv_denom = c->inv_denom;
     const uint8_t *restrict pinned = c->pinned;
     float *px = c->p[0], *py = c->p[1], *pz = c->p[2];
-    if (v == RBC_GS_PLAIN) {
-        for (uint32_t i = c0 + b; i < c0 + e; ++i) {
-            if (pinned[i]) continue;
-            rbc_k_global(i, adj_start, adj_nbr, adj_k, dx, dy, dz, w, inv_denom, yx, yy, yz, px,
-                         py, pz);
-        }
-        return;
-    }
     float *sx = c->alt[0], *sy = c->alt[1], *sz = c->alt[2];
     for (uint32_t i = c0 + b; i < c0 + e; ++i) {
         if (pinned[i]) continue;
         float gx, gy, gz;
-        rbc_k_eq6(i, adj_start, adj_nbr, adj_k, dx, dy, dz, w, inv_denom, yx, yy, yz, px, py, pz,
-                  &gx, &gy, &gz);
-        if (v == RBC_GS_SOR) {
+        rbc_k_eq6b(i, adj_start, adj_nbr, adj_k, bx, by, bz, inv_denom, px, py, pz, &gx, &gy,
+                   &gz);
+        if (v == RBC_GS_PLAIN) {
+            px[i] = gx;
+            py[i] = gy;
+            pz[i] = gz;
+        } else if (v == RBC_GS_SOR) {
             px[i] += omega * (gx - px[i]);
             py[i] += omega * (gy - py[i]);
             pz[i] += omega * (gz - pz[i]);
@@ -83,8 +91,8 @@ void rbc_global_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst
             continue;
         }
         float gx, gy, gz;
-        rbc_k_eq6(i, t->adj_start, t->adj_nbr, t->adj_k, c->dx, c->dy, c->dz, c->w, c->inv_denom,
-                  c->y[0], c->y[1], c->y[2], sx, sy, sz, &gx, &gy, &gz);
+        rbc_k_eq6b(i, t->adj_start, t->adj_nbr, t->adj_k, c->bx, c->by, c->bz, c->inv_denom, sx,
+                   sy, sz, &gx, &gy, &gz);
         if (chebyshev) {
             ox[i] = omega * (gx - qx[i]) + qx[i];
             oy[i] = omega * (gy - qy[i]) + qy[i];
@@ -105,8 +113,12 @@ void rbc_global_gs_serial(rbc_cloth_state *c) {
     for (uint32_t v = 0; v < t->n; ++v) {
         uint32_t i = t->to_internal[v];
         if (c->pinned[i]) continue;
-        rbc_k_global(i, t->adj_start, t->adj_nbr, t->adj_k, c->dx, c->dy, c->dz, c->w,
-                     c->inv_denom, c->y[0], c->y[1], c->y[2], c->p[0], c->p[1], c->p[2]);
+        float gx, gy, gz;
+        rbc_k_eq6b(i, t->adj_start, t->adj_nbr, t->adj_k, c->bx, c->by, c->bz, c->inv_denom,
+                   c->p[0], c->p[1], c->p[2], &gx, &gy, &gz);
+        c->p[0][i] = gx;
+        c->p[1][i] = gy;
+        c->p[2][i] = gz;
     }
 }
 
@@ -119,9 +131,8 @@ void rbc_global_residual(const rbc_cloth_state *c, uint32_t color_end, uint32_t 
     double r = 0.0, bb = 0.0;
     for (uint32_t i = b; i < e; ++i) {
         if (c->pinned[i]) continue;
-        rbc_k_residual(i, t->adj_start, t->adj_nbr, t->adj_k, c->dx, c->dy, c->dz, c->w,
-                       c->inv_denom, c->y[0], c->y[1], c->y[2], c->p[0], c->p[1], c->p[2],
-                       c->pinned, &r, &bb);
+        rbc_k_residual(i, t->adj_start, t->adj_nbr, t->adj_k, c->bx, c->by, c->bz,
+                       c->inv_denom, c->p[0], c->p[1], c->p[2], c->pinned, &r, &bb);
     }
     *r2 += r;
     *b2 += bb;

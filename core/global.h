@@ -16,6 +16,10 @@ typedef enum rbc_gs_variant {
     RBC_GS_STASH      /* p_i = g_i, and the old p_i kept in alt (for Chebyshev) */
 } rbc_gs_variant;
 
+/* b_i = m_i/h^2 y_i + sum_j s_ij d_ij for this thread's share of the particles: the
+ * part of Eq. 6 that the linear iterations of one non-linear iteration share (after
+ * the local step, before the sweeps). */
+void rbc_global_rhs(rbc_cloth_state *c, uint32_t tid, uint32_t nt);
 /* One color of one Gauss-Seidel iteration, this thread's share. */
 void rbc_global_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, float omega,
                          uint32_t tid, uint32_t nt);

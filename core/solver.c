@@ -32,6 +32,7 @@
 
 #include "direct.h"
 #include "energy.h"
+#include "grid.h"
 #include "global.h"
 #include "kernels/collide_kernels.h"
 #include "kernels/pd_kernels.h"
@@ -83,6 +84,7 @@ void rbc_solver_fini(rbc_solver *s) {
     X(snap_x[0], float, n) X(snap_x[1], float, n) X(snap_x[2], float, n)                 \
     X(snap_q[0], float, n) X(snap_q[1], float, n) X(snap_q[2], float, n)                 \
     X(dx, float, 2 * (size_t)ns) X(dy, float, 2 * (size_t)ns) X(dz, float, 2 * (size_t)ns) \
+    X(bx, float, n) X(by, float, n) X(bz, float, n)                                      \
     X(w, float, n) X(inv_denom, float, n) X(pinned, uint8_t, n)                          \
     X(e_blk, double, rbc_energy_block_doubles((uint32_t)n, (uint32_t)ns))
 
@@ -159,6 +161,7 @@ void rbc_cloth_state_destroy(rbc_solver *s, rbc_cloth_state *c) {
     STATE_ARRAYS(FREE_ONE)
 #undef FREE_ONE
     free_pins(s, c);
+    rbc_grid_free(c->grid, &s->alloc);
     rbc_mem_free(&s->alloc, c->pin_springs, sizeof(uint32_t) * c->pin_spring_cap);
     free_cb_buffers(s, c);
     rbc_topology_free(&c->topo, &s->alloc);
@@ -246,7 +249,8 @@ int32_t rbc_cloth_state_create(rbc_solver *s, const rbc_mesh_input *in, float da
         c->pin_target[3 * m + 1] = c->x[1][i];
         c->pin_target[3 * m + 2] = c->x[2][i];
     }
-    if (!rbc_energy_rebuild_pin_springs(c, &s->alloc)) {
+    if (!rbc_energy_rebuild_pin_springs(c, &s->alloc) ||
+        rbc_grid_detect(&c->topo, &s->alloc, &c->grid) < 0) {
         rbc_cloth_state_destroy(s, c);
         return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for %zu particles", n);
     }
@@ -459,6 +463,7 @@ size_t rbc_cloth_state_bytes(const rbc_cloth_state *c) {
     if (c->alt[0]) b += n3;
     if (c->prev[0]) b += n3;
     if (c->direct) b += rbc_direct_bytes(c->direct);
+    if (c->grid) b += c->grid->bytes;
     return b;
 }
 
@@ -611,10 +616,17 @@ static void place_pins(step_ctx *ctx, uint32_t sub, uint32_t tid, uint32_t nt) {
     }
 }
 
+/* Whether a cloth's local step runs fused with the right-hand side on the lattice
+ * (grid.h): not for the direct solver, which reads the per-spring d arrays. */
+static int grid_local(const rbc_solver *s, const rbc_cloth_state *c) {
+    return c->grid && s->settings.kind != RBC_SOLVER_DIRECT;
+}
+
 static void phase_local(step_ctx *ctx, uint32_t tid, uint32_t nt) {
     rbc_solver *s = ctx->s;
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
+        if (grid_local(s, c)) continue;
         const rbc_topology *t = &c->topo;
         uint32_t b, e;
         rbc_split(t->ns, tid, nt, &b, &e);
@@ -1084,6 +1096,14 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
         for (uint32_t nl = 0; nl < nl_count; ++nl) {
             STAGE_BEGIN();
             phase_local(ctx, tid, nt);
+            rbc_pool_barrier(pool); /* every spring's d before the sums over them */
+            for (uint32_t q = 0; q < s->cloth_count; ++q) {
+                rbc_cloth_state *c = s->cloths[q];
+                if (grid_local(s, c))
+                    rbc_grid_rhs(c->grid, c, tid, nt);
+                else
+                    rbc_global_rhs(c, tid, nt);
+            }
             STAGE_END(local);
             STAGE_BEGIN();
             if (s->settings.kind == RBC_SOLVER_DIRECT) {

@@ -15,6 +15,7 @@
 #include "topology.h"
 
 struct rbc_direct;
+struct rbc_grid;
 
 /* The global solver settings (the ABI's rbc_solver_def, validated by the plugin). */
 typedef struct rbc_solver_settings {
@@ -32,6 +33,7 @@ typedef struct rbc_solver_settings {
 /* One cloth: immutable topology plus the state that a step changes. */
 typedef struct rbc_cloth_state {
     rbc_topology topo;
+    struct rbc_grid *grid;      /* the lattice fast path (grid.h), or NULL */
     uint32_t public_id;         /* the host's id, for messages */
     float damping;              /* 1/s */
     float mean_rest;            /* mean spring rest length, m (the blow-up guard's scale) */
@@ -43,6 +45,7 @@ typedef struct rbc_cloth_state {
     float *x[3], *q[3], *p[3], *y[3];
     float *snap_x[3], *snap_q[3]; /* start of a multi-substep step, for restore */
     float *dx, *dy, *dz;        /* [2 ns] local-step targets d_ij per half-edge */
+    float *bx, *by, *bz;        /* [n] m_i/h^2 y_i + sum_j s_ij d_ij (rbc_global_rhs) */
     float *w, *inv_denom;       /* [n] m_i/h^2 and 1/(m_i/h^2 + sum s_ij) for h_cached */
     float h_cached;
     uint8_t *pinned;            /* [n] */

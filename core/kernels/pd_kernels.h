@@ -87,6 +87,47 @@ RBC_HD void rbc_k_eq6(uint32_t i, const uint32_t *adj_start, const uint32_t *adj
     *gz = sz * r;
 }
 
+/* The constant part of Eq. 6's numerator for particle i, for the linear iterations
+ * of one non-linear iteration (y and d change only between them):
+ *   b_i = m_i/h^2 y_i + sum_j s_ij d_ij
+ * so that a sweep reads one vector per particle instead of d per neighbour. */
+RBC_HD void rbc_k_rhs(uint32_t i, const uint32_t *adj_start, const float *adj_k,
+                      const float *dx, const float *dy, const float *dz, const float *w,
+                      const float *yx, const float *yy, const float *yz, float *bx, float *by,
+                      float *bz) {
+    float wi = w[i];
+    float sx = wi * yx[i], sy = wi * yy[i], sz = wi * yz[i];
+    for (uint32_t k = adj_start[i]; k < adj_start[i + 1]; ++k) {
+        float kk = adj_k[k];
+        sx += kk * dx[k];
+        sy += kk * dy[k];
+        sz += kk * dz[k];
+    }
+    bx[i] = sx;
+    by[i] = sy;
+    bz[i] = sz;
+}
+
+/* Eq. 6 for particle i from its precomputed b_i (rbc_k_rhs), reading the neighbours
+ * from (px, py, pz): g_i = (b_i + sum_j s_ij p_j) / (m_i/h^2 + sum_j s_ij). */
+RBC_HD void rbc_k_eq6b(uint32_t i, const uint32_t *adj_start, const uint32_t *adj_nbr,
+                       const float *adj_k, const float *bx, const float *by, const float *bz,
+                       const float *inv_denom, const float *px, const float *py,
+                       const float *pz, float *gx, float *gy, float *gz) {
+    float sx = bx[i], sy = by[i], sz = bz[i];
+    for (uint32_t k = adj_start[i]; k < adj_start[i + 1]; ++k) {
+        uint32_t j = adj_nbr[k];
+        float kk = adj_k[k];
+        sx += kk * px[j];
+        sy += kk * py[j];
+        sz += kk * pz[j];
+    }
+    float r = inv_denom[i];
+    *gx = sx * r;
+    *gy = sy * r;
+    *gz = sz * r;
+}
+
 /* One Gauss-Seidel update of free particle i in place (Eq. 6). */
 RBC_HD void rbc_k_global(uint32_t i, const uint32_t *adj_start, const uint32_t *adj_nbr,
                          const float *adj_k, const float *dx, const float *dy, const float *dz,
@@ -100,24 +141,23 @@ RBC_HD void rbc_k_global(uint32_t i, const uint32_t *adj_start, const uint32_t *
     pz[i] = gz;
 }
 
-/* Residual and right-hand side of free particle i's row of the global system
+/* Residual and right-hand side of free particle i's row of the global system (from
+ * b_i of rbc_k_rhs)
  *   (w_i + sum_j s_ij) p_i - sum_{j free} s_ij p_j = w_i y_i + sum_j s_ij d_ij + sum_{j pinned} s_ij p_j
  * as squared norms: *r2 += |b_i - (A p)_i|^2, *b2 += |b_i|^2 (double accumulators). */
 RBC_HD void rbc_k_residual(uint32_t i, const uint32_t *adj_start, const uint32_t *adj_nbr,
-                           const float *adj_k, const float *dx, const float *dy, const float *dz,
-                           const float *w, const float *inv_denom, const float *yx,
-                           const float *yy, const float *yz, const float *px, const float *py,
-                           const float *pz, const uint8_t *pinned, double *r2, double *b2) {
-    double wi = w[i];
-    double bx = wi * yx[i], by = wi * yy[i], bz = wi * yz[i];
+                           const float *adj_k, const float *b_x, const float *b_y,
+                           const float *b_z, const float *inv_denom, const float *px,
+                           const float *py, const float *pz, const uint8_t *pinned, double *r2,
+                           double *b2) {
+    /* b (rbc_k_rhs) holds m_i/h^2 y_i + sum_j s_ij d_ij; the pinned neighbours' terms
+     * join it on the right-hand side. */
+    double bx = b_x[i], by = b_y[i], bz = b_z[i];
     double ax = px[i] / (double)inv_denom[i], ay = py[i] / (double)inv_denom[i],
            az = pz[i] / (double)inv_denom[i];
     for (uint32_t k = adj_start[i]; k < adj_start[i + 1]; ++k) {
         uint32_t j = adj_nbr[k];
         double kk = adj_k[k];
-        bx += kk * dx[k];
-        by += kk * dy[k];
-        bz += kk * dz[k];
         if (pinned[j]) {
             bx += kk * px[j];
             by += kk * py[j];

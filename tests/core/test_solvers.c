@@ -48,6 +48,7 @@ static void setup(void) {
     for (uint32_t k = 0; k < t->ns; ++k)
         rbc_k_local(k, t->sa, t->sb, t->rest_len, t->ux, t->uy, t->uz, t->he_a, t->he_b, C->y[0],
                     C->y[1], C->y[2], C->dx, C->dy, C->dz);
+    rbc_global_rhs(C, 0, 1); /* b = w y + sum s d, which the sweeps read */
     rbc_direct *d = NULL;
     CHECK_EQ(rbc_direct_create(&d, t, C->pinned, H, &S.alloc, err, sizeof err), RBC_OK);
     for (int a2 = 0; a2 < 3; ++a2) {

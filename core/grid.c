@@ -1,0 +1,360 @@
+/* grid.c -- the grid fast path of the Gauss-Seidel sweep; see grid.h. */
+#include "grid.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "report.h"
+#include "simd.h"
+#include "solver.h"
+
+/* First column of color c in row j, and the number of such columns. */
+static uint32_t first_col(const rbc_grid *g, uint32_t c, uint32_t j) {
+    return (c + j + g->c0) & 1u;
+}
+static uint32_t row_count(const rbc_grid *g, uint32_t c, uint32_t j) {
+    uint32_t f = first_col(g, c, j);
+    return f < g->nx ? (g->nx - f + 1) / 2 : 0;
+}
+
+void rbc_grid_free(rbc_grid *g, const rbc_allocator *a) {
+    if (!g) return;
+    size_t n = (size_t)g->nx * g->ny;
+    rbc_mem_free(a, g->row_first[0], sizeof(uint32_t) * (g->ny + 1));
+    rbc_mem_free(a, g->row_first[1], sizeof(uint32_t) * (g->ny + 1));
+    rbc_mem_free(a, g->kl, sizeof(float) * n);
+    rbc_mem_free(a, g->kr, sizeof(float) * n);
+    rbc_mem_free(a, g->kd, sizeof(float) * n);
+    rbc_mem_free(a, g->ku, sizeof(float) * n);
+    rbc_mem_free(a, g->ll, sizeof(float) * n);
+    rbc_mem_free(a, g->lr, sizeof(float) * n);
+    rbc_mem_free(a, g->ld, sizeof(float) * n);
+    rbc_mem_free(a, g->lu, sizeof(float) * n);
+    rbc_mem_free(a, g->zeros, sizeof(float) * (g->nx / 2 + 2));
+    rbc_mem_free(a, g, sizeof *g);
+}
+
+int rbc_grid_detect(const rbc_topology *t, const rbc_allocator *a, rbc_grid **out) {
+    *out = NULL;
+    const uint32_t n = t->n;
+    if (t->ncolors != 2 || n < 2) return 0;
+    /* nx from host vertex 0: its neighbours are 1 and nx (or only 1: one row). */
+    uint32_t i0 = t->to_internal[0], nx = 0;
+    for (uint32_t k = t->adj_start[i0]; k < t->adj_start[i0 + 1]; ++k) {
+        uint32_t u = t->to_host[t->adj_nbr[k]];
+        if (u > nx) nx = u;
+    }
+    if (nx == 1) nx = n;
+    if (nx < 2 || n % nx) return 0;
+    uint32_t ny = n / nx;
+    rbc_grid g;
+    memset(&g, 0, sizeof g);
+    g.nx = nx;
+    g.ny = ny;
+    g.c0 = i0 < t->color_start[1] ? 0u : 1u;
+    /* The coloring and the internal order must be the lattice's. */
+    for (uint32_t c = 0; c < 2; ++c) {
+        uint32_t total = 0;
+        for (uint32_t j = 0; j < ny; ++j) total += row_count(&g, c, j);
+        if (total != t->color_start[c + 1] - t->color_start[c]) return 0;
+    }
+    for (uint32_t v = 0; v < n; ++v) {
+        uint32_t col = v % nx, row = v / nx, c = (col + row + g.c0) & 1u;
+        uint32_t i = t->to_internal[v];
+        if (i < t->color_start[c] || i >= t->color_start[c + 1]) return 0;
+    }
+    rbc_grid *h = rbc_mem_alloc(a, sizeof *h);
+    if (!h) return -1;
+    *h = g;
+    h->row_first[0] = rbc_mem_alloc(a, sizeof(uint32_t) * (ny + 1));
+    h->row_first[1] = rbc_mem_alloc(a, sizeof(uint32_t) * (ny + 1));
+    h->kl = rbc_mem_alloc(a, sizeof(float) * n);
+    h->kr = rbc_mem_alloc(a, sizeof(float) * n);
+    h->kd = rbc_mem_alloc(a, sizeof(float) * n);
+    h->ku = rbc_mem_alloc(a, sizeof(float) * n);
+    h->ll = rbc_mem_alloc(a, sizeof(float) * n);
+    h->lr = rbc_mem_alloc(a, sizeof(float) * n);
+    h->ld = rbc_mem_alloc(a, sizeof(float) * n);
+    h->lu = rbc_mem_alloc(a, sizeof(float) * n);
+    h->zeros = rbc_mem_alloc(a, sizeof(float) * (nx / 2 + 2)); /* zero-filled */
+    if (!h->row_first[0] || !h->row_first[1] || !h->kl || !h->kr || !h->kd || !h->ku ||
+        !h->ll || !h->lr || !h->ld || !h->lu || !h->zeros) {
+        rbc_grid_free(h, a);
+        return -1;
+    }
+    h->bytes = sizeof *h + 2 * sizeof(uint32_t) * (ny + 1) + 8 * sizeof(float) * (size_t)n +
+               sizeof(float) * (nx / 2 + 2);
+    for (uint32_t c = 0; c < 2; ++c) {
+        uint32_t at = t->color_start[c];
+        for (uint32_t j = 0; j < ny; ++j) {
+            h->row_first[c][j] = at;
+            at += row_count(h, c, j);
+        }
+        h->row_first[c][ny] = at;
+    }
+    /* Every particle where the stencil says, every spring a stencil direction. */
+    for (uint32_t v = 0; v < n; ++v) {
+        uint32_t col = v % nx, row = v / nx, c = (col + row + h->c0) & 1u;
+        uint32_t i = t->to_internal[v];
+        if (i != h->row_first[c][row] + (col - first_col(h, c, row)) / 2) goto not_grid;
+        for (uint32_t k = t->adj_start[i]; k < t->adj_start[i + 1]; ++k) {
+            uint32_t jn = t->adj_nbr[k], u = t->to_host[jn];
+            float s = t->adj_k[k];
+            /* The rest length as topology.c computes it: double distance, rounded. */
+            double ex = (double)t->rest_x[i] - t->rest_x[jn], ey = (double)t->rest_y[i] - t->rest_y[jn],
+                   ez = (double)t->rest_z[i] - t->rest_z[jn];
+            float L = (float)sqrt(ex * ex + ey * ey + ez * ez);
+            if (col > 0 && u == v - 1) h->kl[i] = s, h->ll[i] = L;
+            else if (col + 1 < nx && u == v + 1) h->kr[i] = s, h->lr[i] = L;
+            else if (row > 0 && u == v - nx) h->kd[i] = s, h->ld[i] = L;
+            else if (row + 1 < ny && u == v + nx) h->ku[i] = s, h->lu[i] = L;
+            else goto not_grid;
+        }
+    }
+    *out = h;
+    return 1;
+not_grid:
+    rbc_grid_free(h, a);
+    return 0;
+}
+
+/* The interior of a row: every particle has its left and right neighbour. Clones
+ * for AVX2 and AVX-512 are picked at load time (simd.h), the default is SSE2. */
+
+/* pin ? old : v without a branch (bitwise, so the compiler vectorizes it). */
+static inline float keep_if(uint8_t pin, float old, float v) {
+    uint32_t bo, bv, mk = 0u - (uint32_t)(pin != 0);
+    memcpy(&bo, &old, 4);
+    memcpy(&bv, &v, 4);
+    uint32_t r = (bo & mk) | (bv & ~mk);
+    float out;
+    memcpy(&out, &r, 4);
+    return out;
+}
+
+/* The three coordinates in one loop: the stiffnesses, b's row and the pins are read
+ * once per particle. */
+RBC_VECTOR_CLONES
+static void row_interior(uint32_t count, float *restrict px, float *restrict py,
+                         float *restrict pz, const float *restrict lx, const float *restrict ly,
+                         const float *restrict lz, const float *restrict rx,
+                         const float *restrict ry, const float *restrict rz,
+                         const float *restrict dx, const float *restrict dy,
+                         const float *restrict dz, const float *restrict ux,
+                         const float *restrict uy, const float *restrict uz,
+                         const float *restrict kl, const float *restrict kr,
+                         const float *restrict kd, const float *restrict ku,
+                         const float *restrict bx, const float *restrict by,
+                         const float *restrict bz, const float *restrict inv,
+                         const uint8_t *restrict pin, float omega) {
+#define RBC_ROW_BODY(RELAX)                                                              \
+    for (uint32_t m = 0; m < count; ++m) {                                               \
+        float a = kl[m], b = kr[m], c = kd[m], d = ku[m], r = inv[m];                    \
+        float gx = (bx[m] + a * lx[m] + b * rx[m] + c * dx[m] + d * ux[m]) * r;          \
+        float gy = (by[m] + a * ly[m] + b * ry[m] + c * dy[m] + d * uy[m]) * r;          \
+        float gz = (bz[m] + a * lz[m] + b * rz[m] + c * dz[m] + d * uz[m]) * r;          \
+        float ox = px[m], oy = py[m], oz = pz[m];                                        \
+        RELAX                                                                            \
+        px[m] = keep_if(pin[m], ox, gx);                                                 \
+        py[m] = keep_if(pin[m], oy, gy);                                                 \
+        pz[m] = keep_if(pin[m], oz, gz);                                                 \
+    }
+    if (omega == 0.0f) {
+        RBC_ROW_BODY()
+    } else {
+        RBC_ROW_BODY(gx = ox + omega * (gx - ox); gy = oy + omega * (gy - oy);
+                     gz = oz + omega * (gz - oz);)
+    }
+#undef RBC_ROW_BODY
+}
+
+/* A row's edge particle (missing left or right neighbour), scalar. */
+static void edge_particle(const rbc_grid *g, rbc_cloth_state *c, uint32_t i, int has_l,
+                          uint32_t il, int has_r, uint32_t ir, const float *const dn[3],
+                          const float *const up[3], uint32_t m, float omega) {
+    if (c->pinned[i]) return;
+    for (int a = 0; a < 3; ++a) {
+        float *p = c->p[a];
+        const float *bb = a == 0 ? c->bx : a == 1 ? c->by : c->bz;
+        float s = bb[i] + (has_l ? g->kl[i] * p[il] : 0.0f) + (has_r ? g->kr[i] * p[ir] : 0.0f) +
+                  g->kd[i] * dn[a][m] + g->ku[i] * up[a][m];
+        float gv = s * c->inv_denom[i];
+        p[i] = omega == 0.0f ? gv : p[i] + omega * (gv - p[i]);
+    }
+}
+
+void rbc_grid_sweep(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, float omega,
+                    uint32_t tid, uint32_t nt) {
+    const uint32_t nx = g->nx, ny = g->ny, o = 1u - color;
+    uint32_t j0, j1;
+    rbc_split(ny, tid, nt, &j0, &j1);
+    float *const *P = c->p;
+    const float *B[3] = {c->bx, c->by, c->bz};
+    for (uint32_t j = j0; j < j1; ++j) {
+        const uint32_t s0 = g->row_first[color][j], cnt = g->row_first[color][j + 1] - s0;
+        if (!cnt) continue;
+        const uint32_t f = first_col(g, color, j), ro = g->row_first[o][j];
+        const float *dn[3], *up[3];
+        for (int a = 0; a < 3; ++a) {
+            dn[a] = j > 0 ? P[a] + g->row_first[o][j - 1] : g->zeros;
+            up[a] = j + 1 < ny ? P[a] + g->row_first[o][j + 1] : g->zeros;
+        }
+        /* m in [lo, hi): both horizontal neighbours exist: column f + 2m >= 1 and
+         * f + 2m + 1 <= nx - 1. */
+        uint32_t lo = f == 0 ? 1u : 0u;
+        uint32_t hi = nx >= 2 + f ? (nx - 2 - f) / 2 + 1 : 0u;
+        if (hi > cnt) hi = cnt;
+        if (lo > hi) lo = hi;
+        for (uint32_t m = 0; m < lo; ++m) /* column 0 */
+            edge_particle(g, c, s0 + m, 0, 0, f + 2 * m + 1 < nx, ro + f + m, dn, up, m, omega);
+        if (hi > lo) {
+            const uint32_t i = s0 + lo, li = ro + f - 1 + lo, ri = ro + f + lo;
+            row_interior(hi - lo, P[0] + i, P[1] + i, P[2] + i, P[0] + li, P[1] + li,
+                         P[2] + li, P[0] + ri, P[1] + ri, P[2] + ri, dn[0] + lo, dn[1] + lo,
+                         dn[2] + lo, up[0] + lo, up[1] + lo, up[2] + lo, g->kl + i, g->kr + i,
+                         g->kd + i, g->ku + i, B[0] + i, B[1] + i, B[2] + i, c->inv_denom + i,
+                         c->pinned + i, omega);
+        }
+        for (uint32_t m = hi; m < cnt; ++m) /* column nx - 1 */
+            edge_particle(g, c, s0 + m, f + 2 * m >= 1, ro + f + m - 1, 0, 0, dn, up, m, omega);
+    }
+}
+
+/* ------------------------------------------------------------------------- */
+/* Local step + right-hand side                                              */
+/* ------------------------------------------------------------------------- */
+
+/* One direction's d_ij, exactly as rbc_k_local computes it from i's side. */
+static void spring_target(const rbc_topology *t, float *const P[3], uint32_t i, uint32_t j,
+                          float L, float out[3]) {
+    float ex = P[0][i] - P[0][j], ey = P[1][i] - P[1][j], ez = P[2][i] - P[2][j];
+    float len2 = ex * ex + ey * ey + ez * ez;
+    if (len2 > 1e-24f) {
+        float f = L / sqrtf(len2);
+        out[0] = ex * f;
+        out[1] = ey * f;
+        out[2] = ez * f;
+        return;
+    }
+    double rx = (double)t->rest_x[i] - t->rest_x[j], ry = (double)t->rest_y[i] - t->rest_y[j],
+           rz = (double)t->rest_z[i] - t->rest_z[j];
+    double len = sqrt(rx * rx + ry * ry + rz * rz);
+    float ux = len > 0.0 ? (float)(rx / len) : 0.0f, uy = len > 0.0 ? (float)(ry / len) : 0.0f,
+          uz = len > 0.0 ? (float)(rz / len) : 0.0f;
+    out[0] = L * ux;
+    out[1] = L * uy;
+    out[2] = L * uz;
+}
+
+/* b of one particle, scalar, any position in the lattice. */
+static void rhs_particle(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, uint32_t j,
+                         uint32_t m) {
+    const rbc_topology *t = &c->topo;
+    const uint32_t o = 1u - color, f = first_col(g, color, j), col = f + 2 * m;
+    const uint32_t i = g->row_first[color][j] + m, ro = g->row_first[o][j];
+    float *const *P = c->p;
+    float wi = c->w[i];
+    float sx = wi * c->y[0][i], sy = wi * c->y[1][i], sz = wi * c->y[2][i];
+    uint32_t nb[4];
+    float ks[4] = {g->kl[i], g->kr[i], g->kd[i], g->ku[i]};
+    float Ls[4] = {g->ll[i], g->lr[i], g->ld[i], g->lu[i]};
+    int has[4] = {col > 0, col + 1 < g->nx, j > 0, j + 1 < g->ny};
+    nb[0] = has[0] ? ro + f + m - 1 : 0;
+    nb[1] = has[1] ? ro + f + m : 0;
+    nb[2] = has[2] ? g->row_first[o][j - 1] + m : 0;
+    nb[3] = has[3] ? g->row_first[o][j + 1] + m : 0;
+    for (int d = 0; d < 4; ++d) {
+        if (!has[d] || ks[d] == 0.0f) continue;
+        float dv[3];
+        spring_target(t, P, i, nb[d], Ls[d], dv);
+        sx += ks[d] * dv[0];
+        sy += ks[d] * dv[1];
+        sz += ks[d] * dv[2];
+    }
+    c->bx[i] = sx;
+    c->by[i] = sy;
+    c->bz[i] = sz;
+}
+
+/* The interior of a row (left and right neighbours exist; rows beyond the edges read
+ * zeros with stiffness 0). Returns nonzero if some spring was (near) zero length:
+ * the caller redoes the row in scalar with the rest-direction fallback. */
+RBC_VECTOR_CLONES
+static int rhs_interior(uint32_t count, const float *restrict px, const float *restrict py,
+                        const float *restrict pz, const float *restrict lx,
+                        const float *restrict ly, const float *restrict lz,
+                        const float *restrict rx, const float *restrict ry,
+                        const float *restrict rz, const float *restrict dx,
+                        const float *restrict dy, const float *restrict dz,
+                        const float *restrict ux, const float *restrict uy,
+                        const float *restrict uz, const float *restrict kl,
+                        const float *restrict kr, const float *restrict kd,
+                        const float *restrict ku, const float *restrict ll,
+                        const float *restrict lr, const float *restrict ld,
+                        const float *restrict lu, const float *restrict w,
+                        const float *restrict yx, const float *restrict yy,
+                        const float *restrict yz, float *restrict bx, float *restrict by,
+                        float *restrict bz) {
+    int bad = 0;
+    for (uint32_t m = 0; m < count; ++m) {
+        float x = px[m], y = py[m], z = pz[m], wi = w[m];
+        float sx = wi * yx[m], sy = wi * yy[m], sz = wi * yz[m];
+#define RBC_DIR(NX, NY, NZ, K, L)                                                          \
+        {                                                                                  \
+            float ex = x - NX[m], ey = y - NY[m], ez = z - NZ[m];                          \
+            float len2 = ex * ex + ey * ey + ez * ez;                                      \
+            bad |= len2 <= 1e-24f;                                                         \
+            float fl = L[m] / sqrtf(len2), kk = K[m];                                      \
+            sx += kk * (ex * fl);                                                          \
+            sy += kk * (ey * fl);                                                          \
+            sz += kk * (ez * fl);                                                          \
+        }
+        RBC_DIR(lx, ly, lz, kl, ll)
+        RBC_DIR(rx, ry, rz, kr, lr)
+        RBC_DIR(dx, dy, dz, kd, ld)
+        RBC_DIR(ux, uy, uz, ku, lu)
+#undef RBC_DIR
+        bx[m] = sx;
+        by[m] = sy;
+        bz[m] = sz;
+    }
+    return bad;
+}
+
+void rbc_grid_rhs(const rbc_grid *g, rbc_cloth_state *c, uint32_t tid, uint32_t nt) {
+    const uint32_t nx = g->nx, ny = g->ny;
+    uint32_t j0, j1;
+    rbc_split(ny, tid, nt, &j0, &j1);
+    float *const *P = c->p;
+    for (uint32_t color = 0; color < 2; ++color) {
+        const uint32_t o = 1u - color;
+        for (uint32_t j = j0; j < j1; ++j) {
+            const uint32_t s0 = g->row_first[color][j], cnt = g->row_first[color][j + 1] - s0;
+            if (!cnt) continue;
+            const uint32_t f = first_col(g, color, j), ro = g->row_first[o][j];
+            uint32_t lo = f == 0 ? 1u : 0u;
+            uint32_t hi = nx >= 2 + f ? (nx - 2 - f) / 2 + 1 : 0u;
+            if (hi > cnt) hi = cnt;
+            if (lo > hi) lo = hi;
+            for (uint32_t m = 0; m < lo; ++m) rhs_particle(g, c, color, j, m);
+            if (hi > lo) {
+                const float *dn[3], *up[3];
+                for (int a = 0; a < 3; ++a) {
+                    dn[a] = j > 0 ? P[a] + g->row_first[o][j - 1] : g->zeros;
+                    up[a] = j + 1 < ny ? P[a] + g->row_first[o][j + 1] : g->zeros;
+                }
+                const uint32_t i = s0 + lo, li = ro + f - 1 + lo, ri = ro + f + lo;
+                int bad = rhs_interior(hi - lo, P[0] + i, P[1] + i, P[2] + i, P[0] + li, P[1] + li,
+                                       P[2] + li, P[0] + ri, P[1] + ri, P[2] + ri, dn[0] + lo,
+                                       dn[1] + lo, dn[2] + lo, up[0] + lo, up[1] + lo,
+                                       up[2] + lo, g->kl + i, g->kr + i, g->kd + i, g->ku + i,
+                                       g->ll + i, g->lr + i, g->ld + i, g->lu + i, c->w + i,
+                                       c->y[0] + i, c->y[1] + i, c->y[2] + i, c->bx + i,
+                                       c->by + i, c->bz + i);
+                if (bad)
+                    for (uint32_t m = lo; m < hi; ++m) rhs_particle(g, c, color, j, m);
+            }
+            for (uint32_t m = hi; m < cnt; ++m) rhs_particle(g, c, color, j, m);
+        }
+    }
+}

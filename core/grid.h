@@ -1,0 +1,51 @@
+/* grid.h -- the grid fast path of the Gauss-Seidel sweep.
+ *
+ * A cloth whose spring graph is an nx x ny lattice in host order (vertex i + nx j
+ * joined only to i +- 1 and j +- 1, structural springs only: two colors) has, in the
+ * color-contiguous internal order (each color in host order, topology.c), a fixed
+ * stencil: the particles of one color in row j are consecutive, and their left,
+ * right, down and up neighbours are consecutive runs of the other color at known
+ * offsets. The sweep then streams contiguous arrays with no index arrays, which the
+ * compiler vectorizes (SSE2 baseline, AVX2 and AVX-512 clones chosen at run time).
+ * Missing neighbours at the edges have stiffness 0; rows beyond the edges read a row
+ * of zeros. Any other mesh uses the CSR path (global.c).
+ */
+#ifndef RBC_CORE_GRID_H
+#define RBC_CORE_GRID_H
+#include <stddef.h>
+#include <stdint.h>
+
+#include "alloc.h"
+#include "topology.h"
+
+struct rbc_cloth_state;
+
+typedef struct rbc_grid {
+    uint32_t nx, ny;
+    uint32_t c0;                /* color of host vertex 0 (row 0, column 0) */
+    uint32_t *row_first[2];     /* [ny + 1]: internal index of the first particle of
+                                   color c in row j; [ny] = the color's end */
+    float *kl, *kr, *kd, *ku;   /* [n] stiffness of the spring to the left (i - 1),
+                                   right, down (j - 1) and up neighbour; 0 if none */
+    float *ll, *lr, *ld, *lu;   /* [n] their rest lengths (as topology.c computes them) */
+    float *zeros;               /* [nx / 2 + 2] neighbours of rows beyond the edges */
+    size_t bytes;
+} rbc_grid;
+
+/* 1 and *out set if t is such a lattice; 0 (not a lattice, *out NULL); -1 out of
+ * memory. O(n + springs). */
+int rbc_grid_detect(const rbc_topology *t, const rbc_allocator *a, rbc_grid **out);
+void rbc_grid_free(rbc_grid *g, const rbc_allocator *a);
+
+/* The local step and the right-hand side in one pass, this thread's rows of both
+ * colors: b_i = m_i/h^2 y_i + sum_j s_ij d_ij with d_ij = L (p_i - p_j) / |p_i - p_j|
+ * (the rest direction when |p_i - p_j| <= 1e-12 m), as rbc_k_local and rbc_k_rhs
+ * compute it, from p, without the per-spring d arrays. */
+void rbc_grid_rhs(const rbc_grid *g, struct rbc_cloth_state *c, uint32_t tid, uint32_t nt);
+
+/* One color of a Gauss-Seidel iteration (Eq. 6 from b, rbc_global_rhs), this
+ * thread's rows: p_i = g_i (omega == 0) or p_i += omega (g_i - p_i). Pinned particles
+ * keep their positions. */
+void rbc_grid_sweep(const rbc_grid *g, struct rbc_cloth_state *c, uint32_t color, float omega,
+                    uint32_t tid, uint32_t nt);
+#endif

@@ -1,0 +1,213 @@
+/* The grid fast path (core/grid.c):
+ *  - detection: a lattice in host order is found (any nx x ny, two columns included);
+ *    shear springs (4 colors), a shuffled vertex order, a torus and an irregular mesh
+ *    are not, and take the CSR path;
+ *  - the fused local step + right-hand side equals rbc_k_local + rbc_k_rhs to float
+ *    rounding of the different summation order;
+ *  - whole steps (integrate, local, 11 RBGS or SOR iterations) agree with the CSR path
+ *    to a bound derived from that rounding, with pins, for 1 and 2 threads, and the
+ *    fast path's result does not depend on the thread count (bitwise).
+ */
+#include <math.h>
+#include <string.h>
+
+#include "check.h"
+#include "global.h"
+#include "grid.h"
+#include "kernels/pd_kernels.h"
+#include "meshes.h"
+#include "solver.h"
+
+static rbc_cloth_state *make(rbc_solver *s, const test_mesh *m, const uint32_t *pins,
+                             uint32_t npins, float shear) {
+    rbc_mesh_input in = mesh_input(m, pins, npins);
+    in.shear_stiffness = shear;
+    rbc_cloth_state *c = NULL;
+    char err[256];
+    CHECK_EQ(rbc_cloth_state_create(s, &in, 0.0f, &c, err, sizeof err), RBC_OK);
+    CHECK_EQ(rbc_solver_add_cloth(s, c), RBC_OK);
+    return c;
+}
+
+static void test_detection(void) {
+    rbc_allocator a = rbc_allocator_default();
+    rbc_solver s;
+    CHECK_EQ(rbc_solver_init(&s, &a, 1), RBC_OK);
+    const uint32_t sizes[][2] = {{100, 100}, {7, 3}, {2, 2}, {2, 60}, {3, 50}};
+    for (size_t k = 0; k < sizeof sizes / sizeof sizes[0]; ++k) {
+        test_mesh m = mesh_grid(sizes[k][0], sizes[k][1], 0.01f);
+        rbc_cloth_state *c = make(&s, &m, NULL, 0, 0.0f);
+        CHECK(c->grid != NULL);
+        if (c->grid) {
+            CHECK_EQ(c->grid->nx, sizes[k][0]);
+            CHECK_EQ(c->grid->ny, sizes[k][1]);
+        }
+        mesh_free(&m);
+    }
+    test_mesh m = mesh_grid(20, 20, 0.01f);
+    rbc_cloth_state *c = make(&s, &m, NULL, 0, 500.0f); /* shear: 4 colors */
+    CHECK(c->grid == NULL);
+    /* The same grid with its vertices renumbered: no lattice in host order. */
+    test_mesh sh = mesh_grid(20, 20, 0.01f);
+    uint32_t perm[400];
+    for (uint32_t v = 0; v < 400; ++v) perm[v] = (v * 7u + 3u) % 400u; /* 7 and 400 coprime */
+    for (uint32_t v = 0; v < 400; ++v)
+        for (int ax = 0; ax < 3; ++ax) sh.pos[3 * perm[v] + ax] = m.pos[3 * v + ax];
+    for (uint32_t q = 0; q < 4 * sh.nq; ++q) sh.quads[q] = perm[m.quads[q]];
+    c = make(&s, &sh, NULL, 0, 0.0f);
+    CHECK(c->grid == NULL);
+    test_mesh tor = mesh_torus(12, 10);
+    c = make(&s, &tor, NULL, 0, 0.0f);
+    CHECK(c->grid == NULL);
+    test_mesh tri = mesh_split_triangles(10);
+    c = make(&s, &tri, NULL, 0, 0.0f);
+    CHECK(c->grid == NULL);
+    mesh_free(&m);
+    mesh_free(&sh);
+    mesh_free(&tor);
+    mesh_free(&tri);
+    rbc_solver_fini(&s);
+}
+
+/* A state with some stretch and sag, and y a Verlet-like target near it. */
+static void perturb(rbc_cloth_state *c) {
+    const rbc_topology *t = &c->topo;
+    for (uint32_t i = 0; i < t->n; ++i) {
+        float x = t->rest_x[i], z = t->rest_z[i];
+        c->x[0][i] = c->q[0][i] = 1.2f * x;
+        c->x[1][i] = c->q[1][i] = -0.3f * x * z + 0.02f * sinf(40.0f * x);
+        c->x[2][i] = c->q[2][i] = 1.1f * z;
+    }
+}
+
+/* max |a - b| over the positions of two cloths built from the same mesh. */
+static double max_diff(const rbc_cloth_state *a, const rbc_cloth_state *b) {
+    double d = 0.0;
+    for (int ax = 0; ax < 3; ++ax)
+        for (uint32_t i = 0; i < a->topo.n; ++i) d = fmax(d, fabs((double)a->x[ax][i] - b->x[ax][i]));
+    return d;
+}
+
+static void test_rhs(void) {
+    rbc_allocator al = rbc_allocator_default();
+    rbc_solver s;
+    CHECK_EQ(rbc_solver_init(&s, &al, 1), RBC_OK);
+    test_mesh m = mesh_grid(33, 17, 1.0f / 32.0f);
+    rbc_cloth_state *c = make(&s, &m, NULL, 0, 0.0f);
+    CHECK(c->grid != NULL);
+    perturb(c);
+    const rbc_topology *t = &c->topo;
+    for (uint32_t i = 0; i < t->n; ++i) {
+        c->w[i] = 25.0f; /* 1e-4 kg / (2 ms)^2 */
+        for (int ax = 0; ax < 3; ++ax) {
+            c->p[ax][i] = c->x[ax][i];
+            c->y[ax][i] = c->x[ax][i] + 0.001f;
+        }
+    }
+    /* Two particles on top of each other: the rest-direction fallback. */
+    for (int ax = 0; ax < 3; ++ax) c->p[ax][t->to_internal[40]] = c->p[ax][t->to_internal[41]];
+    for (uint32_t k = 0; k < t->ns; ++k)
+        rbc_k_local(k, t->sa, t->sb, t->rest_len, t->ux, t->uy, t->uz, t->he_a, t->he_b, c->p[0],
+                    c->p[1], c->p[2], c->dx, c->dy, c->dz);
+    rbc_global_rhs(c, 0, 1);
+    float *ref[3];
+    for (int ax = 0; ax < 3; ++ax) {
+        ref[ax] = malloc(sizeof(float) * t->n);
+        memcpy(ref[ax], ax == 0 ? c->bx : ax == 1 ? c->by : c->bz, sizeof(float) * t->n);
+    }
+    rbc_grid_rhs(c->grid, c, 0, 1);
+    /* Same terms (w y and s d_j, each computed by the same float operations), summed
+     * in another order: the sums differ by at most 5 roundings of their largest
+     * partial sum, bounded by w |y| + sum s L. */
+    double worst = 0.0;
+    for (int ax = 0; ax < 3; ++ax) {
+        const float *b = ax == 0 ? c->bx : ax == 1 ? c->by : c->bz;
+        for (uint32_t i = 0; i < t->n; ++i) {
+            double scale = fabs(c->w[i] * (double)c->y[ax][i]) + t->ksum[i] * (1.0 / 32.0);
+            double d = fabs((double)b[i] - ref[ax][i]) / (scale * 5.0 * ldexp(1.0, -24));
+            if (d > worst) worst = d;
+        }
+    }
+    printf("grid rhs vs CSR rhs: worst difference %.3g of the bound\n", worst);
+    CHECK(worst <= 1.0);
+    for (int ax = 0; ax < 3; ++ax) free(ref[ax]);
+    mesh_free(&m);
+    rbc_solver_fini(&s);
+}
+
+/* Whole steps: one cloth on the fast path, one identical cloth with its grid
+ * removed (the CSR path). */
+static void test_steps(rbc_solver_kind kind, uint32_t threads) {
+    rbc_allocator al = rbc_allocator_default();
+    rbc_solver s, s2;
+    CHECK_EQ(rbc_solver_init(&s, &al, threads), RBC_OK);
+    CHECK_EQ(rbc_solver_init(&s2, &al, threads), RBC_OK);
+    rbc_solver_settings st = s.settings;
+    st.kind = kind;
+    st.energy_guard = RBC_ENERGY_GUARD_OFF;
+    test_mesh m = mesh_grid(64, 48, 1.0f / 63.0f);
+    uint32_t pins[2] = {0, 63};
+    rbc_cloth_state *fast = make(&s, &m, pins, 2, 0.0f);
+    rbc_cloth_state *csr = make(&s2, &m, pins, 2, 0.0f);
+    CHECK_EQ(rbc_solver_set_settings(&s, &st), RBC_OK);
+    CHECK_EQ(rbc_solver_set_settings(&s2, &st), RBC_OK);
+    CHECK(fast->grid != NULL);
+    rbc_grid_free(csr->grid, &al);
+    csr->grid = NULL;
+    char err[256];
+    double worst = 0.0;
+    for (int f = 0; f < 5; ++f) {
+        CHECK_EQ(rbc_solver_step(&s, 0.002f, err, sizeof err), RBC_OK);
+        CHECK_EQ(rbc_solver_step(&s2, 0.002f, err, sizeof err), RBC_OK);
+        worst = fmax(worst, max_diff(fast, csr));
+    }
+    /* Each Gauss-Seidel update differs by the rounding of a 5-term sum (at most 5
+     * roundings of |p| ~ 1 m: 3e-7 m) and of b; updates contract earlier differences
+     * (rho < 1), so 5 frames of 11 iterations of 2 colors add at most
+     * 5 * 11 * 2 * 5 * 2^-24 m = 3.3e-5 m. The pins must not have moved. */
+    printf("%s, %u thread(s): fast path vs CSR path, worst |dp| over 5 frames %.3g m\n",
+           kind == RBC_SOLVER_RBGS ? "rbgs" : "rbgs_sor", threads, worst);
+    CHECK(worst <= 5.0 * 11 * 2 * 5 * ldexp(1.0, -24));
+    const rbc_topology *t = &fast->topo;
+    for (int p = 0; p < 2; ++p) {
+        uint32_t i = t->to_internal[pins[p]];
+        CHECK(fast->x[0][i] == t->rest_x[i] && fast->x[1][i] == t->rest_y[i] &&
+              fast->x[2][i] == t->rest_z[i]);
+    }
+    mesh_free(&m);
+    rbc_solver_fini(&s);
+    rbc_solver_fini(&s2);
+}
+
+/* The fast path's positions with 1 and 2 threads: bitwise equal. */
+static void test_threads(void) {
+    rbc_allocator al = rbc_allocator_default();
+    float *res[2];
+    for (uint32_t nt = 1; nt <= 2; ++nt) {
+        rbc_solver s;
+        CHECK_EQ(rbc_solver_init(&s, &al, nt), RBC_OK);
+        test_mesh m = mesh_grid(101, 37, 0.01f); /* odd width: rows of both parities */
+        uint32_t pins[2] = {0, 100};
+        rbc_cloth_state *c = make(&s, &m, pins, 2, 0.0f);
+        CHECK(c->grid != NULL);
+        char err[256];
+        for (int f = 0; f < 20; ++f) CHECK_EQ(rbc_solver_step(&s, 0.002f, err, sizeof err), RBC_OK);
+        res[nt - 1] = malloc(sizeof(float) * 3 * c->topo.n);
+        rbc_cloth_state_read(c, res[nt - 1]);
+        if (nt == 2) CHECK(memcmp(res[0], res[1], sizeof(float) * 3 * c->topo.n) == 0);
+        mesh_free(&m);
+        rbc_solver_fini(&s);
+    }
+    free(res[0]);
+    free(res[1]);
+}
+
+int main(void) {
+    test_detection();
+    test_rhs();
+    test_steps(RBC_SOLVER_RBGS, 1);
+    test_steps(RBC_SOLVER_RBGS, 2);
+    test_steps(RBC_SOLVER_RBGS_SOR, 2);
+    test_threads();
+    return check_report("core_grid");
+}
