@@ -4,6 +4,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "ell.h"
 #include "grid.h"
 #include "kernels/pd_kernels.h"
 #include "report.h"
@@ -24,6 +25,10 @@ void rbc_global_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, f
     if (color >= t->ncolors) return;
     if (c->grid && v != RBC_GS_STASH) {
         rbc_grid_sweep(c->grid, c, color, v == RBC_GS_SOR ? omega : 0.0f, tid, nt);
+        return;
+    }
+    if (c->ell && v != RBC_GS_STASH) {
+        rbc_ell_sweep(c->ell, c, color, v == RBC_GS_SOR ? omega : 0.0f, tid, nt);
         return;
     }
     uint32_t c0 = t->color_start[color], count = t->color_start[color + 1] - c0;

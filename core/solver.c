@@ -32,6 +32,7 @@
 
 #include "direct.h"
 #include "energy.h"
+#include "ell.h"
 #include "grid.h"
 #include "global.h"
 #include "kernels/collide_kernels.h"
@@ -162,6 +163,7 @@ void rbc_cloth_state_destroy(rbc_solver *s, rbc_cloth_state *c) {
 #undef FREE_ONE
     free_pins(s, c);
     rbc_grid_free(c->grid, &s->alloc);
+    rbc_ell_free(c->ell, &s->alloc);
     rbc_mem_free(&s->alloc, c->pin_springs, sizeof(uint32_t) * c->pin_spring_cap);
     free_cb_buffers(s, c);
     rbc_topology_free(&c->topo, &s->alloc);
@@ -250,7 +252,8 @@ int32_t rbc_cloth_state_create(rbc_solver *s, const rbc_mesh_input *in, float da
         c->pin_target[3 * m + 2] = c->x[2][i];
     }
     if (!rbc_energy_rebuild_pin_springs(c, &s->alloc) ||
-        rbc_grid_detect(&c->topo, &s->alloc, &c->grid) < 0) {
+        rbc_grid_detect(&c->topo, &s->alloc, &c->grid) < 0 ||
+        (!c->grid && rbc_ell_build(&c->topo, &s->alloc, &c->ell) < 0)) {
         rbc_cloth_state_destroy(s, c);
         return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for %zu particles", n);
     }
@@ -464,6 +467,7 @@ size_t rbc_cloth_state_bytes(const rbc_cloth_state *c) {
     if (c->prev[0]) b += n3;
     if (c->direct) b += rbc_direct_bytes(c->direct);
     if (c->grid) b += c->grid->bytes;
+    if (c->ell) b += c->ell->bytes;
     return b;
 }
 

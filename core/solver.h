@@ -16,6 +16,7 @@
 
 struct rbc_direct;
 struct rbc_grid;
+struct rbc_ell;
 
 /* The global solver settings (the ABI's rbc_solver_def, validated by the plugin). */
 typedef struct rbc_solver_settings {
@@ -34,6 +35,7 @@ typedef struct rbc_solver_settings {
 typedef struct rbc_cloth_state {
     rbc_topology topo;
     struct rbc_grid *grid;      /* the lattice fast path (grid.h), or NULL */
+    struct rbc_ell *ell;        /* the ELLPACK sweep (ell.h) when not a lattice, or NULL */
     uint32_t public_id;         /* the host's id, for messages */
     float damping;              /* 1/s */
     float mean_rest;            /* mean spring rest length, m (the blow-up guard's scale) */

@@ -334,6 +334,57 @@ static void emit_keys(const rbc_mesh_input *in, build_scratch *s, int scatter) {
         put_key(s, (uint32_t)(s->bend[k] >> 32), (uint32_t)s->bend[k], kb, scatter);
 }
 
+
+/* Whether the host order is far from local: the mean |v - w| over the springs above
+ * 4 sqrt(n) + 16 (a grid in row order has about sqrt(n) / 2; a shuffled mesh n / 3). */
+static int host_order_scattered(uint32_t n, const uint32_t *adj_start, const uint32_t *adj) {
+    if (n < 1024) return 0;
+    double sum = 0.0;
+    uint64_t count = 0;
+    for (uint32_t v = 0; v < n; ++v)
+        for (uint32_t k = adj_start[v]; k < adj_start[v + 1]; ++k) {
+            uint32_t w = adj[k];
+            sum += w > v ? (double)(w - v) : (double)(v - w);
+            ++count;
+        }
+    return count && sum / (double)count > 4.0 * sqrt((double)n) + 16.0;
+}
+
+/* 10 bits of x spread to every third bit. */
+static uint32_t spread3(uint32_t x) {
+    x &= 0x3FFu;
+    x = (x | (x << 16)) & 0x030000FFu;
+    x = (x | (x << 8)) & 0x0300F00Fu;
+    x = (x | (x << 4)) & 0x030C30C3u;
+    x = (x | (x << 2)) & 0x09249249u;
+    return x;
+}
+
+/* order[r] (low 32 bits) = the r-th vertex by the Morton code of its position in the
+ * bounding box (10 bits per axis), the host index breaking ties: deterministic. The
+ * caller places each vertex in its color's range in this order. */
+static void morton_order(uint32_t n, const float *P, uint64_t *order) {
+    float lo[3] = {P[0], P[1], P[2]}, hi[3] = {P[0], P[1], P[2]};
+    for (uint32_t v = 0; v < n; ++v)
+        for (int a = 0; a < 3; ++a) {
+            float x = P[3 * (size_t)v + a];
+            if (x < lo[a]) lo[a] = x;
+            if (x > hi[a]) hi[a] = x;
+        }
+    double scale[3];
+    for (int a = 0; a < 3; ++a)
+        scale[a] = hi[a] > lo[a] ? 1023.0 / ((double)hi[a] - lo[a]) : 0.0;
+    for (uint32_t v = 0; v < n; ++v) {
+        uint32_t code = 0;
+        for (int a = 0; a < 3; ++a) {
+            double q = ((double)P[3 * (size_t)v + a] - lo[a]) * scale[a];
+            code |= spread3((uint32_t)(q < 0.0 ? 0.0 : q > 1023.0 ? 1023.0 : q)) << a;
+        }
+        order[v] = ((uint64_t)code << 32) | v;
+    }
+    qsort(order, n, sizeof *order, cmp_u64);
+}
+
 int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc_topology *out,
                            char *err, size_t errlen) {
     memset(out, 0, sizeof *out);
@@ -473,8 +524,10 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
     }
     memset(t->adj_start, 0, ((size_t)n + 1) * 4); /* the internal CSR is built in 8 */
 
-    /* 6. Color-contiguous order: color 0 first, then 1, ..., each in host order
-     * (keeps a grid's rows together within a color for locality). */
+    /* 6. Color-contiguous order: color 0 first, then 1, ..., each in host order when
+     * that order is already local (a grid's rows stay together, and grid.c's lattice
+     * path needs exactly that), else by a Morton (Z-order) code of the rest position,
+     * so that a sweep's neighbours sit close in memory whatever order the file had. */
     uint32_t next[RBC_MAX_COLORS] = {0};
     for (uint32_t v = 0; v < n; ++v) next[s.color[v]]++;
     t->ncolors = ncolors;
@@ -484,7 +537,14 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
         t->color_start[c + 1] = t->color_start[c] + next[c];
         next[c] = t->color_start[c];
     }
-    for (uint32_t v = 0; v < n; ++v) {
+    uint64_t *order = NULL;
+    if (host_order_scattered(n, hadj_start, hadj)) {
+        order = rbc_mem_alloc(a, rbc_mul_size(n, sizeof *order));
+        if (!order) goto oom_topo;
+        morton_order(n, P, order);
+    }
+    for (uint32_t r = 0; r < n; ++r) {
+        uint32_t v = order ? (uint32_t)order[r] : r;
         uint32_t i = next[s.color[v]]++;
         t->to_internal[v] = i;
         t->to_host[i] = v;
@@ -492,6 +552,7 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
         t->rest_y[i] = P[3 * (size_t)v + 1];
         t->rest_z[i] = P[3 * (size_t)v + 2];
     }
+    rbc_mem_free(a, order, rbc_mul_size(n, sizeof *order));
 
     /* 7. Masses: given, lumped from areal density (a quarter of each quad's area to
      * each corner), or uniform. */

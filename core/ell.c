@@ -1,0 +1,139 @@
+/* ell.c -- the ELLPACK Gauss-Seidel sweep; see ell.h. */
+#include "ell.h"
+
+#include <string.h>
+
+#include "report.h"
+#include "simd.h"
+#include "solver.h"
+
+void rbc_ell_free(rbc_ell *e, const rbc_allocator *a) {
+    if (!e) return;
+    rbc_mem_free(a, e->nbr, rbc_mul_size(e->slots, sizeof(uint32_t)));
+    rbc_mem_free(a, e->k, rbc_mul_size(e->slots, sizeof(float)));
+    rbc_mem_free(a, e, sizeof *e);
+}
+
+int rbc_ell_build(const rbc_topology *t, const rbc_allocator *a, rbc_ell **out) {
+    *out = NULL;
+    if (t->ncolors < 2) return 0;
+    rbc_ell h;
+    memset(&h, 0, sizeof h);
+    h.ncolors = t->ncolors;
+    size_t slots = 0, used = 2 * (size_t)t->ns;
+    for (uint32_t c = 0; c < t->ncolors; ++c) {
+        uint32_t w = 0;
+        for (uint32_t i = t->color_start[c]; i < t->color_start[c + 1]; ++i) {
+            uint32_t d = t->adj_start[i + 1] - t->adj_start[i];
+            if (d > w) w = d;
+        }
+        h.width[c] = w;
+        h.offset[c] = slots;
+        slots += (size_t)w * (t->color_start[c + 1] - t->color_start[c]);
+    }
+    if (slots > 2 * used + 64) return 0; /* a few hubs: padding would cost more */
+    rbc_ell *e = rbc_mem_alloc(a, sizeof *e);
+    if (!e) return -1;
+    *e = h;
+    e->slots = slots;
+    e->nbr = rbc_mem_alloc(a, rbc_mul_size(slots, sizeof(uint32_t)));
+    e->k = rbc_mem_alloc(a, rbc_mul_size(slots, sizeof(float))); /* zero-filled */
+    if (!e->nbr || !e->k) {
+        rbc_ell_free(e, a);
+        return -1;
+    }
+    e->bytes = sizeof *e + slots * (sizeof(uint32_t) + sizeof(float));
+    for (uint32_t c = 0; c < t->ncolors; ++c) {
+        const uint32_t c0 = t->color_start[c], cnt = t->color_start[c + 1] - c0;
+        /* Padding reads a particle of another color (never written in this sweep). */
+        const uint32_t pad = c == 0 ? t->color_start[1] : 0;
+        uint32_t *nb = e->nbr + e->offset[c];
+        float *kk = e->k + e->offset[c];
+        for (uint32_t m = 0; m < cnt; ++m) {
+            uint32_t i = c0 + m, j = 0;
+            for (uint32_t s = t->adj_start[i]; s < t->adj_start[i + 1]; ++s, ++j) {
+                nb[(size_t)j * cnt + m] = t->adj_nbr[s];
+                kk[(size_t)j * cnt + m] = t->adj_k[s];
+            }
+            for (; j < e->width[c]; ++j) nb[(size_t)j * cnt + m] = pad;
+        }
+    }
+    *out = e;
+    return 1;
+}
+
+enum { CHUNK = 256 };
+
+/* pin ? old : v, branch-free (vectorizes). */
+static inline float keep_if(uint8_t pin, float old, float v) {
+    uint32_t bo, bv, mk = 0u - (uint32_t)(pin != 0);
+    memcpy(&bo, &old, 4);
+    memcpy(&bv, &v, 4);
+    uint32_t r = (bo & mk) | (bv & ~mk);
+    float o;
+    memcpy(&o, &r, 4);
+    return o;
+}
+
+/* Particles [m0, m0 + len) of a color (internal index base + m): accumulate slot by
+ * slot, then write. The gathers read only other colors, the stores come after them. */
+RBC_VECTOR_CLONES
+static void ell_chunk(uint32_t len, uint32_t width, size_t stride, const uint32_t *restrict nbr,
+                      const float *restrict kk, const float *restrict px,
+                      const float *restrict py, const float *restrict pz,
+                      const float *restrict bx, const float *restrict by,
+                      const float *restrict bz, const float *restrict inv,
+                      const uint8_t *restrict pin, float *restrict ox, float *restrict oy,
+                      float *restrict oz, float omega) {
+    float ax[CHUNK], ay[CHUNK], az[CHUNK];
+    for (uint32_t m = 0; m < len; ++m) {
+        ax[m] = bx[m];
+        ay[m] = by[m];
+        az[m] = bz[m];
+    }
+    for (uint32_t j = 0; j < width; ++j) {
+        const uint32_t *restrict nj = nbr + j * stride;
+        const float *restrict kj = kk + j * stride;
+        for (uint32_t m = 0; m < len; ++m) {
+            uint32_t q = nj[m];
+            float k = kj[m];
+            ax[m] += k * px[q];
+            ay[m] += k * py[q];
+            az[m] += k * pz[q];
+        }
+    }
+    if (omega == 0.0f) {
+        for (uint32_t m = 0; m < len; ++m) {
+            float r = inv[m];
+            ox[m] = keep_if(pin[m], ox[m], ax[m] * r);
+            oy[m] = keep_if(pin[m], oy[m], ay[m] * r);
+            oz[m] = keep_if(pin[m], oz[m], az[m] * r);
+        }
+    } else {
+        for (uint32_t m = 0; m < len; ++m) {
+            float r = inv[m], x = ox[m], y = oy[m], z = oz[m];
+            ox[m] = keep_if(pin[m], x, x + omega * (ax[m] * r - x));
+            oy[m] = keep_if(pin[m], y, y + omega * (ay[m] * r - y));
+            oz[m] = keep_if(pin[m], z, z + omega * (az[m] * r - z));
+        }
+    }
+}
+
+void rbc_ell_sweep(const rbc_ell *e, rbc_cloth_state *c, uint32_t color, float omega,
+                   uint32_t tid, uint32_t nt) {
+    const rbc_topology *t = &c->topo;
+    const uint32_t c0 = t->color_start[color], cnt = t->color_start[color + 1] - c0;
+    uint32_t b, en;
+    rbc_split(cnt, tid, nt, &b, &en);
+    const uint32_t *nb = e->nbr + e->offset[color];
+    const float *kk = e->k + e->offset[color];
+    for (uint32_t m0 = b; m0 < en; m0 += CHUNK) {
+        uint32_t len = en - m0 < CHUNK ? en - m0 : CHUNK;
+        uint32_t i = c0 + m0;
+        /* The gathers read p through a const pointer of the whole array; the stores
+         * go through ox/oy/oz at this color's range, after every gather of the chunk. */
+        ell_chunk(len, e->width[color], cnt, nb + m0, kk + m0, c->p[0], c->p[1], c->p[2],
+                  c->bx + i, c->by + i, c->bz + i, c->inv_denom + i, c->pinned + i, c->p[0] + i,
+                  c->p[1] + i, c->p[2] + i, omega);
+    }
+}
