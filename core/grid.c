@@ -111,6 +111,18 @@ int rbc_grid_detect(const rbc_topology *t, const rbc_allocator *a, rbc_grid **ou
             else goto not_grid;
         }
     }
+    /* One stiffness for every spring: the sweep broadcasts it. */
+    float ku0 = 0.0f;
+    int uniform = 1;
+    for (uint32_t i = 0; i < n && uniform; ++i) {
+        const float ks[4] = {h->kl[i], h->kr[i], h->kd[i], h->ku[i]};
+        for (int d = 0; d < 4; ++d) {
+            if (ks[d] == 0.0f) continue;
+            if (ku0 == 0.0f) ku0 = ks[d];
+            if (ks[d] != ku0) uniform = 0;
+        }
+    }
+    h->k_uniform = uniform ? ku0 : 0.0f;
     *out = h;
     return 1;
 not_grid:
@@ -146,10 +158,14 @@ static void row_interior(uint32_t count, float *restrict px, float *restrict py,
                          const float *restrict kd, const float *restrict ku,
                          const float *restrict bx, const float *restrict by,
                          const float *restrict bz, const float *restrict inv,
-                         const uint8_t *restrict pin, float omega) {
-#define RBC_ROW_BODY(RELAX)                                                              \
+                         const uint8_t *restrict pin, float omega, float kuni) {
+    /* kuni != 0: every spring of the lattice has stiffness kuni (missing ones read a
+     * zero row or are edge particles): the same arithmetic with a broadcast constant
+     * instead of four streams of stiffness. */
+#define RBC_ROW_BODY(LOADK, RELAX)                                                       \
     for (uint32_t m = 0; m < count; ++m) {                                               \
-        float a = kl[m], b = kr[m], c = kd[m], d = ku[m], r = inv[m];                    \
+        LOADK                                                                            \
+        float r = inv[m];                                                                \
         float gx = (bx[m] + a * lx[m] + b * rx[m] + c * dx[m] + d * ux[m]) * r;          \
         float gy = (by[m] + a * ly[m] + b * ry[m] + c * dy[m] + d * uy[m]) * r;          \
         float gz = (bz[m] + a * lz[m] + b * rz[m] + c * dz[m] + d * uz[m]) * r;          \
@@ -159,12 +175,23 @@ static void row_interior(uint32_t count, float *restrict px, float *restrict py,
         py[m] = keep_if(pin[m], oy, gy);                                                 \
         pz[m] = keep_if(pin[m], oz, gz);                                                 \
     }
-    if (omega == 0.0f) {
-        RBC_ROW_BODY()
+#define RBC_K_ARRAYS float a = kl[m], b = kr[m], c = kd[m], d = ku[m];
+#define RBC_K_UNIFORM float a = kuni, b = kuni, c = kuni, d = kuni;
+#define RBC_SOR gx = ox + omega * (gx - ox); gy = oy + omega * (gy - oy); gz = oz + omega * (gz - oz);
+    if (kuni != 0.0f) {
+        if (omega == 0.0f) {
+            RBC_ROW_BODY(RBC_K_UNIFORM, )
+        } else {
+            RBC_ROW_BODY(RBC_K_UNIFORM, RBC_SOR)
+        }
+    } else if (omega == 0.0f) {
+        RBC_ROW_BODY(RBC_K_ARRAYS, )
     } else {
-        RBC_ROW_BODY(gx = ox + omega * (gx - ox); gy = oy + omega * (gy - oy);
-                     gz = oz + omega * (gz - oz);)
+        RBC_ROW_BODY(RBC_K_ARRAYS, RBC_SOR)
     }
+#undef RBC_K_ARRAYS
+#undef RBC_K_UNIFORM
+#undef RBC_SOR
 #undef RBC_ROW_BODY
 }
 
@@ -183,40 +210,67 @@ static void edge_particle(const rbc_grid *g, rbc_cloth_state *c, uint32_t i, int
     }
 }
 
+/* One row of one color: the Gauss-Seidel update of its particles. */
+static void grid_row(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, uint32_t j,
+                     float omega) {
+    const uint32_t nx = g->nx, ny = g->ny, o = 1u - color;
+    float *const *P = c->p;
+    const uint32_t s0 = g->row_first[color][j], cnt = g->row_first[color][j + 1] - s0;
+    if (!cnt) return;
+    const uint32_t f = first_col(g, color, j), ro = g->row_first[o][j];
+    const float *dn[3], *up[3];
+    for (int a = 0; a < 3; ++a) {
+        dn[a] = j > 0 ? P[a] + g->row_first[o][j - 1] : g->zeros;
+        up[a] = j + 1 < ny ? P[a] + g->row_first[o][j + 1] : g->zeros;
+    }
+    /* m in [lo, hi): both horizontal neighbours exist: column f + 2m >= 1 and
+     * f + 2m + 1 <= nx - 1. */
+    uint32_t lo = f == 0 ? 1u : 0u;
+    uint32_t hi = nx >= 2 + f ? (nx - 2 - f) / 2 + 1 : 0u;
+    if (hi > cnt) hi = cnt;
+    if (lo > hi) lo = hi;
+    for (uint32_t m = 0; m < lo; ++m) /* column 0 */
+        edge_particle(g, c, s0 + m, 0, 0, f + 2 * m + 1 < nx, ro + f + m, dn, up, m, omega);
+    if (hi > lo) {
+        const uint32_t i = s0 + lo, li = ro + f - 1 + lo, ri = ro + f + lo;
+        row_interior(hi - lo, P[0] + i, P[1] + i, P[2] + i, P[0] + li, P[1] + li, P[2] + li,
+                     P[0] + ri, P[1] + ri, P[2] + ri, dn[0] + lo, dn[1] + lo, dn[2] + lo,
+                     up[0] + lo, up[1] + lo, up[2] + lo, g->kl + i, g->kr + i, g->kd + i,
+                     g->ku + i, c->bx + i, c->by + i, c->bz + i, c->inv_denom + i,
+                     c->pinned + i, omega, g->k_uniform);
+    }
+    for (uint32_t m = hi; m < cnt; ++m) /* column nx - 1 */
+        edge_particle(g, c, s0 + m, f + 2 * m >= 1, ro + f + m - 1, 0, 0, dn, up, m, omega);
+}
+
 void rbc_grid_sweep(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, float omega,
                     uint32_t tid, uint32_t nt) {
-    const uint32_t nx = g->nx, ny = g->ny, o = 1u - color;
     uint32_t j0, j1;
-    rbc_split(ny, tid, nt, &j0, &j1);
-    float *const *P = c->p;
-    const float *B[3] = {c->bx, c->by, c->bz};
-    for (uint32_t j = j0; j < j1; ++j) {
-        const uint32_t s0 = g->row_first[color][j], cnt = g->row_first[color][j + 1] - s0;
-        if (!cnt) continue;
-        const uint32_t f = first_col(g, color, j), ro = g->row_first[o][j];
-        const float *dn[3], *up[3];
-        for (int a = 0; a < 3; ++a) {
-            dn[a] = j > 0 ? P[a] + g->row_first[o][j - 1] : g->zeros;
-            up[a] = j + 1 < ny ? P[a] + g->row_first[o][j + 1] : g->zeros;
+    rbc_split(g->ny, tid, nt, &j0, &j1);
+    for (uint32_t j = j0; j < j1; ++j) grid_row(g, c, color, j, omega);
+}
+
+void rbc_grid_wavefront(const rbc_grid *g, rbc_cloth_state *c, uint32_t iterations, float omega,
+                        volatile uint32_t *progress, size_t stride, uint32_t tid, uint32_t nt) {
+    const uint32_t ny = g->ny;
+    uint32_t it0, it1;
+    rbc_split(iterations, tid, nt, &it0, &it1);
+    const uint32_t steps = ny + 2 * iterations; /* last: black row ny-1 of the last one */
+    volatile uint32_t *mine = progress + stride * tid;
+    volatile uint32_t *before = tid ? progress + stride * (tid - 1) : NULL;
+    for (uint32_t w = 0; w < steps; ++w) {
+        /* Iteration it0 at step w reads rows of iteration it0 - 1 that the previous
+         * thread writes at steps <= w. */
+        if (before)
+            while (*before <= w) __asm__ __volatile__("" ::: "memory");
+        __atomic_thread_fence(__ATOMIC_ACQUIRE);
+        for (uint32_t it = it0; it < it1; ++it) {
+            int64_t r = (int64_t)w - 2 * (int64_t)it; /* red row; then black row r - 1 */
+            if (r >= 0 && r < (int64_t)ny) grid_row(g, c, 0, (uint32_t)r, omega);
+            if (r - 1 >= 0 && r - 1 < (int64_t)ny) grid_row(g, c, 1, (uint32_t)(r - 1), omega);
         }
-        /* m in [lo, hi): both horizontal neighbours exist: column f + 2m >= 1 and
-         * f + 2m + 1 <= nx - 1. */
-        uint32_t lo = f == 0 ? 1u : 0u;
-        uint32_t hi = nx >= 2 + f ? (nx - 2 - f) / 2 + 1 : 0u;
-        if (hi > cnt) hi = cnt;
-        if (lo > hi) lo = hi;
-        for (uint32_t m = 0; m < lo; ++m) /* column 0 */
-            edge_particle(g, c, s0 + m, 0, 0, f + 2 * m + 1 < nx, ro + f + m, dn, up, m, omega);
-        if (hi > lo) {
-            const uint32_t i = s0 + lo, li = ro + f - 1 + lo, ri = ro + f + lo;
-            row_interior(hi - lo, P[0] + i, P[1] + i, P[2] + i, P[0] + li, P[1] + li,
-                         P[2] + li, P[0] + ri, P[1] + ri, P[2] + ri, dn[0] + lo, dn[1] + lo,
-                         dn[2] + lo, up[0] + lo, up[1] + lo, up[2] + lo, g->kl + i, g->kr + i,
-                         g->kd + i, g->ku + i, B[0] + i, B[1] + i, B[2] + i, c->inv_denom + i,
-                         c->pinned + i, omega);
-        }
-        for (uint32_t m = hi; m < cnt; ++m) /* column nx - 1 */
-            edge_particle(g, c, s0 + m, f + 2 * m >= 1, ro + f + m - 1, 0, 0, dn, up, m, omega);
+        __atomic_thread_fence(__ATOMIC_RELEASE);
+        *mine = w + 1;
     }
 }
 

@@ -29,6 +29,7 @@ typedef struct rbc_grid {
                                    right, down (j - 1) and up neighbour; 0 if none */
     float *ll, *lr, *ld, *lu;   /* [n] their rest lengths (as topology.c computes them) */
     float *zeros;               /* [nx / 2 + 2] neighbours of rows beyond the edges */
+    float k_uniform;            /* the one stiffness of every spring, or 0 */
     size_t bytes;
 } rbc_grid;
 
@@ -48,4 +49,16 @@ void rbc_grid_rhs(const rbc_grid *g, struct rbc_cloth_state *c, uint32_t tid, ui
  * keep their positions. */
 void rbc_grid_sweep(const rbc_grid *g, struct rbc_cloth_state *c, uint32_t color, float omega,
                     uint32_t tid, uint32_t nt);
+
+/* `iterations` whole red-black iterations, temporally blocked: at step w iteration
+ * it updates red row w - 2 it, then black row w - 2 it - 1, so a band of 2 iterations
+ * + 2 rows is all that must stay in cache, and every row update sees exactly the
+ * inputs of plain red-then-black iterations (the result is bitwise theirs). Threads
+ * form a pipeline over the iterations (thread t does its rbc_split share); thread t
+ * starts step w once thread t - 1 has finished it (progress[stride * t] counts the
+ * steps a thread finished; zero them and barrier before). Color 0 must be "red": the
+ * lattice's two colors play symmetric roles, so either works. */
+void rbc_grid_wavefront(const rbc_grid *g, struct rbc_cloth_state *c, uint32_t iterations,
+                        float omega, volatile uint32_t *progress, size_t stride, uint32_t tid,
+                        uint32_t nt);
 #endif
