@@ -195,6 +195,28 @@ static void row_interior(uint32_t count, float *restrict px, float *restrict py,
 #undef RBC_ROW_BODY
 }
 
+/* One coordinate of a row's interior with the uniform stiffness kuni: eight streams,
+ * few enough to stay in registers (the three-coordinate loop spills on AVX2). */
+RBC_VECTOR_CLONES
+static void row_axis_uniform(uint32_t count, float *restrict p, const float *restrict l,
+                             const float *restrict r, const float *restrict d,
+                             const float *restrict u, const float *restrict b,
+                             const float *restrict inv, const uint8_t *restrict pin,
+                             float omega, float kuni) {
+    if (omega == 0.0f) {
+        for (uint32_t m = 0; m < count; ++m) {
+            float gv = (b[m] + kuni * l[m] + kuni * r[m] + kuni * d[m] + kuni * u[m]) * inv[m];
+            p[m] = keep_if(pin[m], p[m], gv);
+        }
+    } else {
+        for (uint32_t m = 0; m < count; ++m) {
+            float gv = (b[m] + kuni * l[m] + kuni * r[m] + kuni * d[m] + kuni * u[m]) * inv[m];
+            float o = p[m];
+            p[m] = keep_if(pin[m], o, o + omega * (gv - o));
+        }
+    }
+}
+
 /* A row's edge particle (missing left or right neighbour), scalar. */
 static void edge_particle(const rbc_grid *g, rbc_cloth_state *c, uint32_t i, int has_l,
                           uint32_t il, int has_r, uint32_t ir, const float *const dn[3],
@@ -231,7 +253,13 @@ static void grid_row(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, uint
     if (lo > hi) lo = hi;
     for (uint32_t m = 0; m < lo; ++m) /* column 0 */
         edge_particle(g, c, s0 + m, 0, 0, f + 2 * m + 1 < nx, ro + f + m, dn, up, m, omega);
-    if (hi > lo) {
+    if (hi > lo && g->k_uniform != 0.0f) {
+        const uint32_t i = s0 + lo, li = ro + f - 1 + lo, ri = ro + f + lo;
+        const float *B[3] = {c->bx, c->by, c->bz};
+        for (int a = 0; a < 3; ++a)
+            row_axis_uniform(hi - lo, P[a] + i, P[a] + li, P[a] + ri, dn[a] + lo, up[a] + lo,
+                             B[a] + i, c->inv_denom + i, c->pinned + i, omega, g->k_uniform);
+    } else if (hi > lo) {
         const uint32_t i = s0 + lo, li = ro + f - 1 + lo, ri = ro + f + lo;
         row_interior(hi - lo, P[0] + i, P[1] + i, P[2] + i, P[0] + li, P[1] + li, P[2] + li,
                      P[0] + ri, P[1] + ri, P[2] + ri, dn[0] + lo, dn[1] + lo, dn[2] + lo,
