@@ -2,7 +2,8 @@
 # Install the Debian packages rbcloth needs to build and test, if any is missing.
 # Runs as root (CI and a fresh machine); with sudo otherwise.
 set -euo pipefail
-pkgs=(cmake make gcc libc6-dev pkg-config libcjson-dev libsuitesparse-dev abigail-tools binutils)
+pkgs=(cmake make gcc libc6-dev pkg-config libcjson-dev libsuitesparse-dev abigail-tools binutils
+      libassimp-dev assimp-testmodels valgrind)
 missing=()
 for p in "${pkgs[@]}"; do
   status=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)

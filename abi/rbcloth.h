@@ -35,6 +35,8 @@
  *    are always called on the thread that called rbc_world_step.
  *  - A point cache, like a world, is used by one thread at a time; different caches
  *    may be used concurrently.
+ *  - A mesh (rbc_mesh_import) is immutable: its getters and
+ *    rbc_cloth_create_from_mesh may use it from several threads at once.
  *  - rbc_last_error() is per thread.
  *  - The remaining functions without a world or cache argument are thread-safe.
  *
@@ -48,8 +50,9 @@
  *    OBJ/PC2 writers. 1.1: selectable global solvers and iteration control
  *    (rbc_solver_def), shear and bend springs, multicolor coloring, residual and
  *    PD objective in stats, cloth state get/set, color sizes. 1.2: the energy guard
- *    (rbc_solver_def.energy_guard; energy, budget and clamps in stats) and the
- *    memory a world holds (stats.memory_bytes).
+ *    (rbc_solver_def.energy_guard; energy, budget and clamps in stats), the
+ *    memory a world holds (stats.memory_bytes), and mesh import (rbc_mesh_import:
+ *    files read with assimp into library-owned meshes, rbc_cloth_create_from_mesh).
  *  - The ABI version is not the library's release version (rbc_version_string).
  */
 #ifndef RBCLOTH_H
@@ -673,6 +676,183 @@ RBC_API rbc_result RBC_CALL rbc_cloth_set_state(rbc_world_id world, rbc_cloth_id
                                                 const float *positions,
                                                 const float *previous);
 
+/* --- 1.2: mesh import --- */
+
+/// A mesh read from a file by rbc_mesh_import (assimp). It belongs to the library,
+/// not to a world: one mesh can make cloths in several worlds. Immutable once made:
+/// its getters may run on any thread at once; destroy it when no call uses it.
+/// 0 is null. (1.2)
+typedef uint32_t rbc_mesh_id;
+
+/// What rbc_mesh_import does with a face of more than 4 corners. (1.2)
+typedef int32_t rbc_ngon_mode;
+enum {
+    /// Split it into a fan of quads from its first corner, (0, i, i+1, i+2) for
+    /// i = 1, 3, 5, ..., and one triangle (0, n-2, n-1) when n is odd (which may
+    /// then pair with a neighbour). Convex n-gons give convex pieces. The default.
+    RBC_NGON_SPLIT = 0,
+    /// Refuse the file with RBC_ERR_BAD_MESH naming the mesh and the face.
+    RBC_NGON_REFUSE = 1,
+    RBC_NGON_FORCE32 = 0x7FFFFFFF
+};
+
+/// How a file is turned into a cloth mesh. Fill one with rbc_mesh_import_def_init
+/// (or rbc_mesh_import_def_default). Lengths are metres after `scale`. (1.2)
+typedef struct rbc_mesh_import_def {
+    /// sizeof(rbc_mesh_import_def) as compiled by the host.
+    uint32_t struct_size;
+    /// Which meshes of the file's scene to take, merged into one: index -1 = all of
+    /// them; otherwise only aiScene::mMeshes[mesh_index] (0-based, file order).
+    /// Default -1.
+    int32_t mesh_index;
+    /// With mesh_index -1, take only the meshes whose name, or the name of a node
+    /// that places them, equals this (UTF-8, exact); NULL = no name filter. A name
+    /// that matches nothing is RBC_ERR_INVALID_ARGUMENT (the message lists the
+    /// names there are). Default NULL.
+    const char *mesh_name;
+    /// Factor applied to every position after the node hierarchy's transforms
+    /// (0.01 for a file in centimetres); finite and > 0. Default 1.
+    float scale;
+    /// 1: merge vertices at one position (assimp keeps the copies that differ in
+    /// normal or UV, at seams and hard edges) so the cloth is connected there; 0:
+    /// keep them. Default 1.
+    uint32_t weld;
+    /// With weld 1: vertices closer than this, metres, merge into the first of them;
+    /// 0 = only bit-identical positions. Finite and >= 0. Default 0.
+    float weld_distance;
+    /// 1: pair triangles across shared edges into quads, best pairs first (greedy
+    /// on the score below), where the quad is convex and within both bounds; 0:
+    /// leave every triangle as springs. Default 1.
+    uint32_t pair_triangles;
+    /// Largest |corner angle - 90| of a paired quad, degrees, in [0, 90]. The
+    /// pair's score is its largest deviation (best first). Default 45 (a square
+    /// scores 0, the rhombus of two equilateral triangles 30).
+    float pair_max_angle_deviation_deg;
+    /// Largest angle between the normals of the two triangles of a pair, degrees
+    /// (near-planar), in [0, 180]. Default 30.
+    float pair_max_fold_deg;
+    /// An rbc_ngon_mode. Default RBC_NGON_SPLIT.
+    rbc_ngon_mode ngons;
+    /// Pins from the file's vertex colors (its first color set): a vertex is pinned
+    /// when red >= pin_color_threshold and green and blue are < it (a red vertex;
+    /// white is not). Colors are in [0, 1] (8-bit colors are divided by 255). 0 =
+    /// off, else in (0, 1]. Default 0.5.
+    float pin_color_threshold;
+    /// Pin the vertices within pin_plane_distance of the plane n . x = d with
+    /// pin_plane = (n, d); n need not be unit but must not be zero. A negative
+    /// distance turns the rule off. Default -1 (off), pin_plane (0, 1, 0, 0).
+    float pin_plane[4];
+    float pin_plane_distance;
+    /// Pin the vertices within pin_point_distance of pin_point; negative = off.
+    /// Default -1 (off), pin_point (0, 0, 0).
+    float pin_point[3];
+    float pin_point_distance;
+    /// Pin the top row: the vertices whose coordinate along axis pin_top_axis (0 x,
+    /// 1 y, 2 z) is within pin_top_tolerance of the largest; -1 = off. Default -1,
+    /// tolerance 1e-4.
+    int32_t pin_top_axis;
+    float pin_top_tolerance;
+} rbc_mesh_import_def;
+
+/// What rbc_mesh_import made of a file, read with rbc_mesh_get_info (set
+/// struct_size first). Counts of faces are of the meshes taken. (1.2)
+typedef struct rbc_mesh_info {
+    /// sizeof(rbc_mesh_info) as compiled by the host.
+    uint32_t struct_size;
+    /// The mesh: vertices, quads (all kinds below), explicit springs (edges of
+    /// leftover triangles that are no quad's edge) and pinned vertices.
+    uint32_t vertex_count;
+    uint32_t quad_count;
+    uint32_t spring_count;
+    uint32_t pin_count;
+    /// Mesh placements taken (a mesh placed by two nodes counts twice), and their
+    /// vertices and faces as assimp gave them.
+    uint32_t source_mesh_count;
+    uint32_t source_vertex_count;
+    uint32_t source_face_count;
+    /// Faces of the file kept as quads and as triangles, by their corners after
+    /// welding (a quad with two corners welded into one is a triangle).
+    uint32_t file_quads;
+    uint32_t file_triangles;
+    /// Triangles merged into quads (2 per quad made), and triangles left as springs.
+    uint32_t paired_triangles;
+    uint32_t leftover_triangles;
+    /// Faces of more than 4 corners split, and the quads and triangles they gave.
+    /// Always quad_count = file_quads + quads_from_ngons + paired_triangles / 2 and
+    /// file_triangles + triangles_from_ngons = paired_triangles + leftover_triangles.
+    uint32_t ngons_split;
+    uint32_t quads_from_ngons;
+    uint32_t triangles_from_ngons;
+    /// Points and lines left out (faces of 1 or 2 indices).
+    uint32_t points_lines_skipped;
+    /// Faces and n-gon pieces dropped as degenerate: fewer than 3 corners after
+    /// welding, a corner repeated apart from its neighbour, or zero area (as
+    /// rbc_cloth_create judges a quad: area^2 <= 1e-12 longest edge^4).
+    uint32_t degenerate_faces;
+    /// Vertices merged away by welding, and vertices no face uses (dropped).
+    uint32_t welded_vertices;
+    uint32_t unused_vertices;
+    /// Colors rbc_cloth_create gives this mesh without shear or bend springs, and
+    /// whether its spring graph (quad edges and springs) is bipartite: 1 = two colors
+    /// do (Red-Black), 0 = an odd cycle exists (triangles, odd loops).
+    uint32_t color_count;
+    uint32_t bipartite;
+    /// Pins by vertex color and by the def's rules (a vertex found by both counts
+    /// in both; pin_count counts it once).
+    uint32_t pins_from_colors;
+    uint32_t pins_from_rules;
+    /// Axis-aligned bounds of the positions, metres.
+    float bounds_min[3];
+    float bounds_max[3];
+} rbc_mesh_info;
+
+/// Fill an import def with its defaults (see rbc_world_def_init for struct_size).
+RBC_API rbc_result RBC_CALL rbc_mesh_import_def_init(rbc_mesh_import_def *def,
+                                                     uint32_t struct_size);
+/// Read `path` (UTF-8; any format assimp reads: OBJ, PLY, FBX, glTF, Collada, STL,
+/// ...) into a cloth mesh, as `def` says (NULL = the defaults). Polygons are kept
+/// (assimp runs with JoinIdenticalVertices | ValidateDataStructure only, no
+/// triangulation); the node hierarchy's transforms are applied, then `scale`; then
+/// welding, n-gon splitting, triangle pairing, leftover triangles as springs,
+/// unused vertices dropped, pins. *out_mesh receives its id.
+/// Errors (nothing is created): RBC_ERR_IO the file cannot be opened or assimp
+/// cannot parse it (assimp's message is quoted); RBC_ERR_UNSUPPORTED no assimp
+/// reader for the format; RBC_ERR_BAD_MESH no face to simulate, a non-finite
+/// position, an n-gon with RBC_NGON_REFUSE (the message names the file, mesh and
+/// face or vertex); RBC_ERR_INVALID_ARGUMENT a bad def or a mesh_index/mesh_name
+/// that selects nothing; RBC_ERR_CAPACITY 4096 meshes exist. Nothing is printed
+/// (assimp's logging stays off). Imports on several threads are serialised.
+/// The import runs in the calling process: a file that crashes assimp itself
+/// crashes the host (hosts that read untrusted files import in a child process).
+RBC_API rbc_result RBC_CALL rbc_mesh_import(const char *path, const rbc_mesh_import_def *def,
+                                            rbc_mesh_id *out_mesh);
+/// Destroy a mesh (cloths made from it are not affected).
+RBC_API rbc_result RBC_CALL rbc_mesh_destroy(rbc_mesh_id mesh);
+/// Fill *info (set info->struct_size first).
+RBC_API rbc_result RBC_CALL rbc_mesh_get_info(rbc_mesh_id mesh, rbc_mesh_info *info);
+/// Copy the mesh's arrays into caller buffers: positions (3 floats per vertex,
+/// metres), quads (4 vertex indices each, in order around the face), springs (2
+/// indices each) and pins (vertex indices, ascending). `capacity` is the number of
+/// elements (floats or uint32_t) the buffer holds; with the buffer NULL only
+/// *out_count (if not NULL) receives the number of elements needed.
+RBC_API rbc_result RBC_CALL rbc_mesh_get_positions(rbc_mesh_id mesh, float *xyz,
+                                                   size_t capacity, size_t *out_count);
+RBC_API rbc_result RBC_CALL rbc_mesh_get_quads(rbc_mesh_id mesh, uint32_t *quads,
+                                               size_t capacity, size_t *out_count);
+RBC_API rbc_result RBC_CALL rbc_mesh_get_springs(rbc_mesh_id mesh, uint32_t *springs,
+                                                 size_t capacity, size_t *out_count);
+RBC_API rbc_result RBC_CALL rbc_mesh_get_pins(rbc_mesh_id mesh, uint32_t *pins,
+                                              size_t capacity, size_t *out_count);
+/// Create a cloth in `world` from a mesh: its positions, quads, springs and pins;
+/// everything else (masses or density or vertex_mass, stiffness, shear and bend
+/// stiffness, damping) from `settings` (NULL = the defaults). The geometry fields of
+/// settings (vertex_count, positions, quad_count, quads, spring_count, springs,
+/// pin_count, pins) are ignored; `masses`, if given, must hold the mesh's
+/// vertex_count values. Errors as rbc_cloth_create.
+RBC_API rbc_result RBC_CALL rbc_cloth_create_from_mesh(rbc_world_id world, rbc_mesh_id mesh,
+                                                       const rbc_cloth_def *settings,
+                                                       rbc_cloth_id *out_cloth);
+
 /* ------------------------------------------------------------------------- */
 /* Function table                                                            */
 /* ------------------------------------------------------------------------- */
@@ -736,10 +916,29 @@ typedef struct rbc_api_v1 {
                                            float *positions, float *previous, size_t capacity);
     rbc_result (RBC_CALL *cloth_set_state)(rbc_world_id world, rbc_cloth_id cloth,
                                            const float *positions, const float *previous);
+    /* --- 1.2 --- */
+    rbc_result (RBC_CALL *mesh_import_def_init)(rbc_mesh_import_def *def, uint32_t struct_size);
+    rbc_result (RBC_CALL *mesh_import)(const char *path, const rbc_mesh_import_def *def,
+                                       rbc_mesh_id *out_mesh);
+    rbc_result (RBC_CALL *mesh_destroy)(rbc_mesh_id mesh);
+    rbc_result (RBC_CALL *mesh_get_info)(rbc_mesh_id mesh, rbc_mesh_info *info);
+    rbc_result (RBC_CALL *mesh_get_positions)(rbc_mesh_id mesh, float *xyz, size_t capacity,
+                                              size_t *out_count);
+    rbc_result (RBC_CALL *mesh_get_quads)(rbc_mesh_id mesh, uint32_t *quads, size_t capacity,
+                                          size_t *out_count);
+    rbc_result (RBC_CALL *mesh_get_springs)(rbc_mesh_id mesh, uint32_t *springs,
+                                            size_t capacity, size_t *out_count);
+    rbc_result (RBC_CALL *mesh_get_pins)(rbc_mesh_id mesh, uint32_t *pins, size_t capacity,
+                                         size_t *out_count);
+    rbc_result (RBC_CALL *cloth_create_from_mesh)(rbc_world_id world, rbc_mesh_id mesh,
+                                                  const rbc_cloth_def *settings,
+                                                  rbc_cloth_id *out_cloth);
 } rbc_api_v1;
 
 /// sizeof(rbc_api_v1) in ABI 1.0 (a host built against 1.0 checks struct_size >= it).
 #define RBC_API_V1_SIZE_V1_0 ((uint32_t)offsetof(rbc_api_v1, solver_def_init))
+/// sizeof(rbc_api_v1) in ABI 1.1 (before the 1.2 mesh import entries).
+#define RBC_API_V1_SIZE_V1_1 ((uint32_t)offsetof(rbc_api_v1, mesh_import_def_init))
 
 /// The function table of ABI major `abi_major`, or NULL if this library does not
 /// implement that major. The table is static: never free it.
@@ -752,6 +951,12 @@ typedef const void *(RBC_CALL *rbc_get_api_fn)(uint32_t abi_major);
 static inline rbc_solver_def rbc_solver_def_default(void) {
     rbc_solver_def d;
     rbc_solver_def_init(&d, (uint32_t)sizeof d);
+    return d;
+}
+/// C and C++ convenience: an import def with defaults. (1.2)
+static inline rbc_mesh_import_def rbc_mesh_import_def_default(void) {
+    rbc_mesh_import_def d;
+    rbc_mesh_import_def_init(&d, (uint32_t)sizeof d);
     return d;
 }
 

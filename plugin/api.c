@@ -50,6 +50,15 @@ static const rbc_api_v1 g_api_v1 = {
     rbc_cloth_get_colors,
     rbc_cloth_get_state,
     rbc_cloth_set_state,
+    rbc_mesh_import_def_init,
+    rbc_mesh_import,
+    rbc_mesh_destroy,
+    rbc_mesh_get_info,
+    rbc_mesh_get_positions,
+    rbc_mesh_get_quads,
+    rbc_mesh_get_springs,
+    rbc_mesh_get_pins,
+    rbc_cloth_create_from_mesh,
 };
 
 RBC_API const void *RBC_CALL rbc_get_api(uint32_t abi_major) {
