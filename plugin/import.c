@@ -1171,6 +1171,34 @@ RBC_API rbc_result RBC_CALL rbc_mesh_import(const char *path, const rbc_mesh_imp
         }
     }
     fclose(probe);
+    /* assimp 5.2.5 reserves memory for the vertex count an OFF header declares before
+     * reading any vertex: a header claiming 3.5e11 vertices (assimp-testmodels'
+     * invalid/OutOfMemory.off) exhausts memory and takes the host down. A vertex
+     * needs at least 6 bytes of text ("0 0 0\n") and a face 8: refuse counts the
+     * file cannot hold. The header is "[ST][C][N][4][n]OFF" then the counts. */
+    if (!is_ply) {
+        const char *q = head;
+        while (*q == 'S' || *q == 'T' || *q == 'C' || *q == 'N' || *q == '4' || *q == 'n') ++q;
+        if (strncmp(q, "OFF", 3) == 0 && (q[3] == '\n' || q[3] == '\r' || q[3] == ' ' || q[3] == '\t')) {
+            q += 3;
+            while (*q == ' ' || *q == '\t' || *q == '\r' || *q == '\n' || *q == '#') {
+                if (*q == '#') /* a comment line */
+                    while (*q && *q != '\n') ++q;
+                else
+                    ++q;
+            }
+            char *end1 = NULL, *end2 = NULL;
+            unsigned long long nv = strtoull(q, &end1, 10);
+            unsigned long long nf = end1 && end1 != q ? strtoull(end1, &end2, 10) : 0;
+            unsigned long long sz = (unsigned long long)st.st_size;
+            if (strncmp(q, "BINARY", 6) != 0 && end1 != q && (nv > sz / 6 || nf > sz / 8))
+                return import_error(&b, RBC_ERR_IO,
+                                    "the OFF header declares %llu vertices and %llu faces, more "
+                                    "than a %llu-byte file can hold (refused here: assimp 5.2.5 "
+                                    "allocates for the declared counts first)",
+                                    nv, nf, sz);
+        }
+    }
     if (is_ply && !has_end)
         return import_error(&b, RBC_ERR_IO,
                             "assimp could not read the file: a PLY header without end_header "
