@@ -92,23 +92,32 @@ int rbc_grid_detect(const rbc_topology *t, const rbc_allocator *a, rbc_grid **ou
         }
         h->row_first[c][ny] = at;
     }
-    /* Every particle where the stencil says, every spring a stencil direction. */
+    /* Every particle where the stencil says ... */
     for (uint32_t v = 0; v < n; ++v) {
         uint32_t col = v % nx, row = v / nx, c = (col + row + h->c0) & 1u;
-        uint32_t i = t->to_internal[v];
-        if (i != h->row_first[c][row] + (col - first_col(h, c, row)) / 2) goto not_grid;
-        for (uint32_t k = t->adj_start[i]; k < t->adj_start[i + 1]; ++k) {
-            uint32_t jn = t->adj_nbr[k], u = t->to_host[jn];
-            float s = t->adj_k[k];
-            /* The rest length as topology.c computes it: double distance, rounded. */
-            double ex = (double)t->rest_x[i] - t->rest_x[jn], ey = (double)t->rest_y[i] - t->rest_y[jn],
-                   ez = (double)t->rest_z[i] - t->rest_z[jn];
-            float L = (float)sqrt(ex * ex + ey * ey + ez * ez);
-            if (col > 0 && u == v - 1) h->kl[i] = s, h->ll[i] = L;
-            else if (col + 1 < nx && u == v + 1) h->kr[i] = s, h->lr[i] = L;
-            else if (row > 0 && u == v - nx) h->kd[i] = s, h->ld[i] = L;
-            else if (row + 1 < ny && u == v + nx) h->ku[i] = s, h->lu[i] = L;
-            else goto not_grid;
+        if (t->to_internal[v] != h->row_first[c][row] + (col - first_col(h, c, row)) / 2)
+            goto not_grid;
+    }
+    /* ... and every spring a stencil direction: (v, v + 1) in a row or (v, v + nx).
+     * Springs are unique (topology.c), so each direction is set at most once; the
+     * rest length is the spring's own. */
+    for (uint32_t k = 0; k < t->ns; ++k) {
+        uint32_t ia = t->sa[k], ib = t->sb[k];
+        uint32_t va = t->to_host[ia], vb = t->to_host[ib];
+        if (va > vb) {
+            uint32_t tmp = va;
+            va = vb, vb = tmp;
+            tmp = ia, ia = ib, ib = tmp;
+        }
+        float sk = t->stiff[k], L = t->rest_len[k];
+        if (vb == va + 1 && va % nx + 1 < nx) {
+            h->kr[ia] = sk, h->lr[ia] = L; /* ib is ia's right neighbour */
+            h->kl[ib] = sk, h->ll[ib] = L;
+        } else if (vb == va + nx) {
+            h->ku[ia] = sk, h->lu[ia] = L;
+            h->kd[ib] = sk, h->ld[ib] = L;
+        } else {
+            goto not_grid;
         }
     }
     /* One stiffness for every spring: the sweep broadcasts it. */
