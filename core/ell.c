@@ -64,16 +64,6 @@ int rbc_ell_build(const rbc_topology *t, const rbc_allocator *a, rbc_ell **out) 
 
 enum { CHUNK = 256 };
 
-/* pin ? old : v, branch-free (vectorizes). */
-static inline float keep_if(uint8_t pin, float old, float v) {
-    uint32_t bo, bv, mk = 0u - (uint32_t)(pin != 0);
-    memcpy(&bo, &old, 4);
-    memcpy(&bv, &v, 4);
-    uint32_t r = (bo & mk) | (bv & ~mk);
-    float o;
-    memcpy(&o, &r, 4);
-    return o;
-}
 
 /* Particles [m0, m0 + len) of a color (internal index base + m): accumulate slot by
  * slot, then write. The gathers read only other colors, the stores come after them. */
@@ -105,16 +95,16 @@ static void ell_chunk(uint32_t len, uint32_t width, size_t stride, const uint32_
     if (omega == 0.0f) {
         for (uint32_t m = 0; m < len; ++m) {
             float r = inv[m];
-            ox[m] = keep_if(pin[m], ox[m], ax[m] * r);
-            oy[m] = keep_if(pin[m], oy[m], ay[m] * r);
-            oz[m] = keep_if(pin[m], oz[m], az[m] * r);
+            ox[m] = rbc_keep_if(pin[m], ox[m], ax[m] * r);
+            oy[m] = rbc_keep_if(pin[m], oy[m], ay[m] * r);
+            oz[m] = rbc_keep_if(pin[m], oz[m], az[m] * r);
         }
     } else {
         for (uint32_t m = 0; m < len; ++m) {
             float r = inv[m], x = ox[m], y = oy[m], z = oz[m];
-            ox[m] = keep_if(pin[m], x, x + omega * (ax[m] * r - x));
-            oy[m] = keep_if(pin[m], y, y + omega * (ay[m] * r - y));
-            oz[m] = keep_if(pin[m], z, z + omega * (az[m] * r - z));
+            ox[m] = rbc_keep_if(pin[m], x, x + omega * (ax[m] * r - x));
+            oy[m] = rbc_keep_if(pin[m], y, y + omega * (ay[m] * r - y));
+            oz[m] = rbc_keep_if(pin[m], z, z + omega * (az[m] * r - z));
         }
     }
 }

@@ -142,16 +142,6 @@ not_grid:
 /* The interior of a row: every particle has its left and right neighbour. Clones
  * for AVX2 and AVX-512 are picked at load time (simd.h), the default is SSE2. */
 
-/* pin ? old : v without a branch (bitwise, so the compiler vectorizes it). */
-static inline float keep_if(uint8_t pin, float old, float v) {
-    uint32_t bo, bv, mk = 0u - (uint32_t)(pin != 0);
-    memcpy(&bo, &old, 4);
-    memcpy(&bv, &v, 4);
-    uint32_t r = (bo & mk) | (bv & ~mk);
-    float out;
-    memcpy(&out, &r, 4);
-    return out;
-}
 
 /* The three coordinates in one loop: the stiffnesses, b's row and the pins are read
  * once per particle. */
@@ -180,9 +170,9 @@ static void row_interior(uint32_t count, float *restrict px, float *restrict py,
         float gz = (bz[m] + a * lz[m] + b * rz[m] + c * dz[m] + d * uz[m]) * r;          \
         float ox = px[m], oy = py[m], oz = pz[m];                                        \
         RELAX                                                                            \
-        px[m] = keep_if(pin[m], ox, gx);                                                 \
-        py[m] = keep_if(pin[m], oy, gy);                                                 \
-        pz[m] = keep_if(pin[m], oz, gz);                                                 \
+        px[m] = rbc_keep_if(pin[m], ox, gx);                                                 \
+        py[m] = rbc_keep_if(pin[m], oy, gy);                                                 \
+        pz[m] = rbc_keep_if(pin[m], oz, gz);                                                 \
     }
 #define RBC_K_ARRAYS float a = kl[m], b = kr[m], c = kd[m], d = ku[m];
 #define RBC_K_UNIFORM float a = kuni, b = kuni, c = kuni, d = kuni;
@@ -215,13 +205,13 @@ static void row_axis_uniform(uint32_t count, float *restrict p, const float *res
     if (omega == 0.0f) {
         for (uint32_t m = 0; m < count; ++m) {
             float gv = (b[m] + kuni * l[m] + kuni * r[m] + kuni * d[m] + kuni * u[m]) * inv[m];
-            p[m] = keep_if(pin[m], p[m], gv);
+            p[m] = rbc_keep_if(pin[m], p[m], gv);
         }
     } else {
         for (uint32_t m = 0; m < count; ++m) {
             float gv = (b[m] + kuni * l[m] + kuni * r[m] + kuni * d[m] + kuni * u[m]) * inv[m];
             float o = p[m];
-            p[m] = keep_if(pin[m], o, o + omega * (gv - o));
+            p[m] = rbc_keep_if(pin[m], o, o + omega * (gv - o));
         }
     }
 }

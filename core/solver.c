@@ -1016,6 +1016,20 @@ static void energy_start(step_ctx *ctx, uint32_t tid, uint32_t nt) {
     }
 }
 
+/* All threads: add sign * (kinetic + gravitational energy of p against x) to every
+ * cloth's budget of this step (around the host callback: the change it makes is
+ * work it does). */
+static void budget_add_guarded(step_ctx *ctx, double sign, uint32_t tid, uint32_t nt) {
+    rbc_solver *s = ctx->s;
+    for (uint32_t k = 0; k < s->cloth_count; ++k)
+        rbc_energy_blocks(s->cloths[k], s->cloths[k]->p, s->cloths[k]->x, s->gravity, 0, tid, nt);
+    rbc_pool_barrier(s->pool);
+    if (tid == 0)
+        for (uint32_t k = 0; k < s->cloth_count; ++k)
+            s->cloths[k]->e_step_budget +=
+                sign * rbc_energy_sum(s->cloths[k], ctx->h, s->gravity, 0).guarded;
+}
+
 /* Thread 0, after the last substep's check: compare each cloth's energy with its
  * budget and decide the clamp (or the failure). */
 static void energy_decide(step_ctx *ctx) {
@@ -1163,16 +1177,7 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
         }
         if (s->callback) {
             /* The host's corrections count as work it does: the change of energy. */
-            if (guard) {
-                for (uint32_t k = 0; k < s->cloth_count; ++k)
-                    rbc_energy_blocks(s->cloths[k], s->cloths[k]->p, s->cloths[k]->x, s->gravity,
-                                      0, tid, nt);
-                rbc_pool_barrier(pool);
-                if (tid == 0)
-                    for (uint32_t k = 0; k < s->cloth_count; ++k)
-                        s->cloths[k]->e_step_budget -=
-                            rbc_energy_sum(s->cloths[k], ctx->h, s->gravity, 0).guarded;
-            }
+            if (guard) budget_add_guarded(ctx, -1.0, tid, nt);
             if (tid == 0) {
                 t0 = now_ms();
                 run_callback(ctx, sub);
@@ -1180,16 +1185,7 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
             }
             rbc_pool_barrier(pool);
             if (ctx->result != RBC_OK) return;
-            if (guard) {
-                for (uint32_t k = 0; k < s->cloth_count; ++k)
-                    rbc_energy_blocks(s->cloths[k], s->cloths[k]->p, s->cloths[k]->x, s->gravity,
-                                      0, tid, nt);
-                rbc_pool_barrier(pool);
-                if (tid == 0)
-                    for (uint32_t k = 0; k < s->cloth_count; ++k)
-                        s->cloths[k]->e_step_budget +=
-                            rbc_energy_sum(s->cloths[k], ctx->h, s->gravity, 0).guarded;
-            }
+            if (guard) budget_add_guarded(ctx, 1.0, tid, nt);
         }
 
         STAGE_BEGIN();
