@@ -2,8 +2,10 @@
 # Install the Debian packages rbcloth needs to build and test, if any is missing.
 # Runs as root (CI and a fresh machine); with sudo otherwise.
 set -euo pipefail
+# zlib1g-dev: assimp's CMake config links /usr/lib/x86_64-linux-gnu/libz.so, which
+# libassimp-dev does not pull in (a fresh bookworm root fails to link without it).
 pkgs=(cmake make gcc libc6-dev pkg-config libcjson-dev libsuitesparse-dev abigail-tools binutils
-      libassimp-dev assimp-testmodels valgrind)
+      libassimp-dev zlib1g-dev assimp-testmodels valgrind)
 missing=()
 for p in "${pkgs[@]}"; do
   status=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)
