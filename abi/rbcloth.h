@@ -52,7 +52,9 @@
  *    PD objective in stats, cloth state get/set, color sizes. 1.2: the energy guard
  *    (rbc_solver_def.energy_guard; energy, budget and clamps in stats), the
  *    memory a world holds (stats.memory_bytes), and mesh import (rbc_mesh_import:
- *    files read with assimp into library-owned meshes, rbc_cloth_create_from_mesh).
+ *    files read with assimp into library-owned meshes, rbc_cloth_create_from_mesh),
+ *    MDD and OBJ-sequence caches (RBC_CACHE_MDD, RBC_CACHE_OBJ_SEQUENCE, with
+ *    rbc_cache_def.quads).
  *  - The ABI version is not the library's release version (rbc_version_string).
  */
 #ifndef RBCLOTH_H
@@ -173,6 +175,15 @@ typedef int32_t rbc_cache_format;
 enum {
     /// PC2 (Blender's Mesh Cache modifier, 3ds Max): little-endian, "POINTCACHE2".
     RBC_CACHE_PC2 = 1,
+    /// MDD (LightWave, Blender's Mesh Cache modifier): big-endian; int32 frames,
+    /// int32 points, float32 times[frames] (start_frame + k * sample_rate), then
+    /// float32[frames][points][3]. (1.2)
+    RBC_CACHE_MDD = 2,
+    /// A sequence of Wavefront OBJ files, one per frame: `path` is a prefix and
+    /// frame k (0-based, in write order) goes to "<path>_%04d.obj" numbered k + 1
+    /// ("cloth_0001.obj", ...), "v" lines in the given vertex order with %.9g (every
+    /// float reads back exactly), then rbc_cache_def.quads as 1-based "f" lines. (1.2)
+    RBC_CACHE_OBJ_SEQUENCE = 3,
     RBC_CACHE_FORMAT_FORCE32 = 0x7FFFFFFF
 };
 
@@ -444,7 +455,12 @@ typedef struct rbc_cache_def {
     /// An rbc_cache_format. Default RBC_CACHE_PC2.
     rbc_cache_format format;
     /// Output file (UTF-8). It appears only when rbc_cache_finish succeeds; until
-    /// then data goes to "<path>.tmp" (written, then renamed).
+    /// then data goes to "<path>.tmp" (written, then renamed). MDD also uses
+    /// "<path>.tmp.frames" while writing. RBC_CACHE_OBJ_SEQUENCE: the prefix of the
+    /// files; every frame is written to "<name>.tmp" and all are renamed into place,
+    /// in frame order, by rbc_cache_finish (so the last file appearing means the
+    /// whole sequence is there). rbc_cache_destroy, a failed finish or a failed
+    /// create removes every temporary file and leaves the destinations untouched.
     const char *path;
     /// Points per frame, at least 1.
     uint32_t point_count;
@@ -452,7 +468,15 @@ typedef struct rbc_cache_def {
     float start_frame;
     /// Frames between samples, stored in the header. Default 1.
     float sample_rate;
+    /// The faces written by RBC_CACHE_OBJ_SEQUENCE: quad_count quads of 4 vertex
+    /// indices (each < point_count), copied at rbc_cache_create; NULL and 0 = "v"
+    /// lines only. Ignored by PC2 and MDD. Default NULL, 0. (1.2)
+    const uint32_t *quads;
+    uint32_t quad_count;
 } rbc_cache_def;
+
+/// sizeof(rbc_cache_def) in ABI 1.0 and 1.1 (before quads).
+#define RBC_CACHE_DEF_SIZE_V1_0 ((uint32_t)offsetof(rbc_cache_def, quads))
 
 /* ------------------------------------------------------------------------- */
 /* Stats                                                                     */

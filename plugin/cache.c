@@ -1,6 +1,7 @@
-/* cache.c -- writers of what DCC tools read: the rest mesh as OBJ and PC2 point
- * caches. Every file is written to "<path>.tmp" and renamed into place only when
- * complete, so a reader never sees half a file. */
+/* cache.c -- writers of what DCC tools read: the rest mesh as OBJ, and point caches
+ * as PC2, MDD or a sequence of OBJ files. Every file is written to "<path>.tmp" and
+ * renamed into place only when complete, so a reader never sees half a file; an
+ * abandoned or failed cache removes its temporary files. */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -15,8 +16,12 @@
 #define RBC_MAX_CACHES 4096u
 
 typedef struct cache {
+    /* PC2: the temporary file (header + frames). MDD: the frames alone, in
+     * frames_path; the header needs the frame count first, so finish assembles
+     * the file in tmp_path. OBJ sequence: NULL (one file per frame). */
     FILE *f;
-    char *path, *tmp_path;
+    char *path, *tmp_path, *frames_path;
+    uint32_t *quads;
     rbc_cache_def def;
     uint32_t frames;
 } cache;
@@ -44,6 +49,17 @@ static int put_f32le(FILE *f, float x) {
     uint32_t v;
     memcpy(&v, &x, 4);
     return put_u32le(f, v);
+}
+
+static int put_u32be(FILE *f, uint32_t v) {
+    unsigned char b[4] = {(unsigned char)(v >> 24), (unsigned char)(v >> 16),
+                          (unsigned char)(v >> 8), (unsigned char)v};
+    return fwrite(b, 1, 4, f) == 4;
+}
+static int put_f32be(FILE *f, float x) {
+    uint32_t v;
+    memcpy(&v, &x, 4);
+    return put_u32be(f, v);
 }
 
 static int host_is_little_endian(void) {
@@ -112,8 +128,10 @@ RBC_API rbc_result RBC_CALL rbc_cache_def_init(rbc_cache_def *def, uint32_t stru
     d.format = RBC_CACHE_PC2;
     d.start_frame = 0.0f;
     d.sample_rate = 1.0f;
-    return rbc_def_init_common(def, struct_size, &d, sizeof d, 0, "rbc_cache_def_init",
-                               "rbc_cache_def");
+    d.quads = NULL;
+    d.quad_count = 0;
+    return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_CACHE_DEF_SIZE_V1_0,
+                               "rbc_cache_def_init", "rbc_cache_def");
 }
 
 /* The PC2 header: char[12] "POINTCACHE2\0", int32 version 1, int32 points,
@@ -126,12 +144,32 @@ static int write_pc2_header(cache *c) {
            put_u32le(c->f, c->frames);
 }
 
+/* "<prefix>_0001.obj" (+ ".tmp") for frame k (0-based): malloc'd, or NULL. */
+static char *objseq_name(const char *prefix, uint32_t k, int tmp) {
+    size_t size = strlen(prefix) + 32;
+    char *r = malloc(size);
+    if (r) snprintf(r, size, "%s_%04u.obj%s", prefix, k + 1, tmp ? ".tmp" : "");
+    return r;
+}
+
+static void objseq_remove_tmp(const cache *c, uint32_t first) {
+    for (uint32_t k = first; k < c->frames; ++k) {
+        char *t = objseq_name(c->path, k, 1);
+        if (t) remove(t);
+        free(t);
+    }
+}
+
 static void cache_free(cache *c) {
     if (!c) return;
     if (c->f) fclose(c->f);
     if (c->tmp_path) remove(c->tmp_path);
+    if (c->frames_path) remove(c->frames_path);
+    if (c->def.format == RBC_CACHE_OBJ_SEQUENCE) objseq_remove_tmp(c, 0);
     free(c->path);
     free(c->tmp_path);
+    free(c->frames_path);
+    free(c->quads);
     free(c);
 }
 
@@ -140,14 +178,22 @@ RBC_API rbc_result RBC_CALL rbc_cache_create(const rbc_cache_def *user_def, rbc_
     if (!out) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: out_cache is NULL", fn);
     *out = 0;
     if (!user_def) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: def is NULL", fn);
-    if (user_def->struct_size != sizeof(rbc_cache_def))
+    if (user_def->struct_size != sizeof(rbc_cache_def) &&
+        user_def->struct_size != RBC_CACHE_DEF_SIZE_V1_0)
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                              "%s: rbc_cache_def->struct_size is %u, which matches no released "
-                             "version (this library knows %zu)",
-                             fn, user_def->struct_size, sizeof(rbc_cache_def));
-    rbc_cache_def def = *user_def;
-    if (def.format != RBC_CACHE_PC2)
-        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: format %d is not an rbc_cache_format",
+                             "version (this library knows %zu and the older size %u)",
+                             fn, user_def->struct_size, sizeof(rbc_cache_def),
+                             RBC_CACHE_DEF_SIZE_V1_0);
+    /* Fields the host's struct does not have take their defaults. */
+    rbc_cache_def def;
+    memset(&def, 0, sizeof def);
+    memcpy(&def, user_def, user_def->struct_size);
+    if (def.format != RBC_CACHE_PC2 && def.format != RBC_CACHE_MDD &&
+        def.format != RBC_CACHE_OBJ_SEQUENCE)
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                             "%s: format %d is not an rbc_cache_format (PC2 1, MDD 2, "
+                             "OBJ sequence 3)",
                              fn, (int)def.format);
     if (!def.path || !*def.path)
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: path is empty", fn);
@@ -157,28 +203,57 @@ RBC_API rbc_result RBC_CALL rbc_cache_create(const rbc_cache_def *user_def, rbc_
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                              "%s: start_frame %g and sample_rate %g must be finite, the rate > 0",
                              fn, (double)def.start_frame, (double)def.sample_rate);
+    if (def.format != RBC_CACHE_OBJ_SEQUENCE) {
+        def.quads = NULL;
+        def.quad_count = 0;
+    }
+    if (def.quad_count && !def.quads)
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: quads is NULL, quad_count is %u", fn,
+                             def.quad_count);
+    for (uint32_t q = 0; q < def.quad_count; ++q)
+        for (int k = 0; k < 4; ++k)
+            if (def.quads[4 * (size_t)q + k] >= def.point_count)
+                return rbc_set_error(RBC_ERR_BAD_MESH,
+                                     "%s: quad %u corner %d is vertex %u; point_count is %u", fn,
+                                     q, k, def.quads[4 * (size_t)q + k], def.point_count);
     cache *c = calloc(1, sizeof *c);
     if (!c) return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: out of memory", fn);
     c->def = def;
     c->path = dup_suffix(def.path, "");
-    c->tmp_path = dup_suffix(def.path, ".tmp");
-    if (!c->path || !c->tmp_path) {
-        free(c->path);
-        free(c->tmp_path);
-        free(c);
-        return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: out of memory", fn);
+    if (def.format != RBC_CACHE_OBJ_SEQUENCE) c->tmp_path = dup_suffix(def.path, ".tmp");
+    else c->tmp_path = objseq_name(def.path, 0, 1); /* probed below, then removed */
+    if (def.format == RBC_CACHE_MDD) c->frames_path = dup_suffix(def.path, ".tmp.frames");
+    if (def.quad_count) {
+        c->quads = malloc(4 * sizeof(uint32_t) * (size_t)def.quad_count);
+        if (c->quads) memcpy(c->quads, def.quads, 4 * sizeof(uint32_t) * (size_t)def.quad_count);
     }
     c->def.path = c->path;
-    c->f = fopen(c->tmp_path, "wb");
+    c->def.quads = c->quads;
+    if (!c->path || !c->tmp_path || (def.format == RBC_CACHE_MDD && !c->frames_path) ||
+        (def.quad_count && !c->quads)) {
+        cache_free(c);
+        return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: out of memory", fn);
+    }
+    const char *open_path = def.format == RBC_CACHE_MDD ? c->frames_path : c->tmp_path;
+    c->f = fopen(open_path, "wb");
     if (!c->f) {
-        rbc_result rc = rbc_set_error(RBC_ERR_IO, "%s: cannot create %s: %s", fn, c->tmp_path,
+        rbc_result rc = rbc_set_error(RBC_ERR_IO, "%s: cannot create %s: %s", fn, open_path,
                                       strerror(errno));
-        free(c->path);
-        free(c->tmp_path);
-        free(c);
+        free(c->tmp_path); /* nothing was created: remove nothing */
+        c->tmp_path = NULL;
+        free(c->frames_path);
+        c->frames_path = NULL;
+        cache_free(c);
         return rc;
     }
-    if (!write_pc2_header(c)) {
+    if (def.format == RBC_CACHE_OBJ_SEQUENCE) {
+        /* The directory is writable; frames open their own files. */
+        fclose(c->f);
+        c->f = NULL;
+        remove(c->tmp_path);
+        free(c->tmp_path);
+        c->tmp_path = NULL;
+    } else if (def.format == RBC_CACHE_PC2 && !write_pc2_header(c)) {
         rbc_result rc = rbc_set_error(RBC_ERR_IO, "%s: cannot write %s: %s", fn, c->tmp_path,
                                       strerror(errno));
         cache_free(c);
@@ -192,6 +267,25 @@ RBC_API rbc_result RBC_CALL rbc_cache_create(const rbc_cache_def *user_def, rbc_
     return RBC_OK;
 }
 
+/* One frame of an OBJ sequence, complete in "<name>.tmp" (renamed by finish). */
+static int write_obj_frame(const cache *c, const float *xyz, const char *tmp) {
+    FILE *f = fopen(tmp, "wb");
+    if (!f) return 0;
+    int ok = fprintf(f, "# rbcloth %s: frame %u, %u vertices, %u quads\n", rbc_version_string(),
+                     c->frames + 1, c->def.point_count, c->def.quad_count) > 0;
+    /* %.9g round-trips every float exactly. */
+    for (uint32_t v = 0; ok && v < c->def.point_count; ++v)
+        ok = fprintf(f, "v %.9g %.9g %.9g\n", (double)xyz[3 * (size_t)v],
+                     (double)xyz[3 * (size_t)v + 1], (double)xyz[3 * (size_t)v + 2]) > 0;
+    for (uint32_t q = 0; ok && q < c->def.quad_count; ++q) {
+        const uint32_t *k = c->quads + 4 * (size_t)q;
+        ok = fprintf(f, "f %u %u %u %u\n", k[0] + 1, k[1] + 1, k[2] + 1, k[3] + 1) > 0;
+    }
+    ok = (fflush(f) == 0) && ok;
+    ok = (fclose(f) == 0) && ok;
+    return ok;
+}
+
 RBC_API rbc_result RBC_CALL rbc_cache_write_frame(rbc_cache_id id, const float *xyz) {
     static const char fn[] = "rbc_cache_write_frame";
     cache *c = rbc_reg_get(&g_caches, id, 0, fn);
@@ -199,7 +293,22 @@ RBC_API rbc_result RBC_CALL rbc_cache_write_frame(rbc_cache_id id, const float *
     if (!xyz) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: xyz is NULL", fn);
     size_t count = 3 * (size_t)c->def.point_count;
     int ok;
-    if (host_is_little_endian()) {
+    if (c->def.format == RBC_CACHE_OBJ_SEQUENCE) {
+        char *tmp = objseq_name(c->path, c->frames, 1);
+        if (!tmp) return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: out of memory", fn);
+        ok = write_obj_frame(c, xyz, tmp);
+        if (!ok) {
+            rbc_result rc = rbc_set_error(RBC_ERR_IO, "%s: writing frame %u to %s failed: %s", fn,
+                                          c->frames, tmp, strerror(errno));
+            remove(tmp);
+            free(tmp);
+            return rc;
+        }
+        free(tmp);
+    } else if (c->def.format == RBC_CACHE_MDD) {
+        ok = 1;
+        for (size_t k = 0; ok && k < count; ++k) ok = put_f32be(c->f, xyz[k]);
+    } else if (host_is_little_endian()) {
         ok = fwrite(xyz, sizeof(float), count, c->f) == count;
     } else {
         ok = 1;
@@ -207,9 +316,51 @@ RBC_API rbc_result RBC_CALL rbc_cache_write_frame(rbc_cache_id id, const float *
     }
     if (!ok)
         return rbc_set_error(RBC_ERR_IO, "%s: writing frame %u to %s failed: %s", fn, c->frames,
-                             c->tmp_path, strerror(errno));
+                             c->frames_path ? c->frames_path : c->tmp_path, strerror(errno));
     c->frames++;
     return RBC_OK;
+}
+
+/* MDD: header and times into tmp_path, then the frames (already big-endian)
+ * copied from frames_path. */
+static int finish_mdd(cache *c) {
+    int ok = fflush(c->f) == 0;
+    ok = (fclose(c->f) == 0) && ok;
+    c->f = NULL;
+    if (!ok) return 0;
+    FILE *in = fopen(c->frames_path, "rb");
+    FILE *out = in ? fopen(c->tmp_path, "wb") : NULL;
+    ok = in && out && put_u32be(out, c->frames) && put_u32be(out, c->def.point_count);
+    for (uint32_t k = 0; ok && k < c->frames; ++k)
+        ok = put_f32be(out, c->def.start_frame + (float)k * c->def.sample_rate);
+    char buf[1 << 16];
+    size_t n;
+    while (ok && (n = fread(buf, 1, sizeof buf, in)) > 0) ok = fwrite(buf, 1, n, out) == n;
+    ok = ok && !ferror(in);
+    if (in) fclose(in);
+    if (out) {
+        ok = (fflush(out) == 0) && ok;
+        ok = (fclose(out) == 0) && ok;
+    }
+    return ok;
+}
+
+/* OBJ sequence: rename every frame into place, in order. On a failure the frames
+ * renamed so far stay (each is complete) and the rest are removed by cache_free. */
+static int finish_objseq(cache *c) {
+    for (uint32_t k = 0; k < c->frames; ++k) {
+        char *t = objseq_name(c->path, k, 1), *d = objseq_name(c->path, k, 0);
+        int ok = t && d && rename(t, d) == 0;
+        free(t);
+        free(d);
+        if (!ok) {
+            objseq_remove_tmp(c, k);
+            c->frames = 0; /* nothing left for cache_free to remove */
+            return 0;
+        }
+    }
+    c->frames = 0;
+    return 1;
 }
 
 static rbc_result cache_end(rbc_cache_id id, const char *fn, int keep) {
@@ -218,13 +369,21 @@ static rbc_result cache_end(rbc_cache_id id, const char *fn, int keep) {
     rbc_reg_remove(&g_caches, id);
     rbc_result rc = RBC_OK;
     if (keep) {
-        int ok = write_pc2_header(c) && fflush(c->f) == 0;
-        ok = (fclose(c->f) == 0) && ok;
-        c->f = NULL;
-        if (!ok || rename(c->tmp_path, c->path) != 0)
+        int ok;
+        if (c->def.format == RBC_CACHE_OBJ_SEQUENCE) {
+            ok = finish_objseq(c);
+        } else if (c->def.format == RBC_CACHE_MDD) {
+            ok = finish_mdd(c) && rename(c->tmp_path, c->path) == 0;
+        } else {
+            ok = write_pc2_header(c) && fflush(c->f) == 0;
+            ok = (fclose(c->f) == 0) && ok;
+            c->f = NULL;
+            ok = ok && rename(c->tmp_path, c->path) == 0;
+        }
+        if (!ok)
             rc = rbc_set_error(RBC_ERR_IO, "%s: completing %s failed: %s", fn, c->path,
                                strerror(errno));
-        else {
+        else if (c->tmp_path) {
             free(c->tmp_path);
             c->tmp_path = NULL; /* renamed: nothing to remove */
         }
