@@ -1,4 +1,4 @@
-/* main.c -- the rbcloth command line: `run`, `bench`, `info` and `--help`.
+/* main.c -- the rbcloth command line: `run`, `batch`, `bench`, `info` and `--help`.
  *
  * The plugin is loaded with dlopen (see plugin.c) and used only through its
  * function table, as any host would. Exit codes: 0 success, 1 runtime failure,
@@ -10,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "batch.h"
 #include "bench.h"
 #include "plugin.h"
 #include "run.h"
@@ -28,6 +29,15 @@ static const char usage_text[] =
     "                              NAME.obj (rest mesh), NAME.pc2 (point cache of every\n"
     "                              frame) and NAME.json (summary); with several cloths\n"
     "                              NAME_CLOTH.obj and NAME_CLOTH.pc2 per cloth\n"
+    "  batch MANIFEST.json [-j N] [--out DIR] [--quiet]\n"
+    "                              simulate every job of a manifest (mesh files read\n"
+    "                              with assimp, or scenes) in N worker processes:\n"
+    "                              DIR/JOB/ holds JOB.obj (rest mesh) and the caches\n"
+    "                              asked for (pc2, mdd, objseq: frames/JOB_0001.obj..);\n"
+    "                              finished jobs are skipped on a rerun; SIGINT/SIGTERM\n"
+    "                              stop it without half-written files; closes with\n"
+    "                              DIR/batch_report.json and .md (default -j 2, DIR\n"
+    "                              out/batch); exit 1 if any job failed\n"
     "  bench accuracy [OPTIONS]    the paper's convergence experiments (Figs. 3, 4)\n"
     "                              for every solver: Eq. 7 per frame at 11 iterations\n"
     "                              and within 2 ms, a budget sweep, the PD objective\n"
@@ -254,6 +264,62 @@ static int command_run(int argc, char **argv) {
     return rc;
 }
 
+static int command_batch(int argc, char **argv) {
+    cli_batch_options options = {.manifest_path = NULL, .out_dir = "out/batch", .jobs = 2,
+                                 .quiet = 0};
+    int_option ints[] = {{"-j", 1, 256, &options.jobs}, {"--jobs", 1, 256, &options.jobs}};
+    for (int i = 0; i < argc; ++i) {
+        const char *arg = argv[i];
+        if (is_help(arg)) {
+            fputs(usage_text, stdout);
+            return EXIT_OK;
+        }
+        if (strcmp(arg, "--quiet") == 0 || strcmp(arg, "-q") == 0) {
+            options.quiet = 1;
+            continue;
+        }
+        if (arg[0] != '-') {
+            if (options.manifest_path)
+                return usage_error("batch takes one manifest, got a second: '%s'", arg);
+            options.manifest_path = arg;
+            continue;
+        }
+        const char *eq = strchr(arg, '=');
+        size_t name_len = eq ? (size_t)(eq - arg) : strlen(arg);
+        const char *value = eq ? eq + 1 : NULL;
+        if (name_len == strlen("--out") && strncmp(arg, "--out", name_len) == 0) {
+            if (!value && i + 1 < argc)
+                value = argv[++i];
+            if (!value || !value[0])
+                return usage_error("%s needs a directory", "--out");
+            options.out_dir = value;
+            continue;
+        }
+        /* -jN as well as -j N */
+        if (strncmp(arg, "-j", 2) == 0 && arg[2] >= '0' && arg[2] <= '9') {
+            value = arg + 2;
+            name_len = 2;
+        }
+        int matched = 0;
+        if (take_int_option(ints, sizeof ints / sizeof ints[0], arg, name_len, &value, argc, argv,
+                            &i, &matched))
+            return EXIT_USAGE;
+        if (!matched)
+            return usage_error("unknown option '%s' for batch", arg);
+    }
+    if (!options.manifest_path)
+        return usage_error("%s", "batch needs a manifest file");
+    cli_plugin plugin;
+    char err[4096 + 512];
+    if (cli_plugin_open(&plugin, err, sizeof err)) {
+        fprintf(stderr, "rbcloth: %s\n", err);
+        return EXIT_RUNTIME;
+    }
+    int rc = cli_batch(&plugin, &options);
+    cli_plugin_close(&plugin);
+    return rc;
+}
+
 static int parse_bench_args(int argc, char **argv, cli_bench_options *o) {
     int_option ints[] = {
         {"--frames", 1, 1000000, &o->frames},
@@ -364,6 +430,8 @@ int main(int argc, char **argv) {
     }
     if (strcmp(command, "run") == 0)
         return command_run(argc - 2, argv + 2);
+    if (strcmp(command, "batch") == 0)
+        return command_batch(argc - 2, argv + 2);
     if (strcmp(command, "bench") == 0)
         return command_bench(argc - 2, argv + 2);
     if (strcmp(command, "info") == 0)
