@@ -20,6 +20,7 @@
 #include <unistd.h>
 
 #include "check.h"
+#include "text_file.h"
 #include "rbcloth.h"
 
 static const char *g_dir;
@@ -46,23 +47,6 @@ static int count_tmp_files(void) {
     while ((e = readdir(d)) != NULL) n += strstr(e->d_name, ".tmp") != NULL;
     closedir(d);
     return n;
-}
-
-static unsigned char *read_all(const char *path, size_t *size) {
-    FILE *f = fopen(path, "rb");
-    if (!f) return NULL;
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    unsigned char *b = malloc((size_t)n + 1);
-    if (b && fread(b, 1, (size_t)n, f) != (size_t)n) {
-        free(b);
-        b = NULL;
-    }
-    fclose(f);
-    if (b) b[n] = 0;
-    *size = (size_t)n;
-    return b;
 }
 
 static uint32_t le32(const unsigned char *p) {
@@ -93,7 +77,7 @@ static size_t mismatches(const float *expect, const float *got, size_t n) {
 static void check_pc2(const char *path, const float *frames, uint32_t points, uint32_t count,
                       float start, float rate) {
     size_t size = 0;
-    unsigned char *b = read_all(path, &size);
+    unsigned char *b = file_read_bytes(path, &size);
     CHECK(b != NULL);
     if (!b) return;
     CHECK_EQ(size, 32 + (size_t)count * points * 12);
@@ -117,7 +101,7 @@ static void check_pc2(const char *path, const float *frames, uint32_t points, ui
 static void check_mdd(const char *path, const float *frames, uint32_t points, uint32_t count,
                       float start, float rate) {
     size_t size = 0;
-    unsigned char *b = read_all(path, &size);
+    unsigned char *b = file_read_bytes(path, &size);
     CHECK(b != NULL);
     if (!b) return;
     size_t expect_size = 8 + 4 * (size_t)count + (size_t)count * points * 12;
@@ -141,7 +125,7 @@ static void check_mdd(const char *path, const float *frames, uint32_t points, ui
 static void check_obj(const char *path, const float *xyz, uint32_t points, const uint32_t *quads,
                       uint32_t quad_count) {
     size_t size = 0;
-    char *text = (char *)read_all(path, &size);
+    char *text = (char *)file_read_bytes(path, &size);
     CHECK(text != NULL);
     if (!text) return;
     float *got = calloc(3 * (size_t)points + 3, sizeof *got);

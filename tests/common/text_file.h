@@ -1,27 +1,36 @@
 /* text_file.h -- small helpers for tests that check files a program wrote: read a
- * whole file into a NUL-terminated buffer, and split a line into fields in place. */
+ * whole file (text or binary) into a NUL-terminated buffer, and split a line into
+ * fields in place. */
 #ifndef RBC_TEST_TEXT_FILE_H
 #define RBC_TEST_TEXT_FILE_H
 #include <stdio.h>
 #include <stdlib.h>
 
-/* The whole file, NUL-terminated, malloc'd; NULL if it cannot be read. */
-static inline char *text_file_read(const char *path) {
+/* The whole file (binary safe), with a NUL after its *size bytes, malloc'd; NULL if
+ * it cannot be read. */
+static inline unsigned char *file_read_bytes(const char *path, size_t *size) {
     FILE *f = fopen(path, "rb");
     if (!f)
         return NULL;
     fseek(f, 0, SEEK_END);
-    long size = ftell(f);
+    long n = ftell(f);
     fseek(f, 0, SEEK_SET);
-    char *text = size >= 0 ? malloc((size_t)size + 1) : NULL;
-    if (text && fread(text, 1, (size_t)size, f) != (size_t)size) {
-        free(text);
-        text = NULL;
+    unsigned char *b = n >= 0 ? malloc((size_t)n + 1) : NULL;
+    if (b && fread(b, 1, (size_t)n, f) != (size_t)n) {
+        free(b);
+        b = NULL;
     }
-    if (text)
-        text[size] = '\0';
+    if (b)
+        b[n] = 0;
     fclose(f);
-    return text;
+    if (size)
+        *size = n >= 0 ? (size_t)n : 0;
+    return b;
+}
+
+/* The whole file, NUL-terminated, malloc'd; NULL if it cannot be read. */
+static inline char *text_file_read(const char *path) {
+    return (char *)file_read_bytes(path, NULL);
 }
 
 /* Split line at sep in place into at most max fields; returns the count. */

@@ -25,6 +25,7 @@
 #include <unistd.h>
 
 #include "check.h"
+#include "text_file.h"
 
 static const char *g_cli, *g_meshes, *g_out;
 
@@ -39,23 +40,6 @@ static char *fmt(const char *f, const char *a, const char *b) {
 static int exists(const char *path) {
     struct stat st;
     return stat(path, &st) == 0;
-}
-
-static unsigned char *read_all(const char *path, size_t *size) {
-    FILE *f = fopen(path, "rb");
-    if (!f) return NULL;
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    unsigned char *b = malloc((size_t)n + 1);
-    if (b && fread(b, 1, (size_t)n, f) != (size_t)n) {
-        free(b);
-        b = NULL;
-    }
-    fclose(f);
-    if (b) b[n] = 0;
-    *size = (size_t)n;
-    return b;
 }
 
 static void write_text(const char *path, const char *text) {
@@ -120,7 +104,7 @@ static void check_caches(const char *out, const char *name, uint32_t n, uint32_t
     size_t size = 0;
     char path[2048];
     snprintf(path, sizeof path, "%s/%s/%s.pc2", out, name, name);
-    unsigned char *pc2 = read_all(path, &size);
+    unsigned char *pc2 = file_read_bytes(path, &size);
     CHECK(pc2 != NULL);
     if (!pc2) return;
     CHECK_EQ(size, 32 + (size_t)frames * n * 12);
@@ -135,7 +119,7 @@ static void check_caches(const char *out, const char *name, uint32_t n, uint32_t
     if (mdd) {
         size_t msize = 0;
         snprintf(path, sizeof path, "%s/%s/%s.mdd", out, name, name);
-        unsigned char *m = read_all(path, &msize);
+        unsigned char *m = file_read_bytes(path, &msize);
         CHECK(m != NULL);
         size_t expect = 8 + 4 * (size_t)frames + (size_t)frames * n * 12;
         CHECK_EQ(msize, expect);
@@ -153,7 +137,7 @@ static void check_caches(const char *out, const char *name, uint32_t n, uint32_t
         char file[256];
         snprintf(file, sizeof file, "%s/frames/%s_%04u.obj", name, name, frames);
         size_t osize = 0;
-        char *text = (char *)read_all(fmt("%s/%s", out, file), &osize);
+        char *text = (char *)file_read_bytes(fmt("%s/%s", out, file), &osize);
         CHECK(text != NULL);
         snprintf(file, sizeof file, "%s/frames/%s_%04u.obj", name, name, frames + 1);
         CHECK(!exists(fmt("%s/%s", out, file)));
@@ -180,7 +164,7 @@ static void check_caches(const char *out, const char *name, uint32_t n, uint32_t
 static void check_report_json(const char *out, const char *const *names,
                               const char *const *statuses, int count) {
     size_t size = 0;
-    char *text = (char *)read_all(fmt("%s/%s", out, "batch_report.json"), &size);
+    char *text = (char *)file_read_bytes(fmt("%s/%s", out, "batch_report.json"), &size);
     CHECK(text != NULL);
     cJSON *root = text ? cJSON_Parse(text) : NULL;
     CHECK(root != NULL);
@@ -208,7 +192,7 @@ static void check_report_json(const char *out, const char *const *names,
 
 static int log_contains(const char *log, const char *needle) {
     size_t size = 0;
-    char *text = (char *)read_all(log, &size);
+    char *text = (char *)file_read_bytes(log, &size);
     int found = text && strstr(text, needle) != NULL;
     if (!found) fprintf(stderr, "%s does not contain '%s':\n%s\n", log, needle, text ? text : "");
     free(text);
