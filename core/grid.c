@@ -216,19 +216,25 @@ static void row_axis_uniform(uint32_t count, float *restrict p, const float *res
     }
 }
 
-/* A row's edge particle (missing left or right neighbour), scalar. */
-static void edge_particle(const rbc_grid *g, rbc_cloth_state *c, uint32_t i, int has_l,
-                          uint32_t il, int has_r, uint32_t ir, const float *const dn[3],
-                          const float *const up[3], uint32_t m, float omega) {
+/* A row's edge particle, scalar: its one horizontal neighbour at index ih (stiffness
+ * kh), the vertical ones at m of the rows below and above (zeros beyond the edges).
+ * Straight-line code: the edges are 2 of every row's particles, a sixth of the sweep's
+ * time at 10K before this was tightened. */
+static inline void edge_particle(rbc_cloth_state *c, uint32_t i, uint32_t ih, float kh,
+                                 float kd, float ku, const float *const dn[3],
+                                 const float *const up[3], uint32_t m, float omega) {
     if (c->pinned[i]) return;
-    for (int a = 0; a < 3; ++a) {
-        float *p = c->p[a];
-        const float *bb = a == 0 ? c->bx : a == 1 ? c->by : c->bz;
-        float s = bb[i] + (has_l ? g->kl[i] * p[il] : 0.0f) + (has_r ? g->kr[i] * p[ir] : 0.0f) +
-                  g->kd[i] * dn[a][m] + g->ku[i] * up[a][m];
-        float gv = s * c->inv_denom[i];
-        p[i] = omega == 0.0f ? gv : p[i] + omega * (gv - p[i]);
+    float *px = c->p[0], *py = c->p[1], *pz = c->p[2];
+    const float r = c->inv_denom[i];
+    float gx = (c->bx[i] + kh * px[ih] + kd * dn[0][m] + ku * up[0][m]) * r;
+    float gy = (c->by[i] + kh * py[ih] + kd * dn[1][m] + ku * up[1][m]) * r;
+    float gz = (c->bz[i] + kh * pz[ih] + kd * dn[2][m] + ku * up[2][m]) * r;
+    if (omega != 0.0f) {
+        gx = px[i] + omega * (gx - px[i]);
+        gy = py[i] + omega * (gy - py[i]);
+        gz = pz[i] + omega * (gz - pz[i]);
     }
+    px[i] = gx, py[i] = gy, pz[i] = gz;
 }
 
 /* One row of one color: the Gauss-Seidel update of its particles. */
@@ -250,8 +256,12 @@ static void grid_row(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, uint
     uint32_t hi = nx >= 2 + f ? (nx - 2 - f) / 2 + 1 : 0u;
     if (hi > cnt) hi = cnt;
     if (lo > hi) lo = hi;
-    for (uint32_t m = 0; m < lo; ++m) /* column 0 */
-        edge_particle(g, c, s0 + m, 0, 0, f + 2 * m + 1 < nx, ro + f + m, dn, up, m, omega);
+    for (uint32_t m = 0; m < lo; ++m) { /* column 0: the right neighbour only (if any) */
+        const uint32_t i = s0 + m;
+        const int has_r = f + 2 * m + 1 < nx;
+        edge_particle(c, i, has_r ? ro + f + m : i, has_r ? g->kr[i] : 0.0f, g->kd[i], g->ku[i],
+                      dn, up, m, omega);
+    }
     if (hi > lo && g->k_uniform != 0.0f) {
         const uint32_t i = s0 + lo, li = ro + f - 1 + lo, ri = ro + f + lo;
         const float *B[3] = {c->bx, c->by, c->bz};
@@ -266,8 +276,12 @@ static void grid_row(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, uint
                      g->ku + i, c->bx + i, c->by + i, c->bz + i, c->inv_denom + i,
                      c->pinned + i, omega, g->k_uniform);
     }
-    for (uint32_t m = hi; m < cnt; ++m) /* column nx - 1 */
-        edge_particle(g, c, s0 + m, f + 2 * m >= 1, ro + f + m - 1, 0, 0, dn, up, m, omega);
+    for (uint32_t m = hi; m < cnt; ++m) { /* column nx - 1: the left neighbour only */
+        const uint32_t i = s0 + m;
+        const int has_l = f + 2 * m >= 1;
+        edge_particle(c, i, has_l ? ro + f + m - 1 : i, has_l ? g->kl[i] : 0.0f, g->kd[i],
+                      g->ku[i], dn, up, m, omega);
+    }
 }
 
 void rbc_grid_sweep(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, float omega,
