@@ -24,6 +24,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <strings.h>
 #include <sys/stat.h>
 #include <sys/types.h>
 #include <sys/wait.h>
@@ -363,25 +364,148 @@ static void job_free(batch_job *j) {
     cJSON_Delete(j->result);
 }
 
-static int load_manifest(batch *b, char *err, size_t err_size) {
-    const char *path = b->options->manifest_path;
+static cJSON *read_json(const char *path, char *err, size_t err_size) {
     size_t size = 0;
     char *text = read_text(path, &size);
     if (!text) {
         snprintf(err, err_size, "%s: cannot open: %s", path, strerror(errno));
-        return -1;
+        return NULL;
     }
     cJSON *root = cJSON_ParseWithLength(text, size);
     free(text);
-    if (!root) {
-        snprintf(err, err_size, "%s: not valid JSON", path);
+    if (!root) snprintf(err, err_size, "%s: not valid JSON", path);
+    return root;
+}
+
+/* Folder mode: the mesh files assimp reads, by extension (case-insensitive). Not
+ * every format assimp knows: the ones a cloth pipeline exports. */
+static int mesh_extension(const char *file) {
+    static const char *const exts[] = {"obj", "ply", "off", "stl", "dae", "gltf", "glb", "fbx",
+                                       "3ds", "x",   "ase", "ms3d", "lwo", "x3d", "3mf", "amf",
+                                       "ac",  "blend", "ifc", "smd", NULL};
+    const char *dot = strrchr(file, '.');
+    if (!dot || dot == file) return 0;
+    for (int k = 0; exts[k]; ++k)
+        if (strcasecmp(dot + 1, exts[k]) == 0) return 1;
+    return 0;
+}
+
+static int compare_names(const void *a, const void *b) {
+    return strcmp(*(const char *const *)a, *(const char *const *)b);
+}
+
+/* A job name from a file name: its stem, characters outside [A-Za-z0-9_.-] as '_';
+ * the extension is kept (stem_ext) when two files share a stem. */
+static void job_name_of(const char *file, int keep_ext, char *out, size_t size) {
+    snprintf(out, size, "%s", file);
+    char *dot = strrchr(out, '.');
+    if (dot && !keep_ext) *dot = '\0';
+    else if (dot) *dot = '_';
+    for (char *c = out; *c; ++c)
+        if (!((*c >= 'a' && *c <= 'z') || (*c >= 'A' && *c <= 'Z') || (*c >= '0' && *c <= '9') ||
+              *c == '_' || *c == '-' || *c == '.'))
+            *c = '_';
+    if (out[0] == '.') out[0] = '_';
+}
+
+/* Folder mode as a manifest: {"defaults": TEMPLATE, "jobs": [{"name": STEM, "mesh":
+ * FILE}, ...]} over the folder's mesh files in name order, so that the job list,
+ * the runner, resume, --only and the report are the manifest's. */
+static cJSON *folder_manifest(const char *dir, const char *template_path, char *err,
+                              size_t err_size) {
+    if (!template_path) {
+        snprintf(err, err_size, "%s is a folder: folder mode needs --template SCENE.json", dir);
+        return NULL;
+    }
+    cJSON *tmpl = read_json(template_path, err, err_size);
+    if (!tmpl) return NULL;
+    if (!cJSON_IsObject(tmpl)) {
+        snprintf(err, err_size, "%s: a template must be a JSON object", template_path);
+        cJSON_Delete(tmpl);
+        return NULL;
+    }
+    cJSON *defaults = cJSON_DetachItemFromObjectCaseSensitive(tmpl, "defaults");
+    if (!defaults) defaults = tmpl, tmpl = NULL;
+    cJSON_Delete(tmpl);
+    static const char *const per_job[] = {"jobs", "name", "mesh", "scene", "description"};
+    for (size_t k = 0; k < sizeof per_job / sizeof per_job[0]; ++k)
+        cJSON_DeleteItemFromObjectCaseSensitive(defaults, per_job[k]);
+    DIR *d = opendir(dir);
+    if (!d) {
+        snprintf(err, err_size, "%s: cannot open folder: %s", dir, strerror(errno));
+        cJSON_Delete(defaults);
+        return NULL;
+    }
+    char **files = NULL;
+    size_t count = 0, cap = 0;
+    struct dirent *e;
+    while ((e = readdir(d)) != NULL) {
+        if (e->d_name[0] == '.' || !mesh_extension(e->d_name)) continue;
+        char *full = fs_path(dir, e->d_name, "");
+        int regular = full && file_exists(full);
+        free(full);
+        if (!regular) continue;
+        if (count == cap) {
+            cap = cap ? 2 * cap : 16;
+            char **grown = realloc(files, cap * sizeof *files);
+            if (!grown) break;
+            files = grown;
+        }
+        files[count++] = strdup(e->d_name);
+    }
+    closedir(d);
+    cJSON *root = NULL;
+    if (count == 0) {
+        snprintf(err, err_size, "%s: no mesh file (.obj .ply .off .stl .dae .gltf .glb .fbx ...)",
+                 dir);
+    } else {
+        qsort(files, count, sizeof *files, compare_names);
+        root = cJSON_CreateObject();
+        cJSON *jobs = cJSON_AddArrayToObject(root, "jobs");
+        for (size_t k = 0; k < count; ++k) {
+            char name[256], other[256];
+            job_name_of(files[k], 0, name, sizeof name);
+            int clash = 0;
+            for (size_t i = 0; i < count; ++i) {
+                job_name_of(files[i], 0, other, sizeof other);
+                clash += i != k && strcmp(name, other) == 0;
+            }
+            if (clash) job_name_of(files[k], 1, name, sizeof name);
+            cJSON *job = cJSON_CreateObject();
+            cJSON_AddStringToObject(job, "name", name);
+            cJSON_AddStringToObject(job, "mesh", files[k]);
+            cJSON_AddItemToArray(jobs, job);
+        }
+        cJSON_AddItemToObject(root, "defaults", defaults);
+        defaults = NULL;
+    }
+    for (size_t k = 0; k < count; ++k) free(files[k]);
+    free(files);
+    cJSON_Delete(defaults);
+    return root;
+}
+
+static int is_dir(const char *path) {
+    struct stat st;
+    return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
+}
+
+static int load_manifest(batch *b, char *err, size_t err_size) {
+    const char *path = b->options->manifest_path;
+    const int folder = is_dir(path);
+    if (!folder && b->options->template_path) {
+        snprintf(err, err_size, "--template is for a folder of meshes; %s is a manifest", path);
         return -1;
     }
+    cJSON *root = folder ? folder_manifest(path, b->options->template_path, err, err_size)
+                         : read_json(path, err, err_size);
+    if (!root) return -1;
+    /* Mesh paths resolve against the manifest's folder, or the mesh folder. */
     char *base = strdup(path);
-    char *slash = base ? strrchr(base, '/') : NULL;
+    char *slash = base && !folder ? strrchr(base, '/') : NULL;
     if (slash) *slash = '\0';
-    else if (base) base[0] = '\0';
-    parse_ctx p = {path, err, err_size};
+    else if (base && !folder) base[0] = '\0';
+    parse_ctx p = {folder ? b->options->template_path : path, err, err_size};
     const cJSON *jobs = cJSON_GetObjectItemCaseSensitive(root, "jobs");
     const cJSON *defaults = cJSON_GetObjectItemCaseSensitive(root, "defaults");
     int rc = 0;
@@ -946,6 +1070,8 @@ static int write_reports(const batch *b, double wall, char *err, size_t err_size
     cJSON_AddStringToObject(root, "manifest", b->options->manifest_path);
     cJSON_AddNumberToObject(root, "workers", (double)b->options->jobs);
     cJSON_AddNumberToObject(root, "wall_seconds", wall);
+    /* --report-only: merged from results that earlier runs (array tasks) left. */
+    if (b->options->report_only) cJSON_AddTrueToObject(root, "merged");
     cJSON_AddNumberToObject(root, "jobs_total", (double)b->job_count);
     for (int s = JOB_OK; s <= JOB_NOT_RUN; ++s) {
         char key[32];
@@ -1023,6 +1149,52 @@ static int write_reports(const batch *b, double wall, char *err, size_t err_size
     return rc;
 }
 
+/* DIR/NAME/NAME.status.json: why a job did not finish ({"status", "message"}), so
+ * that --report-only (the merge step of a Slurm array, where each task ran one job)
+ * can report failures as well as results. Removed once the job succeeds. */
+static char *status_path(const batch_job *j) { return fs_path(j->dir, j->name, ".status.json"); }
+
+static void record_status(const batch_job *j) {
+    char *path = status_path(j);
+    if (!path) return;
+    if (j->status == JOB_OK || j->status == JOB_SKIPPED) {
+        remove(path);
+    } else if (j->status == JOB_FAILED || j->status == JOB_INTERRUPTED) {
+        char err[512];
+        cJSON *o = cJSON_CreateObject();
+        cJSON_AddStringToObject(o, "name", j->name);
+        cJSON_AddStringToObject(o, "status", status_names[j->status]);
+        cJSON_AddStringToObject(o, "message", j->message);
+        char *text = cJSON_Print(o);
+        if (text && fs_mkdir_p(j->dir, err, sizeof err) == 0)
+            fs_write_atomic(path, text, strlen(text), err, sizeof err);
+        free(text);
+        cJSON_Delete(o);
+    }
+    free(path);
+}
+
+/* --report-only: a job's state from what earlier runs left in its folder. */
+static void load_status(batch_job *j) {
+    if (job_done(j)) {
+        j->status = JOB_OK;
+        return;
+    }
+    j->status = JOB_NOT_RUN;
+    char *path = status_path(j);
+    char *text = path ? read_text(path, NULL) : NULL;
+    cJSON *o = text ? cJSON_Parse(text) : NULL;
+    const cJSON *st = cJSON_GetObjectItemCaseSensitive(o, "status");
+    const cJSON *msg = cJSON_GetObjectItemCaseSensitive(o, "message");
+    if (cJSON_IsString(st))
+        j->status = strcmp(st->valuestring, "interrupted") == 0 ? JOB_INTERRUPTED : JOB_FAILED;
+    if (cJSON_IsString(msg)) snprintf(j->message, sizeof j->message, "%s", msg->valuestring);
+    if (j->status == JOB_NOT_RUN) snprintf(j->message, sizeof j->message, "no result");
+    cJSON_Delete(o);
+    free(text);
+    free(path);
+}
+
 int cli_batch(const cli_plugin *plugin, const cli_batch_options *options) {
     batch b;
     memset(&b, 0, sizeof b);
@@ -1031,6 +1203,19 @@ int cli_batch(const cli_plugin *plugin, const cli_batch_options *options) {
     char err[2048];
     if (load_manifest(&b, err, sizeof err)) {
         fprintf(stderr, "rbcloth: %s\n", err);
+        for (size_t k = 0; k < b.job_count; ++k) job_free(&b.jobs[k]);
+        free(b.jobs);
+        return 1;
+    }
+    if (options->count_only) {
+        printf("%zu\n", b.job_count);
+        for (size_t k = 0; k < b.job_count; ++k) job_free(&b.jobs[k]);
+        free(b.jobs);
+        return 0;
+    }
+    if (options->only >= 0 && (size_t)options->only >= b.job_count) {
+        fprintf(stderr, "rbcloth: --only %ld: %s has %zu jobs (0 to %zu)\n", options->only,
+                options->manifest_path, b.job_count, b.job_count - 1);
         for (size_t k = 0; k < b.job_count; ++k) job_free(&b.jobs[k]);
         free(b.jobs);
         return 1;
@@ -1052,6 +1237,16 @@ int cli_batch(const cli_plugin *plugin, const cli_batch_options *options) {
         }
     }
 
+    /* The jobs this run owns: all, or exactly one (--only). */
+    const size_t first = options->only >= 0 ? (size_t)options->only : 0;
+    const size_t end = options->only >= 0 ? first + 1 : b.job_count;
+    const size_t owned = end - first;
+    const double start = now_seconds();
+    if (options->report_only) {
+        for (size_t k = 0; k < b.job_count; ++k) load_status(&b.jobs[k]);
+        goto report;
+    }
+
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);
     sa.sa_handler = on_stop_signal;
@@ -1061,29 +1256,33 @@ int cli_batch(const cli_plugin *plugin, const cli_batch_options *options) {
     sigaction(SIGTERM, &sa, &old_term);
 
     const int show_progress = !options->quiet && isatty(STDERR_FILENO);
-    double start = now_seconds(), last_draw = 0.0;
-    size_t next = 0, running = 0, finished = 0, failed = 0;
+    double last_draw = 0.0;
+    size_t next = first, running = 0, finished = 0, failed = 0;
     int killed = 0;
-    printf("rbcloth batch: %zu jobs from %s, %ld workers, outputs in %s\n", b.job_count,
-           options->manifest_path, options->jobs, options->out_dir);
+    if (options->only >= 0)
+        printf("rbcloth batch: job %ld (%s) of %zu from %s, outputs in %s\n", options->only,
+               b.jobs[first].name, b.job_count, options->manifest_path, options->out_dir);
+    else
+        printf("rbcloth batch: %zu jobs from %s, %ld workers, outputs in %s\n", b.job_count,
+               options->manifest_path, options->jobs, options->out_dir);
     fflush(stdout);
-    while (next < b.job_count || running > 0) {
+    while (next < end || running > 0) {
         if (g_stop && !killed) {
             /* Stop launching; running jobs stop at their next frame (their caches
              * are destroyed, so their temporary files go). */
             for (size_t k = 0; k < b.job_count; ++k)
                 if (b.jobs[k].status == JOB_RUNNING) kill(b.jobs[k].pid, SIGTERM);
-            for (size_t k = next; k < b.job_count; ++k) b.jobs[k].status = JOB_NOT_RUN;
-            next = b.job_count;
+            for (size_t k = next; k < end; ++k) b.jobs[k].status = JOB_NOT_RUN;
+            next = end;
             killed = 1;
         }
-        if (!g_stop && next < b.job_count && running < (size_t)options->jobs) {
+        if (!g_stop && next < end && running < (size_t)options->jobs) {
             batch_job *j = &b.jobs[next++];
             if (job_done(j)) {
                 j->status = JOB_SKIPPED;
                 finished++;
                 progress_clear();
-                print_job_line(j, finished, b.job_count);
+                print_job_line(j, finished, owned);
             } else if (launch(&b, j) == 0) {
                 running++;
             } else {
@@ -1091,7 +1290,7 @@ int cli_batch(const cli_plugin *plugin, const cli_batch_options *options) {
                 finished++;
                 failed++;
                 progress_clear();
-                print_job_line(j, finished, b.job_count);
+                print_job_line(j, finished, owned);
             }
             continue;
         }
@@ -1106,7 +1305,7 @@ int cli_batch(const cli_plugin *plugin, const cli_batch_options *options) {
                 finished++;
                 failed += j->status != JOB_OK;
                 progress_clear();
-                print_job_line(j, finished, b.job_count);
+                print_job_line(j, finished, owned);
             }
             continue;
         }
@@ -1119,13 +1318,27 @@ int cli_batch(const cli_plugin *plugin, const cli_batch_options *options) {
         nanosleep(&ts, NULL);
     }
     progress_clear();
-    double wall = now_seconds() - start;
     sigaction(SIGINT, &old_int, NULL);
     sigaction(SIGTERM, &old_term, NULL);
+    for (size_t k = first; k < end; ++k) record_status(&b.jobs[k]);
 
+report:;
+    double wall = now_seconds() - start;
     int rc = 0;
     size_t counts[7] = {0};
-    for (size_t k = 0; k < b.job_count; ++k) counts[b.jobs[k].status]++;
+    for (size_t k = first; k < end; ++k) counts[b.jobs[k].status]++;
+    if (options->only >= 0) {
+        /* One array task: its result (or status) file is its report. */
+        const batch_job *j = &b.jobs[first];
+        if (j->status != JOB_OK && j->status != JOB_SKIPPED) {
+            fprintf(stderr, "rbcloth: batch: %s: %s%s%s\n", j->name, status_names[j->status],
+                    j->message[0] ? ": " : "", j->message);
+            rc = 1;
+        }
+        for (size_t k = 0; k < b.job_count; ++k) job_free(&b.jobs[k]);
+        free(b.jobs);
+        return rc;
+    }
     if (write_reports(&b, wall, err, sizeof err)) {
         fprintf(stderr, "rbcloth: report: %s\n", err);
         rc = 1;

@@ -5,7 +5,18 @@
 #include "plugin.h"
 
 typedef struct cli_batch_options {
+    /// A manifest JSON, or a folder of mesh files (folder mode, with template_path).
     const char *manifest_path;
+    /// Folder mode: a JSON object of job settings (the keys of a manifest's
+    /// "defaults", or a manifest whose "defaults" is used) applied to every mesh.
+    const char *template_path;
+    /// Run only job INDEX (0-based, in manifest or sorted folder order) and write no
+    /// report: one Slurm array task. -1 = every job.
+    long only;
+    /// Run nothing: build the report from the results already in out_dir.
+    int report_only;
+    /// Run nothing: print the number of jobs (to size a Slurm array).
+    int count_only;
     /// Output directory (created like mkdir -p); one folder per job inside.
     const char *out_dir;
     /// Worker processes (one fork per job).

@@ -38,6 +38,18 @@ static const char usage_text[] =
     "                              stop it without half-written files; closes with\n"
     "                              DIR/batch_report.json and .md (default -j 2, DIR\n"
     "                              out/batch); exit 1 if any job failed\n"
+    "  batch MESHDIR --template T.json [-j N] [--out DIR] [--quiet]\n"
+    "                              folder mode: every mesh file in MESHDIR (.obj .ply\n"
+    "                              .off .stl .dae .gltf .glb .fbx .3ds ...) is a job\n"
+    "                              named after its file, with T's settings (the keys\n"
+    "                              of a manifest's \"defaults\": frames, dt, solver,\n"
+    "                              pins, colliders, outputs ...)\n"
+    "    --only I                  run job I only (0-based, manifest or file-name\n"
+    "                              order) and write no report: one Slurm array task\n"
+    "    --report-only             run nothing; build DIR/batch_report.json and .md\n"
+    "                              from the results in DIR (the Slurm merge step)\n"
+    "    --count                   print the number of jobs and exit\n"
+    "                              (samples/slurm/ runs a batch as a Slurm job array)\n"
     "  bench accuracy [OPTIONS]    the paper's convergence experiments (Figs. 3, 4)\n"
     "                              for every solver: Eq. 7 per frame at 11 iterations\n"
     "                              and within 2 ms, a budget sweep, the PD objective\n"
@@ -266,8 +278,10 @@ static int command_run(int argc, char **argv) {
 
 static int command_batch(int argc, char **argv) {
     cli_batch_options options = {.manifest_path = NULL, .out_dir = "out/batch", .jobs = 2,
-                                 .quiet = 0};
-    int_option ints[] = {{"-j", 1, 256, &options.jobs}, {"--jobs", 1, 256, &options.jobs}};
+                                 .quiet = 0, .only = -1};
+    int_option ints[] = {{"-j", 1, 256, &options.jobs},
+                         {"--jobs", 1, 256, &options.jobs},
+                         {"--only", 0, 100000000, &options.only}};
     for (int i = 0; i < argc; ++i) {
         const char *arg = argv[i];
         if (is_help(arg)) {
@@ -276,6 +290,14 @@ static int command_batch(int argc, char **argv) {
         }
         if (strcmp(arg, "--quiet") == 0 || strcmp(arg, "-q") == 0) {
             options.quiet = 1;
+            continue;
+        }
+        if (strcmp(arg, "--report-only") == 0) {
+            options.report_only = 1;
+            continue;
+        }
+        if (strcmp(arg, "--count") == 0) {
+            options.count_only = 1;
             continue;
         }
         if (arg[0] != '-') {
@@ -295,6 +317,14 @@ static int command_batch(int argc, char **argv) {
             options.out_dir = value;
             continue;
         }
+        if (name_len == strlen("--template") && strncmp(arg, "--template", name_len) == 0) {
+            if (!value && i + 1 < argc)
+                value = argv[++i];
+            if (!value || !value[0])
+                return usage_error("%s needs a JSON file", "--template");
+            options.template_path = value;
+            continue;
+        }
         /* -jN as well as -j N */
         if (strncmp(arg, "-j", 2) == 0 && arg[2] >= '0' && arg[2] <= '9') {
             value = arg + 2;
@@ -308,7 +338,9 @@ static int command_batch(int argc, char **argv) {
             return usage_error("unknown option '%s' for batch", arg);
     }
     if (!options.manifest_path)
-        return usage_error("%s", "batch needs a manifest file");
+        return usage_error("%s", "batch needs a manifest file or a folder of meshes");
+    if (options.report_only + options.count_only + (options.only >= 0) > 1)
+        return usage_error("%s", "--only, --report-only and --count exclude each other");
     cli_plugin plugin;
     char err[4096 + 512];
     if (cli_plugin_open(&plugin, err, sizeof err)) {

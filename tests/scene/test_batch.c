@@ -8,6 +8,12 @@
  *  3. A long job beside a short one, SIGINT to the batch once the short one is
  *     done: exit 1, the short job's outputs kept, the long one reported
  *     interrupted, and no temporary file anywhere.
+ *  4. Folder mode: a folder holding the sample meshes, an OFF file and files that
+ *     are not meshes, with a template: one job per mesh, named after the file, in
+ *     name order, with the template's settings; a rerun skips them all; --count.
+ *  5. --only and --report-only (what a Slurm array task and its merge step run):
+ *     each task runs exactly its entry, and the merged report says ok, failed (with
+ *     the task's error) and not run.
  *
  * Usage: test_batch RBCLOTH MESH_DIR OUT_DIR
  */
@@ -273,6 +279,121 @@ static void test_interrupt(void) {
     check_report_json(out, names, statuses, 3);
 }
 
+/* Run RBCLOTH with the given arguments (NULL-terminated), stdout+stderr to log. */
+static int run_cli(const char *log, const char *const *args) {
+    char *argv[32];
+    int n = 0;
+    argv[n++] = (char *)g_cli;
+    for (; args[n - 1] && n < 31; ++n) argv[n] = (char *)args[n - 1];
+    argv[n] = NULL;
+    pid_t pid = fork();
+    if (pid == 0) {
+        FILE *f = freopen(log, "w", stdout);
+        (void)f;
+        dup2(STDOUT_FILENO, STDERR_FILENO);
+        execv(g_cli, argv);
+        _exit(127);
+    }
+    return wait_exit(pid);
+}
+
+static void copy_file(const char *from, const char *to) {
+    size_t size = 0;
+    unsigned char *b = file_read_bytes(from, &size);
+    CHECK(b != NULL);
+    FILE *f = fopen(to, "wb");
+    CHECK(f != NULL);
+    if (b && f) CHECK_EQ(fwrite(b, 1, size, f), size);
+    if (f) fclose(f);
+    free(b);
+}
+
+static void test_folder(void) {
+    char dir[1024], out[1024], tmpl[1100], log[1100];
+    snprintf(dir, sizeof dir, "%s/meshes", g_out);
+    snprintf(out, sizeof out, "%s/folder", g_out);
+    snprintf(tmpl, sizeof tmpl, "%s/template.json", g_out);
+    snprintf(log, sizeof log, "%s/folder.log", g_out);
+    mkdir(dir, 0755);
+    static const char *const objs[] = {"grid_20x20.obj", "strip_8x4.obj", "tri_patch.obj"};
+    for (int k = 0; k < 3; ++k)
+        copy_file(fmt("%s/%s", g_meshes, objs[k]), fmt("%s/%s", dir, objs[k]));
+    /* A 3 x 3 vertex grid hanging in the x-y plane, as OFF (another assimp reader). */
+    write_text(fmt("%s/%s", dir, "square.off"),
+               "OFF\n9 4 0\n0 0 0\n0.5 0 0\n1 0 0\n0 0.5 0\n0.5 0.5 0\n1 0.5 0\n"
+               "0 1 0\n0.5 1 0\n1 1 0\n4 0 1 4 3\n4 1 2 5 4\n4 3 4 7 6\n4 4 5 8 7\n");
+    write_text(fmt("%s/%s", dir, "README.txt"), "not a mesh\n");
+    write_text(fmt("%s/%s", dir, "notes.json"), "{}\n");
+    mkdir(fmt("%s/%s", dir, "sub.obj"), 0755); /* a folder, even with a mesh's name */
+    write_text(tmpl, "{\"frames\": 6, \"solver\": \"rbgs\", \"pins\": {\"top_axis\": \"y\","
+                     " \"top_tolerance\": 0.001}, \"outputs\": [\"pc2\", \"mdd\"]}\n");
+    const char *args[] = {"batch", dir, "--template", tmpl, "-j", "2", "--out", out, "--quiet", NULL};
+    CHECK_EQ(run_cli(log, args), 0);
+    check_caches(out, "grid_20x20", 441, 6, 1, 0);
+    check_caches(out, "square", 9, 6, 1, 0);
+    check_caches(out, "strip_8x4", 45, 6, 1, 0);
+    check_caches(out, "tri_patch", 121, 6, 1, 0);
+    CHECK(!exists(fmt("%s/%s", out, "README")));
+    CHECK(!exists(fmt("%s/%s", out, "sub")));
+    static const char *const names[] = {"grid_20x20", "square", "strip_8x4", "tri_patch"};
+    static const char *const ok[] = {"ok", "ok", "ok", "ok"};
+    static const char *const skipped[] = {"skipped", "skipped", "skipped", "skipped"};
+    check_report_json(out, names, ok, 4);
+    CHECK_EQ(run_cli(log, args), 0);
+    CHECK(log_contains(log, "0 ok, 4 skipped, 0 failed"));
+    check_report_json(out, names, skipped, 4);
+    const char *count[] = {"batch", dir, "--template", tmpl, "--count", NULL};
+    CHECK_EQ(run_cli(log, count), 0);
+    CHECK(log_contains(log, "4\n"));
+    /* Misuse is refused clearly. */
+    const char *no_template[] = {"batch", dir, "--out", out, NULL};
+    CHECK_EQ(run_cli(log, no_template), 1);
+    CHECK(log_contains(log, "folder mode needs --template"));
+    const char *empty[] = {"batch", out, "--template", tmpl, "--out", out, NULL};
+    CHECK_EQ(run_cli(log, empty), 1);
+    CHECK(log_contains(log, "no mesh file"));
+}
+
+static void test_only_and_report(void) {
+    char out[1024], manifest[1100], log[1100], json[4096];
+    snprintf(out, sizeof out, "%s/only", g_out);
+    snprintf(manifest, sizeof manifest, "%s/only.json", g_out);
+    snprintf(log, sizeof log, "%s/only.log", g_out);
+    snprintf(json, sizeof json,
+             "{\"defaults\": {\"frames\": 5},\n"
+             " \"jobs\": [\n"
+             "  {\"name\": \"strip\", \"mesh\": \"%s/strip_8x4.obj\"},\n"
+             "  {\"name\": \"missing\", \"mesh\": \"%s/no_such_mesh.obj\"},\n"
+             "  {\"name\": \"patch\", \"mesh\": \"%s/tri_patch.obj\"}\n"
+             " ]}\n",
+             g_meshes, g_meshes, g_meshes);
+    write_text(manifest, json);
+    const char *task0[] = {"batch", manifest, "--only", "0", "--out", out, "--quiet", NULL};
+    CHECK_EQ(run_cli(log, task0), 0);
+    CHECK(exists(fmt("%s/%s", out, "strip/strip.result.json")));
+    CHECK(!exists(fmt("%s/%s", out, "patch")));
+    CHECK(!exists(fmt("%s/%s", out, "batch_report.json")));
+    const char *task1[] = {"batch", manifest, "--only", "1", "--out", out, "--quiet", NULL};
+    CHECK_EQ(run_cli(log, task1), 1);
+    CHECK(log_contains(log, "missing: failed"));
+    const char *task9[] = {"batch", manifest, "--only", "3", "--out", out, NULL};
+    CHECK_EQ(run_cli(log, task9), 1);
+    CHECK(log_contains(log, "has 3 jobs"));
+    const char *merge[] = {"batch", manifest, "--report-only", "--out", out, NULL};
+    CHECK_EQ(run_cli(log, merge), 1);
+    static const char *const names[] = {"strip", "missing", "patch"};
+    static const char *const statuses[] = {"ok", "failed", "not run"};
+    check_report_json(out, names, statuses, 3);
+    CHECK(log_contains(fmt("%s/%s", out, "batch_report.json"), "RBC_ERR_IO"));
+    CHECK(!exists(fmt("%s/%s", out, "patch")));
+    /* The last task, then the merge again: everything but the missing mesh is ok. */
+    const char *task2[] = {"batch", manifest, "--only", "2", "--out", out, "--quiet", NULL};
+    CHECK_EQ(run_cli(log, task2), 0);
+    CHECK_EQ(run_cli(log, merge), 1);
+    static const char *const after[] = {"ok", "failed", "ok"};
+    check_report_json(out, names, after, 3);
+}
+
 int main(int argc, char **argv) {
     if (argc != 4) {
         fprintf(stderr, "usage: test_batch RBCLOTH MESH_DIR OUT_DIR\n");
@@ -286,5 +407,7 @@ int main(int argc, char **argv) {
     if (system(cmd) != 0) return 2;
     test_failures_and_resume();
     test_interrupt();
+    test_folder();
+    test_only_and_report();
     return check_report("test_batch");
 }
