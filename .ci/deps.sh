@@ -4,8 +4,10 @@
 set -euo pipefail
 # zlib1g-dev: assimp's CMake config links /usr/lib/x86_64-linux-gnu/libz.so, which
 # libassimp-dev does not pull in (a fresh bookworm root fails to link without it).
+# slurm-wlm, munge: tests/slurm starts a one-node Slurm on localhost to run
+# samples/slurm/ (about 12 s to install on bookworm; the test skips without them).
 pkgs=(cmake make gcc libc6-dev pkg-config libcjson-dev libsuitesparse-dev abigail-tools binutils
-      libassimp-dev zlib1g-dev assimp-testmodels valgrind)
+      libassimp-dev zlib1g-dev assimp-testmodels valgrind slurm-wlm munge)
 missing=()
 for p in "${pkgs[@]}"; do
   status=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)

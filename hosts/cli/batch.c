@@ -1095,15 +1095,20 @@ static int write_reports(const batch *b, double wall, char *err, size_t err_size
     char *md = rc == 0 ? malloc(cap) : NULL;
     if (rc == 0 && !md) rc = -1, snprintf(err, err_size, "out of memory");
     if (md) {
+        char how[96];
+        if (b->options->report_only)
+            snprintf(how, sizeof how, "merged from the results in the output folder");
+        else
+            snprintf(how, sizeof how, "%.2f s wall with -j %ld", wall, b->options->jobs);
         len += (size_t)snprintf(md + len, cap - len,
                                 "# rbcloth batch report\n\n%s: %zu jobs, %zu ok, %zu skipped, %zu "
-                                "failed, %zu interrupted, %zu not run; %.2f s wall with -j %ld\n\n"
+                                "failed, %zu interrupted, %zu not run; %s\n\n"
                                 "| job | status | mesh | vertices | colors | ms/frame | final Eq. 7 "
                                 "| clamped steps | stability | outputs |\n"
                                 "|---|---|---|---|---|---|---|---|---|---|\n",
                                 b->options->manifest_path, b->job_count, counts[JOB_OK],
                                 counts[JOB_SKIPPED], counts[JOB_FAILED], counts[JOB_INTERRUPTED],
-                                counts[JOB_NOT_RUN], wall, b->options->jobs);
+                                counts[JOB_NOT_RUN], how);
         for (size_t k = 0; k < b->job_count && len < cap; ++k) {
             const batch_job *j = &b->jobs[k];
             const char *src = j->mesh ? j->mesh : j->scene;
