@@ -776,6 +776,13 @@ typedef struct rbc_mesh_import_def {
     /// tolerance 1e-4.
     int32_t pin_top_axis;
     float pin_top_tolerance;
+    /// Pin every vertex of the meshes whose name, or the name of a node that places
+    /// them, equals this (UTF-8, exact): a named group or selection of the file (an
+    /// OBJ `g`/`o` group, a Collada/FBX/glTF node or mesh name). The group need not
+    /// be among the meshes taken by mesh_name; only vertices of meshes taken are
+    /// pinned, and a name that matches no placement taken is
+    /// RBC_ERR_INVALID_ARGUMENT (listing the names). NULL = off. Default NULL.
+    const char *pin_group;
 } rbc_mesh_import_def;
 
 /// What rbc_mesh_import made of a file, read with rbc_mesh_get_info (set
@@ -825,6 +832,9 @@ typedef struct rbc_mesh_info {
     /// in both; pin_count counts it once).
     uint32_t pins_from_colors;
     uint32_t pins_from_rules;
+    /// Pinned vertices that belong to the pin_group (counted here too when also
+    /// pinned by a color or rule).
+    uint32_t pins_from_group;
     /// Axis-aligned bounds of the positions, metres.
     float bounds_min[3];
     float bounds_max[3];

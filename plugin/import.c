@@ -78,6 +78,7 @@ static rbc_mesh_import_def import_def_defaults(void) {
     d.struct_size = sizeof d;
     d.mesh_index = -1;
     d.mesh_name = NULL;
+    d.pin_group = NULL;
     d.scale = 1.0f;
     d.weld = 1;
     d.weld_distance = 0.0f;
@@ -126,6 +127,7 @@ static int vec_reserve(u32vec *a, size_t more) {
 
 typedef struct instance {
     uint32_t mesh;     /* index into aiScene::mMeshes */
+    int pin_all;       /* the placement is the pin group's: pin all its vertices */
     double m[12];      /* rows 1..3 of the 4x4 affine transform */
     uint32_t base;     /* first source vertex */
 } instance;
@@ -276,7 +278,7 @@ static int name_is(const struct aiString *s, const char *name) {
     return s->length == len && memcmp(s->data, name, len) == 0;
 }
 
-static rbc_result add_instance(build *b, uint32_t mesh, const double m[12]) {
+static rbc_result add_instance(build *b, uint32_t mesh, const double m[12], int pin_all) {
     if (b->ninst == b->cap_inst) {
         size_t cap = b->cap_inst ? 2 * b->cap_inst : 16;
         instance *p = realloc(b->inst, cap * sizeof *p);
@@ -286,6 +288,7 @@ static rbc_result add_instance(build *b, uint32_t mesh, const double m[12]) {
     }
     instance *in = &b->inst[b->ninst++];
     in->mesh = mesh;
+    in->pin_all = pin_all;
     memcpy(in->m, m, sizeof in->m);
     in->base = 0;
     return RBC_OK;
@@ -370,7 +373,9 @@ static rbc_result collect_instances(build *b, const struct aiScene *s) {
                        : d->mesh_name     ? name_is(&s->mMeshes[mi]->mName, d->mesh_name) ||
                                             name_is(&nd->mName, d->mesh_name)
                                           : 1;
-            if (take) rc = add_instance(b, mi, m);
+            int group = d->pin_group && (name_is(&s->mMeshes[mi]->mName, d->pin_group) ||
+                                         name_is(&nd->mName, d->pin_group));
+            if (take) rc = add_instance(b, mi, m, group);
         }
         for (unsigned k = 0; k < nd->mNumChildren && rc == RBC_OK; ++k) {
             if (!nd->mChildren || !nd->mChildren[k]) continue;
@@ -395,11 +400,24 @@ static rbc_result collect_instances(build *b, const struct aiScene *s) {
                    : d->mesh_name     ? name_is(&s->mMeshes[mi]->mName, d->mesh_name)
                                       : 1;
         static const double id[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
-        if (take) rc = add_instance(b, mi, id);
+        int group = d->pin_group && name_is(&s->mMeshes[mi]->mName, d->pin_group);
+        if (take) rc = add_instance(b, mi, id, group);
     }
     free(stack);
     free(placed);
     if (rc) return rc;
+    if (b->ninst && d->pin_group) {
+        int any = 0;
+        for (size_t k = 0; k < b->ninst; ++k) any |= b->inst[k].pin_all;
+        if (!any) {
+            char names[400];
+            list_names(s, names, sizeof names);
+            return import_error(b, RBC_ERR_INVALID_ARGUMENT,
+                                "pin_group \"%.128s\" names no mesh or node taken: the file's "
+                                "meshes are %s (node names match too)",
+                                d->pin_group, names);
+        }
+    }
     if (b->ninst == 0) {
         char names[400];
         list_names(s, names, sizeof names);
@@ -448,8 +466,10 @@ static rbc_result collect_vertices(build *b, const struct aiScene *s) {
                 if (fv == 0.0f) fv = 0.0f; /* -0 welds with +0 */
                 b->src_pos[3 * i + r] = fv;
             }
+            /* Bit 0: pinned by color; bit 1: by the pin group. */
             if (col && thr > 0.0f && col[v].r >= thr && col[v].g < thr && col[v].b < thr)
-                b->src_red[i] = 1;
+                b->src_red[i] |= 1;
+            if (in->pin_all) b->src_red[i] |= 2;
         }
     }
     return RBC_OK;
@@ -1011,7 +1031,8 @@ static rbc_result finish(build *b, rbc_mesh *out) {
                 (double)info->bounds_max[d->pin_top_axis] - d->pin_top_tolerance)
             rule = 1;
         info->pins_from_rules += (uint32_t)rule;
-        info->pins_from_colors += red[v];
+        info->pins_from_colors += red[v] & 1;
+        info->pins_from_group += (red[v] >> 1) & 1;
         if (rule || red[v]) out->pins[np++] = v;
     }
     free(red);

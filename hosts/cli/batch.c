@@ -59,7 +59,8 @@ typedef struct batch_job {
     long substeps, iterations, nonlinear, threads;
     int solver, energy_guard; /* indices into rbc_scene_*_names, -1 = default */
     double stiffness, vertex_mass, damping;
-    rbc_mesh_import_def import;
+    rbc_mesh_import_def import; /* pin_group set from pin_group below at import time */
+    char pin_group[128];        /* pins.group, or "" */
     uint32_t collider_count;
     rbc_collider_def colliders[MAX_COLLIDERS];
     int out_pc2, out_mdd, out_objseq;
@@ -216,10 +217,17 @@ static int get_name(parse_ctx *p, const char *job, const cJSON *jo, const cJSON 
 
 /* Pin rules of the import def: {"top_axis": "x"|"y"|"z", "top_tolerance", "plane":
  * [nx, ny, nz, d], "plane_distance", "point": [x, y, z], "point_distance",
- * "color_threshold"}. */
-static int parse_pins(parse_ctx *p, const char *job, const cJSON *pins, rbc_mesh_import_def *d) {
+ * "color_threshold", "group": "NAME"} (group: a mesh or node name of the file). */
+static int parse_pins(parse_ctx *p, const char *job, const cJSON *pins, rbc_mesh_import_def *d,
+                      char *group, size_t group_cap) {
     if (!pins) return 0;
     if (!cJSON_IsObject(pins)) return fail(p, job, "pins", "must be an object");
+    const cJSON *grp = cJSON_GetObjectItemCaseSensitive(pins, "group");
+    if (grp) {
+        if (!cJSON_IsString(grp) || !grp->valuestring[0] || strlen(grp->valuestring) >= group_cap)
+            return fail(p, job, "pins.group", "must be a non-empty name of under 128 bytes");
+        snprintf(group, group_cap, "%s", grp->valuestring);
+    }
     const cJSON *axis = cJSON_GetObjectItemCaseSensitive(pins, "top_axis");
     if (axis) {
         static const char *const axes[] = {"x", "y", "z"};
@@ -328,7 +336,8 @@ static int parse_job(parse_ctx *p, const rbc_api_v1 *api, const char *base_dir,
     double scale = 1.0;
     if (get_number(p, label, jo, defaults, "scale", 1e-9, 1e9, &scale)) return -1;
     j->import.scale = (float)scale;
-    if (parse_pins(p, label, setting(jo, defaults, "pins"), &j->import) ||
+    if (parse_pins(p, label, setting(jo, defaults, "pins"), &j->import, j->pin_group,
+                   sizeof j->pin_group) ||
         parse_colliders(p, api, label, setting(jo, defaults, "colliders"), j))
         return -1;
     if (j->scene && (setting(jo, defaults, "pins") || setting(jo, defaults, "colliders")) &&
@@ -663,6 +672,7 @@ static void fill_solver(const batch_job *j, rbc_solver_def *sd) {
 static int setup_mesh_job(job_run *r) {
     const rbc_api_v1 *api = r->api;
     batch_job *j = r->job;
+    j->import.pin_group = j->pin_group[0] ? j->pin_group : NULL;
     rbc_result rc = api->mesh_import(j->mesh, &j->import, &r->mesh);
     if (rc != RBC_OK) return api_fail(r, rc, "import");
     rbc_solver_def sd;

@@ -335,6 +335,34 @@ static void test_weld_select_scale(void) {
     d = rbc_mesh_import_def_default();
     d.mesh_name = "nope";
     expect_refused(path, &d, RBC_ERR_INVALID_ARGUMENT, "no mesh named \"nope\"");
+
+    /* Pins from a named group: every vertex of object B (4), among them the two it
+     * shares with A by welding; the group need not be taken alone. */
+    d = rbc_mesh_import_def_default();
+    d.pin_group = "B";
+    CHECK_EQ(rbc_mesh_import(path, &d, &m), RBC_OK);
+    i = info_of(m);
+    CHECK_EQ(i.vertex_count, 10);
+    CHECK_EQ(i.pin_count, 4);
+    CHECK_EQ(i.pins_from_group, 4);
+    CHECK_EQ(i.pins_from_colors, 0);
+    CHECK_EQ(i.pins_from_rules, 0);
+    uint32_t pins[10];
+    size_t pc = 0, pn = 0;
+    float pos[30];
+    CHECK_EQ(rbc_mesh_get_pins(m, pins, 10, &pc), RBC_OK);
+    CHECK_EQ(rbc_mesh_get_positions(m, pos, 30, &pn), RBC_OK);
+    int all_b = pc == 4;
+    for (size_t k = 0; k < pc && k < 10; ++k)
+        all_b &= pos[3 * pins[k]] >= 1.0f && pos[3 * pins[k]] <= 2.0f; /* x in [1, 2] */
+    CHECK(all_b);
+    CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
+    /* Only meshes taken are pinned: taking C alone, group B is not among them. */
+    d.mesh_name = "C";
+    expect_refused(path, &d, RBC_ERR_INVALID_ARGUMENT, "pin_group \"B\" names no mesh or node taken");
+    d = rbc_mesh_import_def_default();
+    d.pin_group = "nope";
+    expect_refused(path, &d, RBC_ERR_INVALID_ARGUMENT, "pin_group \"nope\"");
 }
 
 static void test_ply_pins(void) {
