@@ -365,6 +365,61 @@ static void test_weld_select_scale(void) {
     expect_refused(path, &d, RBC_ERR_INVALID_ARGUMENT, "pin_group \"nope\"");
 }
 
+/* Node transforms, numerically: a Collada quad (unit square in y = 0) placed by a
+ * node scaled 2x inside a node translated by (10, 0, 0): its corners must land on
+ * x in [10, 12], z in [0, 2]; def.scale applies after them. */
+static void test_node_transforms(void) {
+    const char *path = write_file(
+        "nodes.dae",
+        "<?xml version=\"1.0\" encoding=\"utf-8\"?>\n"
+        "<COLLADA xmlns=\"http://www.collada.org/2005/11/COLLADASchema\" version=\"1.4.1\">\n"
+        "<asset><unit name=\"meter\" meter=\"1\"/><up_axis>Y_UP</up_axis></asset>\n"
+        "<library_geometries><geometry id=\"quad\" name=\"quad\"><mesh>\n"
+        "<source id=\"quad-pos\"><float_array id=\"quad-pos-array\" count=\"12\">"
+        "0 0 0 1 0 0 1 0 1 0 0 1</float_array>\n"
+        "<technique_common><accessor source=\"#quad-pos-array\" count=\"4\" stride=\"3\">"
+        "<param name=\"X\" type=\"float\"/><param name=\"Y\" type=\"float\"/>"
+        "<param name=\"Z\" type=\"float\"/></accessor></technique_common></source>\n"
+        "<vertices id=\"quad-vtx\"><input semantic=\"POSITION\" source=\"#quad-pos\"/></vertices>\n"
+        "<polylist count=\"1\"><input semantic=\"VERTEX\" source=\"#quad-vtx\" offset=\"0\"/>"
+        "<vcount>4</vcount><p>0 1 2 3</p></polylist>\n"
+        "</mesh></geometry></library_geometries>\n"
+        "<library_visual_scenes><visual_scene id=\"scene\">\n"
+        "<node id=\"outer\" name=\"outer\"><translate>10 0 0</translate>\n"
+        "<node id=\"inner\" name=\"inner\"><scale>2 2 2</scale>"
+        "<instance_geometry url=\"#quad\"/></node></node>\n"
+        "</visual_scene></library_visual_scenes>\n"
+        "<scene><instance_visual_scene url=\"#scene\"/></scene>\n"
+        "</COLLADA>\n");
+    rbc_mesh_id m = 0;
+    CHECK_EQ(rbc_mesh_import(path, NULL, &m), RBC_OK);
+    if (!m) {
+        fprintf(stderr, "  nodes.dae: %s\n", rbc_last_error());
+        return;
+    }
+    rbc_mesh_info i = info_of(m);
+    CHECK_EQ(i.vertex_count, 4);
+    CHECK_EQ(i.quad_count, 1);
+    /* Exact in floats: 2 * {0, 1} + 10. */
+    CHECK_NEAR(i.bounds_min[0], 10.0, 1e-6);
+    CHECK_NEAR(i.bounds_max[0], 12.0, 1e-6);
+    CHECK_NEAR(i.bounds_min[1], 0.0, 1e-6);
+    CHECK_NEAR(i.bounds_max[1], 0.0, 1e-6);
+    CHECK_NEAR(i.bounds_min[2], 0.0, 1e-6);
+    CHECK_NEAR(i.bounds_max[2], 2.0, 1e-6);
+    CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
+    rbc_mesh_import_def d = rbc_mesh_import_def_default();
+    d.scale = 0.5f;
+    d.pin_group = "inner"; /* a node name */
+    CHECK_EQ(rbc_mesh_import(path, &d, &m), RBC_OK);
+    i = info_of(m);
+    CHECK_NEAR(i.bounds_min[0], 5.0, 1e-6);
+    CHECK_NEAR(i.bounds_max[0], 6.0, 1e-6);
+    CHECK_NEAR(i.bounds_max[2], 1.0, 1e-6);
+    CHECK_EQ(i.pins_from_group, 4);
+    CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
+}
+
 static void test_ply_pins(void) {
     /* A 3 x 3 grid of quads (4 x 4 vertices) with vertex colors: the top row red, one
      * green vertex, the rest white. */
@@ -486,6 +541,7 @@ int main(void) {
     test_triangle_grid();
     test_ngons();
     test_weld_select_scale();
+    test_node_transforms();
     test_ply_pins();
     test_bad_input();
     char cmd[400];
