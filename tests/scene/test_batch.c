@@ -279,6 +279,90 @@ static void test_interrupt(void) {
     check_report_json(out, names, statuses, 3);
 }
 
+/* The oldest child of `parent` (the first forked): the pid whose /proc/PID/stat names
+ * parent as its parent, with the smallest start time; 0 if none. (/proc/PID/task/
+ * TID/children needs a kernel option this machine lacks.) */
+static long child_of(pid_t parent) {
+    DIR *d = opendir("/proc");
+    if (!d) return 0;
+    long best = 0;
+    unsigned long long best_start = ~0ull;
+    struct dirent *e;
+    while ((e = readdir(d)) != NULL) {
+        long p = strtol(e->d_name, NULL, 10);
+        if (p <= 0) continue;
+        /* /proc files report size 0: read them with fread, not by their size. */
+        FILE *f = fopen(fmt("/proc/%s/%s", e->d_name, "stat"), "r");
+        if (!f) continue;
+        char *st = calloc(1, 4096);
+        size_t got = st ? fread(st, 1, 4095, f) : 0;
+        fclose(f);
+        if (!st || !got) {
+            free(st);
+            continue;
+        }
+        /* pid (comm) state ppid ... field 22 starttime; comm may hold spaces. */
+        char *rp = strrchr(st, ')');
+        long ppid = 0;
+        unsigned long long start = 0;
+        if (rp) {
+            char *q = rp + 2; /* state */
+            int field = 3;
+            for (char *tok = strtok(q, " "); tok; tok = strtok(NULL, " "), ++field) {
+                if (field == 4) ppid = strtol(tok, NULL, 10);
+                if (field == 22) {
+                    start = strtoull(tok, NULL, 10);
+                    break;
+                }
+            }
+        }
+        free(st);
+        if (ppid == (long)parent && start < best_start) best = p, best_start = start;
+    }
+    closedir(d);
+    return best;
+}
+
+/* A worker killed with SIGKILL in the middle of its frames (a job the OOM killer or a
+ * user ends): the batch reports it crashed, removes its temporary files, runs the
+ * rest, and exits 1. The worker is found as the batch's child process. */
+static void test_killed_job(void) {
+    char out[1024], manifest[1100], log[1100], json[4096];
+    snprintf(out, sizeof out, "%s/killed", g_out);
+    snprintf(manifest, sizeof manifest, "%s/killed.json", g_out);
+    snprintf(log, sizeof log, "%s/killed.log", g_out);
+    snprintf(json, sizeof json,
+             "{\"jobs\": [\n"
+             "  {\"name\": \"victim\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000,"
+             " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
+             "  {\"name\": \"after\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 10,"
+             " \"outputs\": [\"pc2\"]}\n"
+             " ]}\n",
+             g_meshes, g_meshes);
+    write_text(manifest, json);
+    pid_t pid = start_batch(manifest, out, log); /* the victim is forked first */
+    long worker = 0;
+    for (int k = 0; k < 500 && worker <= 0; ++k) { /* at most 10 s */
+        struct timespec ts = {0, 20 * 1000 * 1000};
+        nanosleep(&ts, NULL);
+        if (!exists(fmt("%s/%s", out, "victim"))) continue; /* the victim has started */
+        worker = child_of(pid);
+    }
+    CHECK(worker > 0);
+    if (worker > 0) {
+        struct timespec ts = {0, 300 * 1000 * 1000}; /* some frames into its tmp files */
+        nanosleep(&ts, NULL);
+        kill((pid_t)worker, SIGKILL);
+    } else {
+        kill(pid, SIGINT); /* never leave the batch running */
+    }
+    CHECK_EQ(wait_exit(pid), 1);
+    CHECK(log_contains(log, "victim: crashed: signal 9"));
+    CHECK(exists(fmt("%s/%s", out, "after/after.pc2")));
+    CHECK(!exists(fmt("%s/%s", out, "victim/victim.pc2")));
+    CHECK_EQ(count_tmp(out), 0);
+}
+
 /* Run RBCLOTH with the given arguments (NULL-terminated), stdout+stderr to log. */
 static int run_cli(const char *log, const char *const *args) {
     char *argv[32];
@@ -407,6 +491,7 @@ int main(int argc, char **argv) {
     if (system(cmd) != 0) return 2;
     test_failures_and_resume();
     test_interrupt();
+    test_killed_job();
     test_folder();
     test_only_and_report();
     return check_report("test_batch");
