@@ -106,6 +106,18 @@ static int usage_error(const char *fmt, const char *arg) {
     return EXIT_USAGE;
 }
 
+/* A string option "--name value" or "--name=value": 1 and *out set (the value, or
+ * NULL if missing) when arg names it, advancing *i past a separate value; 0 if arg
+ * is another option. */
+static int string_option(const char *arg, const char *name, int argc, char **argv, int *i,
+                         const char **out) {
+    const char *eq = strchr(arg, '=');
+    size_t name_len = eq ? (size_t)(eq - arg) : strlen(arg);
+    if (name_len != strlen(name) || strncmp(arg, name, name_len) != 0) return 0;
+    *out = eq ? eq + 1 : (*i + 1 < argc ? argv[++*i] : NULL);
+    return 1;
+}
+
 static int is_help(const char *arg) {
     return strcmp(arg, "-h") == 0 || strcmp(arg, "--help") == 0;
 }
@@ -187,9 +199,7 @@ static int parse_run_args(int argc, char **argv, cli_run_options *o) {
         size_t name_len = eq ? (size_t)(eq - arg) : strlen(arg);
         const char *value = eq ? eq + 1 : NULL;
         int matched = 0;
-        if (name_len == strlen("--out") && strncmp(arg, "--out", name_len) == 0) {
-            if (!value && i + 1 < argc)
-                value = argv[++i];
+        if (string_option(arg, "--out", argc, argv, &i, &value)) {
             if (!value || !value[0])
                 return usage_error("%s needs a directory", "--out");
             o->out_dir = value;
@@ -309,17 +319,13 @@ static int command_batch(int argc, char **argv) {
         const char *eq = strchr(arg, '=');
         size_t name_len = eq ? (size_t)(eq - arg) : strlen(arg);
         const char *value = eq ? eq + 1 : NULL;
-        if (name_len == strlen("--out") && strncmp(arg, "--out", name_len) == 0) {
-            if (!value && i + 1 < argc)
-                value = argv[++i];
+        if (string_option(arg, "--out", argc, argv, &i, &value)) {
             if (!value || !value[0])
                 return usage_error("%s needs a directory", "--out");
             options.out_dir = value;
             continue;
         }
-        if (name_len == strlen("--template") && strncmp(arg, "--template", name_len) == 0) {
-            if (!value && i + 1 < argc)
-                value = argv[++i];
+        if (string_option(arg, "--template", argc, argv, &i, &value)) {
             if (!value || !value[0])
                 return usage_error("%s needs a JSON file", "--template");
             options.template_path = value;
@@ -368,9 +374,7 @@ static int parse_bench_args(int argc, char **argv, cli_bench_options *o) {
         const char *eq = strchr(arg, '=');
         size_t name_len = eq ? (size_t)(eq - arg) : strlen(arg);
         const char *value = eq ? eq + 1 : NULL;
-        if (name_len == strlen("--out") && strncmp(arg, "--out", name_len) == 0) {
-            if (!value && i + 1 < argc)
-                value = argv[++i];
+        if (string_option(arg, "--out", argc, argv, &i, &value)) {
             if (!value || !value[0])
                 return usage_error("%s needs a directory", "--out");
             o->out_dir = value;
