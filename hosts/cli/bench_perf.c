@@ -34,6 +34,7 @@
  * recorded with them.
  */
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -108,12 +109,65 @@ typedef struct perf_ctx {
     long cores;
     double load_start, load_end;
     uint32_t failed_rows;
+    /// Memory bandwidth by a STREAM-style triad, GB/s, with 1 and threads_many
+    /// threads (0 if it could not run): the roofline's other axis.
+    double triad_gbs[2];
 } perf_ctx;
 
 static int out_of_memory(void) {
     fputs("rbcloth: out of memory in the perf bench\n", stderr);
     return 1;
 }
+
+/* ------------------------------------------------------------------------- */
+/* Machine: memory bandwidth (a STREAM-style triad)                          */
+/* ------------------------------------------------------------------------- */
+
+enum { TRIAD_N = 8 * 1024 * 1024 }; /* 3 arrays of 32 MiB: far beyond the caches */
+
+typedef struct triad_arg {
+    float *a, *b, *c;
+    size_t begin, end;
+} triad_arg;
+
+static void *triad_part(void *p) {
+    triad_arg *t = p;
+    for (size_t i = t->begin; i < t->end; ++i) t->a[i] = t->b[i] + 3.0f * t->c[i];
+    return NULL;
+}
+
+/* Best of 5 triads a = b + 3 c over TRIAD_N floats with `threads` threads, counting
+ * 12 bytes per element (two loads, one store; the write-allocate read is not
+ * counted, as in STREAM). */
+static double triad_gbs(uint32_t threads) {
+    float *a = malloc(sizeof(float) * TRIAD_N), *b = malloc(sizeof(float) * TRIAD_N),
+          *c = malloc(sizeof(float) * TRIAD_N);
+    double best = 0.0;
+    if (a && b && c && threads >= 1 && threads <= 64) {
+        for (size_t i = 0; i < TRIAD_N; ++i) a[i] = 0.0f, b[i] = 1.0f, c[i] = 2.0f;
+        pthread_t th[64];
+        triad_arg args[64];
+        for (int rep = 0; rep < 5; ++rep) {
+            double t0 = bench_now();
+            for (uint32_t k = 0; k < threads; ++k) {
+                args[k] = (triad_arg){a, b, c, (size_t)TRIAD_N * k / threads,
+                                      (size_t)TRIAD_N * (k + 1) / threads};
+                if (k && pthread_create(&th[k], NULL, triad_part, &args[k]) != 0) {
+                    threads = k; /* run with the threads that started */
+                    break;
+                }
+            }
+            triad_part(&args[0]);
+            for (uint32_t k = 1; k < threads; ++k) pthread_join(th[k], NULL);
+            double sec = bench_now() - t0;
+            double gbs = sec > 0.0 ? 12.0 * TRIAD_N / sec / 1e9 : 0.0;
+            if (gbs > best) best = gbs;
+        }
+    }
+    free(a), free(b), free(c);
+    return best;
+}
+
 
 /* ------------------------------------------------------------------------- */
 /* Machine                                                                   */
@@ -828,8 +882,11 @@ static void write_tables(const perf_ctx *ctx, FILE *f) {
 
 static void write_intro(const perf_ctx *ctx, FILE *f) {
     fprintf(f, "Machine: %s, %ld cores online; load average %.2f at the start, %.2f at the end "
-               "(timings assume an otherwise idle machine).\n\n",
-            ctx->cpu, ctx->cores, ctx->load_start, ctx->load_end);
+               "(timings assume an otherwise idle machine). Memory bandwidth (triad a = b + 3c "
+               "over 3 x 32 MiB, best of 5, 12 bytes per element): %.1f GB/s with 1 thread, "
+               "%.1f GB/s with %u.\n\n",
+            ctx->cpu, ctx->cores, ctx->load_start, ctx->load_end, ctx->triad_gbs[0],
+            ctx->triad_gbs[1], ctx->threads_many);
     fprintf(f, "Setup: the hanging cloth (1 m square, spacing 1/(n-1), 1e-4 kg per vertex, "
                "k = 1000 N/m, pinned at two corners, gravity), h = %g ms, 1 substep, 1 non-linear "
                "and %u linear iterations, library defaults otherwise (energy guard: %s). "
@@ -1010,6 +1067,10 @@ int cli_bench_perf(const cli_plugin *plugin, const cli_bench_options *options) {
     ctx->solver_side = 100;
 
     double start = bench_now();
+    ctx->triad_gbs[0] = triad_gbs(1);
+    ctx->triad_gbs[1] = ctx->threads_many > 1 ? triad_gbs(ctx->threads_many) : ctx->triad_gbs[0];
+    printf("Memory bandwidth (triad): %.1f GB/s with 1 thread, %.1f GB/s with %u\n",
+           ctx->triad_gbs[0], ctx->triad_gbs[1], ctx->threads_many);
     ctx->load_start = bench_load_average();
     int rc = 0;
     for (uint32_t k = 0; k < side_count && !rc; ++k) {
