@@ -4,6 +4,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "cpu/pool.h"
 #include "report.h"
 #include "simd.h"
 #include "solver.h"
@@ -302,16 +303,16 @@ void rbc_grid_wavefront(const rbc_grid *g, rbc_cloth_state *c, uint32_t iteratio
     for (uint32_t w = 0; w < steps; ++w) {
         /* Iteration it0 at step w reads rows of iteration it0 - 1 that the previous
          * thread writes at steps <= w. */
-        if (before)
-            while (*before <= w) __asm__ __volatile__("" ::: "memory");
-        __atomic_thread_fence(__ATOMIC_ACQUIRE);
+        if (before) {
+            uint32_t spins = 0;
+            while (__atomic_load_n(before, __ATOMIC_ACQUIRE) <= w) rbc_pool_spin(&spins);
+        }
         for (uint32_t it = it0; it < it1; ++it) {
             int64_t r = (int64_t)w - 2 * (int64_t)it; /* red row; then black row r - 1 */
             if (r >= 0 && r < (int64_t)ny) grid_row(g, c, 0, (uint32_t)r, omega);
             if (r - 1 >= 0 && r - 1 < (int64_t)ny) grid_row(g, c, 1, (uint32_t)(r - 1), omega);
         }
-        __atomic_thread_fence(__ATOMIC_RELEASE);
-        *mine = w + 1;
+        __atomic_store_n(mine, w + 1, __ATOMIC_RELEASE);
     }
 }
 

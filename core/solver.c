@@ -472,8 +472,10 @@ size_t rbc_cloth_state_bytes(const rbc_cloth_state *c) {
     return b;
 }
 
-void rbc_cloth_state_energy(const rbc_cloth_state *c, const float g[3], double *kinetic,
-                            double *potential, double *budget) {
+void rbc_cloth_state_energy(const rbc_cloth_state *c, const float g[3], int measure,
+                            double *kinetic, double *potential, double *budget) {
+    *budget = c->e_valid ? c->e_budget : 0.0;
+    if (!measure) return;
     const rbc_topology *t = &c->topo;
     double ke = 0.0, ug = 0.0, us = 0.0;
     float h = c->h_cached;
@@ -497,7 +499,6 @@ void rbc_cloth_state_energy(const rbc_cloth_state *c, const float g[3], double *
     }
     *kinetic = ke;
     *potential = us + ug;
-    *budget = c->e_valid ? c->e_budget : 0.0;
 }
 
 void rbc_cloth_state_energy_invalidate(rbc_cloth_state *c, int keep_slack) {
@@ -1008,7 +1009,6 @@ static void energy_start(step_ctx *ctx, uint32_t tid, uint32_t nt) {
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
         if (c->e_valid && c->e_h == ctx->h) {
-            c->e_start = c->e_last;
             c->e_step_budget = c->e_budget;
         } else {
             rbc_energy e = rbc_energy_sum(c, ctx->h, s->gravity, 1);
@@ -1020,7 +1020,6 @@ static void energy_start(step_ctx *ctx, uint32_t tid, uint32_t nt) {
                 slack = c->e_budget - c->e_last;
                 if (slack < 0.0) slack = 0.0;
             }
-            c->e_start = e.guarded;
             c->e_step_budget = e.guarded + slack;
         }
         c->e_removed = c->e_kept = 0.0;

@@ -86,8 +86,8 @@ typedef struct rbc_cloth_state {
     double *e_blk;              /* [rbc_energy_block_doubles] per-block partial sums */
     uint32_t *pin_springs;      /* springs with a pinned end (pin work) */
     uint32_t pin_spring_count, pin_spring_cap;
-    /* During a step: energy at its start, its budget, and the guard's action. */
-    double e_start, e_step_budget, e_end, e_removed, e_kept;
+    /* During a step: its budget, the energy at its end, and the guard's action. */
+    double e_step_budget, e_end, e_removed, e_kept;
     float e_scale;              /* velocity scale of the clamp (1 = none) */
 
     size_t state_bytes;
@@ -184,10 +184,11 @@ float rbc_solver_sor_omega(const rbc_solver *s, rbc_cloth_state *c, float h);
  * direct solver's factor. */
 size_t rbc_cloth_state_bytes(const rbc_cloth_state *c);
 /* Kinetic energy (velocities over the last h; 0 before the first step), potential
- * energy (springs + gravity, -m g . x) of the current state, and the energy guard's
- * budget for kinetic + gravitational energy (0 before the first guarded step). */
-void rbc_cloth_state_energy(const rbc_cloth_state *c, const float g[3], double *kinetic,
-                            double *potential, double *budget);
+ * energy (springs + gravity, -m g . x) of the current state (only if measure: a pass
+ * over the cloth; else left alone), and the energy guard's budget for kinetic +
+ * gravitational energy (0 before the first guarded step). */
+void rbc_cloth_state_energy(const rbc_cloth_state *c, const float g[3], int measure,
+                            double *kinetic, double *potential, double *budget);
 /* The state, pins or gravity changed: recompute the energy at the next step;
  * keep_slack 0 also resets the budget to it. */
 void rbc_cloth_state_energy_invalidate(rbc_cloth_state *c, int keep_slack);

@@ -137,10 +137,8 @@ void rbc_pool_run(rbc_pool *pool, rbc_pool_fn fn, void *ctx) {
     pthread_mutex_unlock(&pool->mu);
     fn(ctx, 0, pool->n);
     uint32_t spins = 0;
-    while (atomic_load_explicit(&pool->done, memory_order_acquire) != pool->n - 1) {
-        if (++spins < SPIN_BEFORE_YIELD) CPU_RELAX();
-        else sched_yield();
-    }
+    while (atomic_load_explicit(&pool->done, memory_order_acquire) != pool->n - 1)
+        rbc_pool_spin(&spins);
 }
 
 void rbc_pool_barrier(rbc_pool *pool) {
@@ -152,8 +150,10 @@ void rbc_pool_barrier(rbc_pool *pool) {
         return;
     }
     uint32_t spins = 0;
-    while (atomic_load_explicit(&pool->bar_gen, memory_order_acquire) == gen) {
-        if (++spins < SPIN_BEFORE_YIELD) CPU_RELAX();
-        else sched_yield();
-    }
+    while (atomic_load_explicit(&pool->bar_gen, memory_order_acquire) == gen) rbc_pool_spin(&spins);
+}
+
+void rbc_pool_spin(uint32_t *spins) {
+    if (++*spins < SPIN_BEFORE_YIELD) CPU_RELAX();
+    else sched_yield();
 }

@@ -19,6 +19,10 @@ uint32_t rbc_pool_size(const rbc_pool *pool);
 void rbc_pool_run(rbc_pool *pool, rbc_pool_fn fn, void *ctx);
 /* Inside fn: wait until all n threads arrive. */
 void rbc_pool_barrier(rbc_pool *pool);
+/* One round of a spin-wait, as the barrier waits: a pause for the first spins, then
+ * a yield, so a waiter on an oversubscribed machine gives its core to the thread it
+ * waits for. Start with *spins = 0. */
+void rbc_pool_spin(uint32_t *spins);
 /* The number of cores this process may run on (at least 1). */
 uint32_t rbc_cpu_count(void);
 #endif
