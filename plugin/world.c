@@ -414,9 +414,13 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
                            RBC_WORLD_STATS_SIZE_V1_1, RBC_WORLD_STATS_SIZE_V1_0);
     rbc_solver *s = &w->solver;
     double res_num = 0.0, res_den = 0.0;
+    const int full = out->struct_size == sizeof(rbc_world_stats);
+    /* What costs a pass over the cloths is evaluated only if asked for. */
+    const int measure = !(full && out->skip_measures);
     rbc_world_stats st;
     memset(&st, 0, sizeof st);
     st.struct_size = out->struct_size;
+    if (full) st.skip_measures = out->skip_measures;
     st.cloth_count = s->cloth_count;
     st.collider_count = s->collider_count;
     st.thread_count = rbc_pool_size(s->pool);
@@ -427,24 +431,28 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
         st.particle_count += c->topo.n;
         st.spring_count += c->topo.ns;
         if (c->topo.ncolors > st.color_count) st.color_count = c->topo.ncolors;
-        double e, strain;
-        rbc_cloth_state_error(c, &e, &strain);
-        st.error_eq7 += e;
-        if (strain > st.max_strain) st.max_strain = strain;
-        double ke, pe, e_budget;
-        rbc_cloth_state_energy(c, s->gravity, &ke, &pe, &e_budget);
-        st.kinetic_energy += ke;
-        st.potential_energy += pe;
-        st.energy_budget += e_budget;
-        st.memory_bytes += rbc_cloth_state_bytes(c);
-        if (out->struct_size >= RBC_WORLD_STATS_SIZE_V1_1) {
+        if (measure) {
+            double e, strain;
+            rbc_cloth_state_error(c, &e, &strain);
+            st.error_eq7 += e;
+            if (strain > st.max_strain) st.max_strain = strain;
+        }
+        if (full) {
+            double ke = 0.0, pe = 0.0, e_budget;
+            rbc_cloth_state_energy(c, s->gravity, measure, &ke, &pe, &e_budget);
+            st.kinetic_energy += ke;
+            st.potential_energy += pe;
+            st.energy_budget += e_budget;
+            st.memory_bytes += rbc_cloth_state_bytes(c);
+        }
+        if (measure && out->struct_size >= RBC_WORLD_STATS_SIZE_V1_1) {
             double r2, b2, obj;
             rbc_cloth_state_system_error(c, &r2, &b2, &obj);
             res_num += r2;
             res_den += b2;
             st.pd_objective += obj;
-            if (c->rho_est > st.spectral_radius) st.spectral_radius = c->rho_est;
         }
+        if (c->rho_est > st.spectral_radius) st.spectral_radius = c->rho_est;
     }
     st.solver = s->settings.kind;
     st.iteration_mode = s->settings.mode;

@@ -841,6 +841,7 @@ static int simulate(job_run *r, rbc_world_stats *last, double *ms_per_frame) {
         rbc_result rc = api->world_step(world, dt);
         memset(last, 0, sizeof *last);
         last->struct_size = sizeof *last;
+        last->skip_measures = f + 1 < j->frames; /* Eq. 7 and energies: last frame only */
         if (rc == RBC_OK) rc = api->world_get_stats(world, last);
         if (rc != RBC_OK) {
             free(xyz);

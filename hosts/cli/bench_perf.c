@@ -589,10 +589,12 @@ static int run_row(perf_ctx *ctx, perf_row *row, const bench_mesh *m) {
                     mesh_names[row->mesh], m->n, bench_solvers[row->solver].name, row->note, done);
             break;
         }
-        /* The 1.0 stats hold every timing and cost no residual evaluation. */
+        /* Timings only: from ABI 1.2 with skip_measures (no pass over the cloth); a
+         * 1.1 plugin gets the 1.0 stats, which evaluate Eq. 7. */
         rbc_world_stats st;
         memset(&st, 0, sizeof st);
-        st.struct_size = RBC_WORLD_STATS_SIZE_V1_0;
+        st.struct_size = ctx->abi_minor >= 2 ? (uint32_t)sizeof st : RBC_WORLD_STATS_SIZE_V1_0;
+        st.skip_measures = ctx->abi_minor >= 2;
         if ((r = api->world_get_stats(world, &st)) != RBC_OK) {
             api->world_destroy(world);
             return bench_report(api, r, "(reading stats)");

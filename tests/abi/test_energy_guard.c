@@ -147,6 +147,23 @@ static void test_abi_sizes(const test_grid *g) {
     for (size_t k = RBC_WORLD_STATS_SIZE_V1_1; k < sizeof st; ++k) untouched &= raw[k] == 0xEF;
     CHECK(untouched);
     CHECK_EQ(st.s.step_count, 1);
+
+    /* skip_measures: counts and timings without the pass over the cloth; the
+     * measured fields read 0, and the flag is kept. */
+    rbc_world_stats full = test_stats(w), fast;
+    memset(&fast, 0xEF, sizeof fast);
+    fast.struct_size = sizeof fast;
+    fast.skip_measures = 1;
+    CHECK_EQ(rbc_world_get_stats(w, &fast), RBC_OK);
+    CHECK(full.error_eq7 > 0.0 && full.kinetic_energy > 0.0 && full.potential_energy != 0.0);
+    CHECK(fast.error_eq7 == 0.0 && fast.max_strain == 0.0 && fast.kinetic_energy == 0.0 &&
+          fast.potential_energy == 0.0 && fast.linear_residual == 0.0 && fast.pd_objective == 0.0);
+    CHECK_EQ(fast.skip_measures, 1);
+    CHECK_EQ(fast.particle_count, full.particle_count);
+    CHECK_EQ(fast.step_count, full.step_count);
+    CHECK(fast.step_ms == full.step_ms && fast.step_ms > 0.0);
+    CHECK(fast.energy_budget == full.energy_budget);
+    CHECK_EQ(fast.memory_bytes, full.memory_bytes);
     rbc_world_destroy(w);
 }
 
