@@ -730,6 +730,20 @@ static void gp_header(FILE *f, const char *png, int width, int height) {
         fprintf(f, "set linetype %d lc rgb '%s' lw 2 pt %d ps 0.8\n", k + 1, solver_colors[k], 5 + k % 4 * 2);
 }
 
+/* One scene's panel of a log-log error plot: title, key, y range up to 4x the
+ * divergence ceiling (the sum of squared rest lengths, rms strain 1), and the ceiling
+ * drawn as a dashed line with `label`. Returns the ceiling. */
+static double gp_scene_panel(FILE *f, const acc_scene *scene, const char *label) {
+    double ceiling = scene->sum_rest2;
+    fprintf(f, "set title '%s'\nset key bottom left\n", scene->title);
+    fprintf(f, "set yrange [*:%g]\nunset arrow\nunset label\n", 4.0 * ceiling);
+    fprintf(f, "set arrow from graph 0, first %g to graph 1, first %g nohead dt 2 lc rgb '#888888'\n",
+            ceiling, ceiling);
+    fprintf(f, "set label '%s' at graph 0.98, first %g right offset 0,0.7 font ',8' tc rgb '#666666'\n",
+            label, ceiling);
+    return ceiling;
+}
+
 /* Eq. 7 against frame for the two paper scenes: one panel each. */
 static void gp_series(acc_ctx *ctx, FILE *f, const char *csv, int eq7_col, int budget) {
     fprintf(f, "set multiplot layout 1,2 title '%s'\n",
@@ -799,13 +813,8 @@ static int write_plots(acc_ctx *ctx) {
     for (uint32_t sc = 0; sc < ctx->scene_count; ++sc) {
         if (ctx->scenes[sc].gap_only)
             continue;
-        double ceiling = ctx->scenes[sc].sum_rest2;
-        fprintf(f, "set title '%s'\nset key bottom left\n", ctx->scenes[sc].title);
-        fprintf(f, "set yrange [*:%g]\nunset arrow\nunset label\n", 4.0 * ceiling);
-        fprintf(f, "set arrow from graph 0, first %g to graph 1, first %g nohead dt 2 lc rgb '#888888'\n",
-                ceiling, ceiling);
-        fprintf(f, "set label 'diverged (rms strain > 1): plotted on this line' at graph 0.98, first %g right offset 0,0.7 font ',8' tc rgb '#666666'\n",
-                ceiling);
+        double ceiling = gp_scene_panel(f, &ctx->scenes[sc],
+                                        "diverged (rms strain > 1): plotted on this line");
         fprintf(f, "plot ");
         int first = 1;
         for (int k = 0; k < BENCH_SOLVER_COUNT; ++k) {
@@ -838,13 +847,7 @@ static int write_plots(acc_ctx *ctx) {
     for (uint32_t sc = 0; sc < ctx->scene_count; ++sc) {
         if (ctx->scenes[sc].gap_only)
             continue;
-        double ceiling = ctx->scenes[sc].sum_rest2;
-        fprintf(f, "set title '%s'\nset key bottom left\n", ctx->scenes[sc].title);
-        fprintf(f, "set yrange [*:%g]\nunset arrow\nunset label\n", 4.0 * ceiling);
-        fprintf(f, "set arrow from graph 0, first %g to graph 1, first %g nohead dt 2 lc rgb '#888888'\n",
-                ceiling, ceiling);
-        fprintf(f, "set label 'diverged' at graph 0.98, first %g right offset 0,0.7 font ',8' tc rgb '#666666'\n",
-                ceiling);
+        double ceiling = gp_scene_panel(f, &ctx->scenes[sc], "diverged");
         fprintf(f, "plot ");
         int first = 1;
         for (int k = 0; k < BENCH_SOLVER_COUNT; ++k) {
