@@ -69,7 +69,11 @@ const char *rbc_scene_default_json(void) { return default_scene_json; }
 #define SCENE_MAX_SUBSTEPS 1024u
 #define SCENE_MAX_NONLINEAR 1024u
 #define SCENE_MAX_LINEAR 4096u
-/* Key paths such as "colliders[12].rotation" fit easily. */
+/* Keyframes per collider or drag, and triangles of an inline collider mesh. */
+#define SCENE_MAX_KEYS 1000000u
+#define SCENE_MAX_MESH_VERTICES (1u << 24)
+#define SCENE_MAX_MESH_TRIANGLES (1u << 25)
+/* Key paths such as "cloths[3].drags[12].keyframes[40].target[2]" fit easily. */
 #define KEY_MAX 128
 
 /* ------------------------------------------------------------------------- */
@@ -318,6 +322,55 @@ static int read_array(parser *p, const cJSON *item, const char *key, uint32_t mi
     return 0;
 }
 
+static int read_bool(parser *p, const cJSON *item, const char *key, int *out) {
+    if (!cJSON_IsBool(item))
+        return fail(p, key, "must be true or false, got %s", json_type(item));
+    *out = cJSON_IsTrue(item) ? 1 : 0;
+    return 0;
+}
+
+/* A unit quaternion [x, y, z, w]: a length within 1e-3 of 1 (what a human types
+ * with a few digits), normalised exactly. */
+static int read_quaternion(parser *p, const cJSON *item, const char *key, float out[4]) {
+    double q[4];
+    if (read_vector(p, item, key, 4, q))
+        return -1;
+    double norm = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    if (!(fabs(norm - 1.0) <= 1e-3))
+        return fail(p, key, "must be a unit quaternion [x, y, z, w], got one of length %g", norm);
+    for (int i = 0; i < 4; ++i)
+        out[i] = (float)(q[i] / norm);
+    return 0;
+}
+
+/* A vertex index < count, as pins and drags give them. */
+static int read_vertex(parser *p, const cJSON *e, const char *key, uint32_t count, uint32_t *out) {
+    if (!cJSON_IsNumber(e) || e->valuedouble != floor(e->valuedouble) || e->valuedouble < 0.0)
+        return cJSON_IsNumber(e)
+                   ? fail(p, key, "must be a vertex index (an integer >= 0), got %g", e->valuedouble)
+                   : fail(p, key, "must be a vertex index (an integer >= 0), got %s", json_type(e));
+    if (e->valuedouble >= (double)count)
+        return fail(p, key, "vertex index %.0f is out of range (the cloth has %u vertices)",
+                    e->valuedouble, count);
+    *out = (uint32_t)e->valuedouble;
+    return 0;
+}
+
+/* keyframes[i].time: a number >= 0, greater than the previous keyframe's. */
+static int read_key_time(parser *p, const cJSON *obj, const char *key, uint32_t index,
+                         double previous, double *out) {
+    const cJSON *time;
+    char k[KEY_MAX];
+    if (member(p, obj, key, "time", 1, &time))
+        return -1;
+    key_join(k, key, "time");
+    if (read_number(p, time, k, RANGE_NON_NEGATIVE, out))
+        return -1;
+    if (index > 0 && !(*out > previous))
+        return fail(p, k, "keyframe times must increase: got %g after %g", *out, previous);
+    return 0;
+}
+
 /* ------------------------------------------------------------------------- */
 /* Sections                                                                  */
 /* ------------------------------------------------------------------------- */
@@ -384,9 +437,29 @@ static int parse_solver(parser *p, const cJSON *obj, const char *key, rbc_solver
     return 0;
 }
 
+/* "wind": {"velocity": [x, y, z], "drag": d, "lift": l} for rbc_world_set_wind. */
+static int parse_wind(parser *p, const cJSON *obj, const char *key, rbc_scene_world *w) {
+    static const char *const keys[] = {"velocity", "drag", "lift", NULL};
+    const cJSON *velocity, *drag, *lift;
+    char k[KEY_MAX];
+    if (expect_object(p, obj, key) || check_keys(p, obj, key, keys) ||
+        member(p, obj, key, "velocity", 1, &velocity) || member(p, obj, key, "drag", 0, &drag) ||
+        member(p, obj, key, "lift", 0, &lift))
+        return -1;
+    w->wind_drag = 0.0f;
+    w->wind_lift = 0.0f;
+    if ((key_join(k, key, "velocity"), read_vector_f(p, velocity, k, 3, w->wind_velocity)) ||
+        (drag && (key_join(k, key, "drag"), read_float(p, drag, k, RANGE_NON_NEGATIVE, &w->wind_drag))) ||
+        (lift && (key_join(k, key, "lift"), read_float(p, lift, k, RANGE_NON_NEGATIVE, &w->wind_lift))))
+        return -1;
+    w->has_wind = 1;
+    return 0;
+}
+
 static int parse_world(parser *p, const cJSON *obj, rbc_scene_world *w) {
     static const char *const keys[] = {"gravity", "substeps", "nonlinear_iterations",
-                                       "linear_iterations", "threads", "backend", "solver", NULL};
+                                       "linear_iterations", "threads", "backend", "solver",
+                                       "wind", NULL};
     const char *key = "world";
     const cJSON *item;
     char k[KEY_MAX];
@@ -418,6 +491,9 @@ static int parse_world(parser *p, const cJSON *obj, rbc_scene_world *w) {
     }
     if ((item = cJSON_GetObjectItemCaseSensitive(obj, "solver")) &&
         (key_join(k, key, "solver"), parse_solver(p, item, k, &w->solver)))
+        return -1;
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "wind")) &&
+        (key_join(k, key, "wind"), parse_wind(p, item, k, w)))
         return -1;
     return 0;
 }
@@ -527,19 +603,12 @@ static int parse_pins(parser *p, const cJSON *item, const char *key, rbc_scene_c
     int rc = 0;
     for (const cJSON *e = item->child; e && rc == 0; e = e->next, ++i) {
         char k[KEY_MAX];
+        uint32_t v;
         key_index(k, key, i);
-        if (!cJSON_IsNumber(e) || e->valuedouble != floor(e->valuedouble) ||
-            e->valuedouble < 0.0) {
-            rc = cJSON_IsNumber(e)
-                     ? fail(p, k, "must be a vertex index (an integer >= 0), got %g", e->valuedouble)
-                     : fail(p, k, "must be a vertex index (an integer >= 0), got %s", json_type(e));
-        } else if (e->valuedouble >= (double)c->vertex_count) {
-            rc = fail(p, k, "vertex index %.0f is out of range (the cloth has %u vertices)",
-                      e->valuedouble, c->vertex_count);
-        } else {
-            uint32_t v = (uint32_t)e->valuedouble;
-            if (pinned[v])
-                rc = fail(p, k, "vertex %u is pinned twice", v);
+        rc = read_vertex(p, e, k, c->vertex_count, &v);
+        if (rc == 0 && pinned[v])
+            rc = fail(p, k, "vertex %u is pinned twice", v);
+        if (rc == 0) {
             pinned[v] = 1;
             c->pins[i] = v;
         }
@@ -548,13 +617,86 @@ static int parse_pins(parser *p, const cJSON *item, const char *key, rbc_scene_c
     return rc;
 }
 
+/* One drag: {"vertex": i, "keyframes": [{"time": t, "target": [x, y, z]}, ...],
+ * "release": t}. */
+static int parse_drag(parser *p, const cJSON *obj, const char *key, uint32_t vertex_count,
+                      rbc_scene_drag *d) {
+    static const char *const keys[] = {"vertex", "keyframes", "release", NULL};
+    static const char *const key_keys[] = {"time", "target", NULL};
+    const cJSON *vertex, *keyframes, *release;
+    char k[KEY_MAX], kk[KEY_MAX], kt[KEY_MAX];
+    if (expect_object(p, obj, key) || check_keys(p, obj, key, keys) ||
+        member(p, obj, key, "vertex", 1, &vertex) ||
+        member(p, obj, key, "keyframes", 1, &keyframes) ||
+        member(p, obj, key, "release", 0, &release))
+        return -1;
+    key_join(k, key, "vertex");
+    if (read_vertex(p, vertex, k, vertex_count, &d->vertex))
+        return -1;
+    key_join(k, key, "keyframes");
+    uint32_t n = 0;
+    if (read_array(p, keyframes, k, 1, SCENE_MAX_KEYS, &n))
+        return -1;
+    if (!(d->keys = calloc(n, sizeof *d->keys)))
+        return fail(p, k, "out of memory");
+    d->key_count = n;
+    uint32_t i = 0;
+    for (const cJSON *e = keyframes->child; e; e = e->next, ++i) {
+        const cJSON *target;
+        key_index(kk, k, i);
+        if (expect_object(p, e, kk) || check_keys(p, e, kk, key_keys) ||
+            read_key_time(p, e, kk, i, i ? d->keys[i - 1].time : 0.0, &d->keys[i].time) ||
+            member(p, e, kk, "target", 1, &target) ||
+            (key_join(kt, kk, "target"), read_vector_f(p, target, kt, 3, d->keys[i].target)))
+            return -1;
+    }
+    d->release = -1.0;
+    if (release) {
+        key_join(k, key, "release");
+        if (read_number(p, release, k, RANGE_NON_NEGATIVE, &d->release))
+            return -1;
+        if (!(d->release > d->keys[0].time))
+            return fail(p, k, "must be after the first keyframe (time %g), got %g",
+                        d->keys[0].time, d->release);
+    }
+    return 0;
+}
+
+static int parse_drags(parser *p, const cJSON *item, const char *key, rbc_scene_cloth *c) {
+    uint32_t n = 0;
+    if (read_array(p, item, key, 0, c->vertex_count, &n))
+        return -1;
+    if (n == 0)
+        return 0;
+    if (!(c->drags = calloc(n, sizeof *c->drags)))
+        return fail(p, key, "out of memory");
+    c->drag_count = n;
+    uint32_t i = 0;
+    for (const cJSON *e = item->child; e; e = e->next, ++i) {
+        char k[KEY_MAX];
+        key_index(k, key, i);
+        if (parse_drag(p, e, k, c->vertex_count, &c->drags[i]))
+            return -1;
+        for (uint32_t j = 0; j < i; ++j)
+            if (c->drags[j].vertex == c->drags[i].vertex) {
+                char kv[KEY_MAX];
+                key_join(kv, k, "vertex");
+                return fail(p, kv, "vertex %u is already dragged by %s[%u]", c->drags[i].vertex,
+                            key, j);
+            }
+    }
+    return 0;
+}
+
 static int parse_cloth(parser *p, const cJSON *obj, const char *key, uint32_t index,
                        rbc_scene_cloth *c) {
     static const char *const keys[] = {"name",      "grid",   "vertices", "quads",
                                        "vertex_mass", "stiffness", "damping", "pins",
-                                       "shear_stiffness", "bend_stiffness", NULL};
+                                       "shear_stiffness", "bend_stiffness", "thickness",
+                                       "friction", "self_collision", "cloth_collision",
+                                       "tear_strain", "drags", NULL};
     const cJSON *name, *grid, *vertices, *quads, *mass, *stiffness, *damping, *pins, *shear,
-        *bend;
+        *bend, *thickness, *friction, *self_collision, *cloth_collision, *tear, *drags;
     char k[KEY_MAX];
     if (expect_object(p, obj, key) || check_keys(p, obj, key, keys) ||
         member(p, obj, key, "name", 0, &name) || member(p, obj, key, "grid", 0, &grid) ||
@@ -563,7 +705,12 @@ static int parse_cloth(parser *p, const cJSON *obj, const char *key, uint32_t in
         member(p, obj, key, "stiffness", 0, &stiffness) ||
         member(p, obj, key, "damping", 0, &damping) || member(p, obj, key, "pins", 0, &pins) ||
         member(p, obj, key, "shear_stiffness", 0, &shear) ||
-        member(p, obj, key, "bend_stiffness", 0, &bend))
+        member(p, obj, key, "bend_stiffness", 0, &bend) ||
+        member(p, obj, key, "thickness", 0, &thickness) ||
+        member(p, obj, key, "friction", 0, &friction) ||
+        member(p, obj, key, "self_collision", 0, &self_collision) ||
+        member(p, obj, key, "cloth_collision", 0, &cloth_collision) ||
+        member(p, obj, key, "tear_strain", 0, &tear) || member(p, obj, key, "drags", 0, &drags))
         return -1;
 
     if (name) {
@@ -613,59 +760,275 @@ static int parse_cloth(parser *p, const cJSON *obj, const char *key, uint32_t in
         return -1;
     if (pins && (key_join(k, key, "pins"), parse_pins(p, pins, k, c)))
         return -1;
+
+    /* ABI 1.3: contact and tearing; 0 and false are the library's defaults. */
+    int self = 0, others = 0;
+    if ((thickness && (key_join(k, key, "thickness"),
+                       read_float(p, thickness, k, RANGE_NON_NEGATIVE, &c->thickness))) ||
+        (friction && (key_join(k, key, "friction"),
+                      read_float(p, friction, k, RANGE_NON_NEGATIVE, &c->friction))) ||
+        (self_collision && (key_join(k, key, "self_collision"), read_bool(p, self_collision, k, &self))) ||
+        (cloth_collision &&
+         (key_join(k, key, "cloth_collision"), read_bool(p, cloth_collision, k, &others))) ||
+        (tear && (key_join(k, key, "tear_strain"),
+                  read_float(p, tear, k, RANGE_NON_NEGATIVE, &c->tear_strain))))
+        return -1;
+    c->collision_flags = (self ? RBC_CLOTH_COLLIDE_SELF : 0u) | (others ? RBC_CLOTH_COLLIDE_CLOTHS : 0u);
+    if (c->collision_flags && !(c->thickness > 0.0f)) {
+        key_join(k, key, self ? "self_collision" : "cloth_collision");
+        return fail(p, k, "cloth contact needs a \"thickness\" > 0 (the distance the cloth keeps "
+                          "from cloth surfaces), got %g",
+                    (double)c->thickness);
+    }
+    if (drags && (key_join(k, key, "drags"), parse_drags(p, drags, k, c)))
+        return -1;
+    return 0;
+}
+
+/* The directory part of `source` joined with `file` (absolute files as they are). */
+static char *resolve_path(const char *source, const char *file) {
+    const char *slash = strrchr(source, '/');
+    size_t dir_len = file[0] == '/' || !slash ? 0 : (size_t)(slash - source) + 1;
+    char *path = malloc(dir_len + strlen(file) + 1);
+    if (path) {
+        memcpy(path, source, dir_len);
+        strcpy(path + dir_len, file);
+    }
+    return path;
+}
+
+/* An inline triangle mesh: "vertices" [[x, y, z], ...] and "triangles" [[a, b, c], ...]. */
+static int parse_collider_mesh(parser *p, const cJSON *vertices, const cJSON *triangles,
+                               const char *collider_key, rbc_scene_collider *c) {
+    char key[KEY_MAX], k[KEY_MAX];
+    uint32_t n;
+    key_join(key, collider_key, "vertices");
+    if (read_array(p, vertices, key, 3, SCENE_MAX_MESH_VERTICES, &n))
+        return -1;
+    if (!(c->mesh_positions = malloc((size_t)n * 3 * sizeof *c->mesh_positions)))
+        return fail(p, key, "out of memory");
+    c->mesh_vertex_count = n;
+    uint32_t i = 0;
+    for (const cJSON *v = vertices->child; v; v = v->next, ++i) {
+        key_index(k, key, i);
+        if (read_vector_f(p, v, k, 3, c->mesh_positions + 3 * (size_t)i))
+            return -1;
+    }
+    key_join(key, collider_key, "triangles");
+    if (read_array(p, triangles, key, 1, SCENE_MAX_MESH_TRIANGLES, &n))
+        return -1;
+    if (!(c->mesh_triangles = malloc((size_t)n * 3 * sizeof *c->mesh_triangles)))
+        return fail(p, key, "out of memory");
+    c->mesh_triangle_count = n;
+    i = 0;
+    for (const cJSON *t = triangles->child; t; t = t->next, ++i) {
+        key_index(k, key, i);
+        if (!cJSON_IsArray(t) || cJSON_GetArraySize(t) != 3)
+            return fail(p, k, "must be an array of 3 vertex indices, got %s%s", json_type(t),
+                        cJSON_IsArray(t) ? " of another length" : "");
+        uint32_t *dst = c->mesh_triangles + 3 * (size_t)i;
+        int corner = 0;
+        for (const cJSON *e = t->child; e; e = e->next, ++corner) {
+            char ek[KEY_MAX];
+            key_index(ek, k, (size_t)corner);
+            if (read_u32(p, e, ek, 0, c->mesh_vertex_count - 1, &dst[corner]))
+                return -1;
+            for (int prev = 0; prev < corner; ++prev)
+                if (dst[prev] == dst[corner])
+                    return fail(p, k, "degenerate triangle: vertex %u appears twice", dst[corner]);
+        }
+    }
+    return 0;
+}
+
+/* "keyframes": [{"time": t, "position": [x, y, z], "rotation": [x, y, z, w]}, ...];
+ * a keyframe without position or rotation takes the collider's. */
+static int parse_collider_keys(parser *p, const cJSON *item, const char *key,
+                               rbc_scene_collider *c) {
+    static const char *const key_keys[] = {"time", "position", "rotation", NULL};
+    char kk[KEY_MAX], k[KEY_MAX];
+    uint32_t n;
+    if (read_array(p, item, key, 1, SCENE_MAX_KEYS, &n))
+        return -1;
+    if (!(c->keys = calloc(n, sizeof *c->keys)))
+        return fail(p, key, "out of memory");
+    c->key_count = n;
+    uint32_t i = 0;
+    for (const cJSON *e = item->child; e; e = e->next, ++i) {
+        rbc_scene_collider_key *ck = &c->keys[i];
+        const cJSON *position, *rotation;
+        key_index(kk, key, i);
+        if (expect_object(p, e, kk) || check_keys(p, e, kk, key_keys) ||
+            read_key_time(p, e, kk, i, i ? c->keys[i - 1].time : 0.0, &ck->time) ||
+            member(p, e, kk, "position", 0, &position) ||
+            member(p, e, kk, "rotation", 0, &rotation))
+            return -1;
+        memcpy(ck->position, c->position, sizeof ck->position);
+        memcpy(ck->rotation, c->rotation, sizeof ck->rotation);
+        if ((position && (key_join(k, kk, "position"), read_vector_f(p, position, k, 3, ck->position))) ||
+            (rotation && (key_join(k, kk, "rotation"), read_quaternion(p, rotation, k, ck->rotation))))
+            return -1;
+    }
+    c->motion = RBC_SCENE_MOTION_KEYFRAMES;
     return 0;
 }
 
 static int parse_collider(parser *p, const cJSON *obj, const char *key, rbc_scene_collider *c) {
-    static const char *const keys[] = {"shape", "radius", "thickness", "position", "rotation",
+    static const char *const keys[] = {"shape",     "radius",   "half_extents", "half_length",
+                                       "friction",  "thickness", "position",    "rotation",
+                                       "vertices",  "triangles", "file",        "scale",
+                                       "velocity",  "angular_velocity",         "keyframes",
                                        NULL};
-    static const char *const shapes[] = {"sphere", "plane", NULL};
-    const cJSON *shape, *radius, *thickness, *position, *rotation;
+    static const char *const shapes[] = {"sphere", "plane", "capsule", "box", "mesh", NULL};
+    static const rbc_shape shape_values[] = {RBC_SHAPE_SPHERE, RBC_SHAPE_PLANE, RBC_SHAPE_CAPSULE,
+                                             RBC_SHAPE_BOX, RBC_SHAPE_TRIANGLE_MESH};
+    /* The keys of one shape only: which shapes take them. */
+    static const struct {
+        const char *name;
+        unsigned shapes; /* bit i = shapes[i] */
+        const char *who;
+    } shaped[] = {
+        {"radius", 1u | 4u, "spheres and capsules have a radius"},
+        {"half_length", 4u, "capsules have a half_length"},
+        {"half_extents", 8u, "boxes have half_extents"},
+        {"vertices", 16u, "meshes have vertices"},
+        {"triangles", 16u, "meshes have triangles"},
+        {"file", 16u, "meshes are read from a file"},
+        {"scale", 16u, "mesh files have a scale"},
+    };
+    const cJSON *shape, *radius, *half_extents, *half_length, *friction, *thickness, *position,
+        *rotation, *vertices, *triangles, *file, *scale, *velocity, *angular, *keyframes;
     char k[KEY_MAX];
     int choice;
     if (expect_object(p, obj, key) || check_keys(p, obj, key, keys) ||
         member(p, obj, key, "shape", 1, &shape) || member(p, obj, key, "radius", 0, &radius) ||
+        member(p, obj, key, "half_extents", 0, &half_extents) ||
+        member(p, obj, key, "half_length", 0, &half_length) ||
+        member(p, obj, key, "friction", 0, &friction) ||
         member(p, obj, key, "thickness", 0, &thickness) ||
         member(p, obj, key, "position", 0, &position) ||
-        member(p, obj, key, "rotation", 0, &rotation))
+        member(p, obj, key, "rotation", 0, &rotation) ||
+        member(p, obj, key, "vertices", 0, &vertices) ||
+        member(p, obj, key, "triangles", 0, &triangles) || member(p, obj, key, "file", 0, &file) ||
+        member(p, obj, key, "scale", 0, &scale) || member(p, obj, key, "velocity", 0, &velocity) ||
+        member(p, obj, key, "angular_velocity", 0, &angular) ||
+        member(p, obj, key, "keyframes", 0, &keyframes))
         return -1;
     key_join(k, key, "shape");
     if (read_choice(p, shape, k, shapes, &choice))
         return -1;
-    c->shape = choice == 0 ? RBC_SHAPE_SPHERE : RBC_SHAPE_PLANE;
+    c->shape = shape_values[choice];
+    for (size_t i = 0; i < sizeof shaped / sizeof shaped[0]; ++i) {
+        if (!(shaped[i].shapes & (1u << choice)) &&
+            cJSON_GetObjectItemCaseSensitive(obj, shaped[i].name)) {
+            key_join(k, key, shaped[i].name);
+            return fail(p, k, "not for a %s: only %s%s", shapes[choice], shaped[i].who,
+                        c->shape == RBC_SHAPE_PLANE ? " (a plane is y = 0 of its frame)" : "");
+        }
+    }
 
     c->radius = 0.0f;
     key_join(k, key, "radius");
-    if (c->shape == RBC_SHAPE_SPHERE) {
+    if (c->shape == RBC_SHAPE_SPHERE || c->shape == RBC_SHAPE_CAPSULE) {
         if (!radius)
-            return fail(p, k, "required key is missing (spheres need a radius)");
+            return fail(p, k, "required key is missing (%ss need a radius)", shapes[choice]);
         if (read_float(p, radius, k, RANGE_POSITIVE, &c->radius))
             return -1;
-    } else if (radius) {
-        return fail(p, k, "only spheres have a radius (a plane is y = 0 of its frame)");
+    }
+    if (c->shape == RBC_SHAPE_CAPSULE) {
+        key_join(k, key, "half_length");
+        if (!half_length)
+            return fail(p, k, "required key is missing (the half length of the capsule's axis, "
+                              "along its frame's y)");
+        if (read_float(p, half_length, k, RANGE_POSITIVE, &c->half_extents[1]))
+            return -1;
+    }
+    if (c->shape == RBC_SHAPE_BOX) {
+        key_join(k, key, "half_extents");
+        if (!half_extents)
+            return fail(p, k, "required key is missing (boxes need half_extents [x, y, z])");
+        double h[3];
+        if (read_vector(p, half_extents, k, 3, h))
+            return -1;
+        for (int i = 0; i < 3; ++i) {
+            char ki[KEY_MAX];
+            key_index(ki, k, (size_t)i);
+            if (!((float)h[i] > 0.0f))
+                return fail(p, ki, "must be a number > 0, got %g", h[i]);
+            c->half_extents[i] = (float)h[i];
+        }
     }
 
     c->thickness = 0.0f;
-    if (thickness &&
-        (key_join(k, key, "thickness"), read_float(p, thickness, k, RANGE_NON_NEGATIVE, &c->thickness)))
+    c->friction = 0.0f;
+    if ((thickness && (key_join(k, key, "thickness"),
+                       read_float(p, thickness, k, RANGE_NON_NEGATIVE, &c->thickness))) ||
+        (friction && (key_join(k, key, "friction"),
+                      read_float(p, friction, k, RANGE_NON_NEGATIVE, &c->friction))))
         return -1;
     c->position[0] = c->position[1] = c->position[2] = 0.0f;
     if (position && (key_join(k, key, "position"), read_vector_f(p, position, k, 3, c->position)))
         return -1;
     c->rotation[0] = c->rotation[1] = c->rotation[2] = 0.0f;
     c->rotation[3] = 1.0f;
-    if (rotation) {
-        double q[4];
-        key_join(k, key, "rotation");
-        if (read_vector(p, rotation, k, 4, q))
-            return -1;
-        double norm = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-        /* Accept what a human types with a few digits, then normalise exactly. */
-        if (!(fabs(norm - 1.0) <= 1e-3))
-            return fail(p, k, "must be a unit quaternion [x, y, z, w], got one of length %g", norm);
-        for (int i = 0; i < 4; ++i)
-            c->rotation[i] = (float)(q[i] / norm);
+    if (rotation && (key_join(k, key, "rotation"), read_quaternion(p, rotation, k, c->rotation)))
+        return -1;
+
+    if (c->shape == RBC_SHAPE_TRIANGLE_MESH) {
+        if (file && (vertices || triangles)) {
+            key_join(k, key, "file");
+            return fail(p, k, "give either \"file\" or \"vertices\" and \"triangles\", not both");
+        }
+        if (file) {
+            const char *name = NULL;
+            key_join(k, key, "file");
+            if (read_string(p, file, k, &name))
+                return -1;
+            if (!name[0])
+                return fail(p, k, "must name a mesh file, got \"\"");
+            if (!(c->mesh_file = resolve_path(p->source, name)))
+                return fail(p, k, "out of memory");
+            FILE *f = fopen(c->mesh_file, "rb");
+            if (!f)
+                return fail(p, k, "cannot open %s: %s", c->mesh_file, strerror(errno));
+            fclose(f);
+            c->mesh_scale = 1.0f;
+            if (scale && (key_join(k, key, "scale"),
+                          read_float(p, scale, k, RANGE_POSITIVE, &c->mesh_scale)))
+                return -1;
+        } else if (vertices || triangles) {
+            if (scale) {
+                key_join(k, key, "scale");
+                return fail(p, k, "only mesh files have a scale (write inline vertices to size)");
+            }
+            if (!vertices || !triangles) {
+                key_join(k, key, vertices ? "triangles" : "vertices");
+                return fail(p, k, "required key is missing (\"vertices\" and \"triangles\" go "
+                                  "together)");
+            }
+            if (parse_collider_mesh(p, vertices, triangles, key, c))
+                return -1;
+        } else {
+            key_join(k, key, "vertices");
+            return fail(p, k, "required key is missing (a mesh needs \"vertices\" and "
+                              "\"triangles\", or a \"file\")");
+        }
     }
+
+    c->motion = RBC_SCENE_MOTION_NONE;
+    if (keyframes && (velocity || angular)) {
+        key_join(k, key, "keyframes");
+        return fail(p, k, "give either \"keyframes\" or \"velocity\"/\"angular_velocity\", not both");
+    }
+    if (velocity || angular) {
+        if ((velocity && (key_join(k, key, "velocity"), read_vector_f(p, velocity, k, 3, c->velocity))) ||
+            (angular && (key_join(k, key, "angular_velocity"),
+                         read_vector_f(p, angular, k, 3, c->angular_velocity))))
+            return -1;
+        c->motion = RBC_SCENE_MOTION_VELOCITY;
+    }
+    if (keyframes && (key_join(k, key, "keyframes"), parse_collider_keys(p, keyframes, k, c)))
+        return -1;
     return 0;
 }
 
@@ -682,6 +1045,8 @@ static int parse_root(parser *p, const cJSON *root, rbc_scene *s) {
         member(p, root, "", "colliders", 0, &colliders))
         return -1;
 
+    if (!(s->source = strdup(p->source)))
+        return fail(p, "(top level)", "out of memory");
     if (read_name(p, name, "name", &s->name))
         return -1;
     if (description) {
@@ -908,9 +1273,20 @@ void rbc_scene_free(rbc_scene *scene) {
         free(c->positions);
         free(c->quads);
         free(c->pins);
+        for (uint32_t j = 0; c->drags && j < c->drag_count; ++j)
+            free(c->drags[j].keys);
+        free(c->drags);
+    }
+    for (uint32_t i = 0; scene->colliders && i < scene->collider_count; ++i) {
+        rbc_scene_collider *c = &scene->colliders[i];
+        free(c->mesh_positions);
+        free(c->mesh_triangles);
+        free(c->mesh_file);
+        free(c->keys);
     }
     free(scene->cloths);
     free(scene->colliders);
+    free(scene->source);
     free(scene->name);
     free(scene->description);
     memset(scene, 0, sizeof *scene);
@@ -935,6 +1311,135 @@ static rbc_result api_fail(const rbc_api_v1 *api, rbc_result result, char *err, 
     return result;
 }
 
+/* The ABI minor of the library behind `api` (0 for another major). */
+static uint32_t api_minor(const rbc_api_v1 *api) {
+    return (api->abi_version >> 16) == RBC_ABI_VERSION_MAJOR ? (api->abi_version & 0xFFFFu) : 0u;
+}
+
+/* An entry the library's table holds: within its struct_size and not NULL. */
+#define API_HAS(api, entry)                                                                  \
+    ((api)->struct_size >= offsetof(rbc_api_v1, entry) + sizeof((api)->entry) &&             \
+     (api)->entry != NULL)
+
+/* "SOURCE: KEY: the plugin's function table has no ENTRY (ABI 1.3)". */
+static rbc_result missing_entry(const rbc_scene *scene, char *err, size_t err_size,
+                                const char *key, const char *entry) {
+    format(err, err_size,
+           "%s: %s: needs rbc_%s (ABI 1.3), which this plugin's function table does not have",
+           scene->source ? scene->source : scene->name, key, entry);
+    return RBC_ERR_UNSUPPORTED;
+}
+
+int rbc_scene_needs_v1_3(const rbc_scene *scene, char *key, size_t key_size) {
+    if (scene->world.has_wind) {
+        format(key, key_size, "world.wind");
+        return 1;
+    }
+    for (uint32_t i = 0; i < scene->cloth_count; ++i) {
+        const rbc_scene_cloth *c = &scene->cloths[i];
+        const char *what = c->thickness > 0.0f ? "thickness"
+                           : c->friction > 0.0f ? "friction"
+                           : (c->collision_flags & RBC_CLOTH_COLLIDE_SELF) ? "self_collision"
+                           : c->collision_flags ? "cloth_collision"
+                           : c->tear_strain > 0.0f ? "tear_strain"
+                                                   : NULL;
+        if (what) {
+            format(key, key_size, "cloths[%u].%s", i, what);
+            return 1;
+        }
+    }
+    for (uint32_t i = 0; i < scene->collider_count; ++i) {
+        const rbc_scene_collider *c = &scene->colliders[i];
+        int new_shape = c->shape != RBC_SHAPE_SPHERE && c->shape != RBC_SHAPE_PLANE;
+        if (new_shape || c->friction > 0.0f) {
+            format(key, key_size, "colliders[%u].%s", i, new_shape ? "shape" : "friction");
+            return 1;
+        }
+    }
+    if (key_size > 0)
+        key[0] = '\0';
+    return 0;
+}
+
+/* Read a mesh file into a collider def's mesh arrays (malloc'd into *positions and
+ * *triangles, which the caller frees). */
+static rbc_result import_collider_mesh(const rbc_api_v1 *api, const rbc_scene *scene, uint32_t index,
+                                       rbc_collider_def *cd, float **positions,
+                                       uint32_t **triangles, char *err, size_t err_size) {
+    const rbc_scene_collider *c = &scene->colliders[index];
+    const char *source = scene->source ? scene->source : scene->name;
+    rbc_mesh_import_def md;
+    rbc_mesh_id mesh = 0;
+    size_t float_count = 0, index_count = 0;
+    rbc_result r = api->mesh_import_def_init(&md, (uint32_t)sizeof md);
+    if (r == RBC_OK) {
+        md.scale = c->mesh_scale;
+        r = api->mesh_import(c->mesh_file, &md, &mesh);
+    }
+    if (r == RBC_OK)
+        r = api->mesh_get_positions(mesh, NULL, 0, &float_count);
+    if (r == RBC_OK)
+        r = api->mesh_get_triangles(mesh, NULL, 0, &index_count);
+    if (r == RBC_OK) {
+        *positions = malloc((float_count ? float_count : 1) * sizeof **positions);
+        *triangles = malloc((index_count ? index_count : 1) * sizeof **triangles);
+        if (!*positions || !*triangles)
+            r = RBC_ERR_OUT_OF_MEMORY;
+    }
+    if (r == RBC_OK)
+        r = api->mesh_get_positions(mesh, *positions, float_count, NULL);
+    if (r == RBC_OK)
+        r = api->mesh_get_triangles(mesh, *triangles, index_count, NULL);
+    if (r != RBC_OK) {
+        const char *message = r == RBC_ERR_OUT_OF_MEMORY ? "out of memory in the host"
+                              : api->last_error && api->last_error()[0] ? api->last_error()
+                                                                        : api->result_string(r);
+        format(err, err_size, "%s: colliders[%u].file: cannot read %s as a triangle mesh: %s",
+               source, index, c->mesh_file, message);
+    } else if (float_count / 3 > UINT32_MAX || index_count / 3 > UINT32_MAX) {
+        r = RBC_ERR_BAD_MESH;
+        format(err, err_size, "%s: colliders[%u].file: %s is too large", source, index, c->mesh_file);
+    } else {
+        cd->mesh_positions = *positions;
+        cd->mesh_vertex_count = (uint32_t)(float_count / 3);
+        cd->mesh_triangles = *triangles;
+        cd->mesh_triangle_count = (uint32_t)(index_count / 3);
+    }
+    if (mesh)
+        api->mesh_destroy(mesh);
+    return r;
+}
+
+/* Everything the scene will call exists in the table; the defs' sizes to ask for. */
+static rbc_result check_table(const rbc_api_v1 *api, const rbc_scene *scene, uint32_t *cloth_size,
+                              uint32_t *collider_size, char *err, size_t err_size) {
+    char key[KEY_MAX];
+    uint32_t minor = api_minor(api);
+    if (rbc_scene_needs_v1_3(scene, key, sizeof key) && minor < 3) {
+        format(err, err_size, "%s: %s: needs an ABI 1.3 library; the plugin has ABI %u.%u",
+               scene->source ? scene->source : scene->name, key, api->abi_version >> 16, minor);
+        return RBC_ERR_UNSUPPORTED;
+    }
+    /* A 1.3 library reads the 1.3 defs; an older one its own sizes (the scene needs
+     * none of the fields beyond them, checked above). */
+    *cloth_size = minor >= 3 ? (uint32_t)sizeof(rbc_cloth_def) : RBC_CLOTH_DEF_SIZE_V1_1;
+    *collider_size = minor >= 3 ? (uint32_t)sizeof(rbc_collider_def) : RBC_COLLIDER_DEF_SIZE_V1_0;
+    if (scene->world.has_wind && !API_HAS(api, world_set_wind))
+        return missing_entry(scene, err, err_size, "world.wind", "world_set_wind");
+    for (uint32_t i = 0; i < scene->collider_count; ++i) {
+        if (!scene->colliders[i].mesh_file)
+            continue;
+        format(key, sizeof key, "colliders[%u].file", i);
+        if (!API_HAS(api, mesh_import_def_init) || !API_HAS(api, mesh_import))
+            return missing_entry(scene, err, err_size, key, "mesh_import");
+        if (!API_HAS(api, mesh_get_positions) || !API_HAS(api, mesh_destroy))
+            return missing_entry(scene, err, err_size, key, "mesh_get_positions");
+        if (!API_HAS(api, mesh_get_triangles))
+            return missing_entry(scene, err, err_size, key, "mesh_get_triangles");
+    }
+    return RBC_OK;
+}
+
 rbc_result rbc_scene_instantiate(const rbc_api_v1 *api, const rbc_scene *scene,
                                  rbc_log_fn log, void *log_user, rbc_scene_instance *out,
                                  char *err, size_t err_size) {
@@ -946,6 +1451,10 @@ rbc_result rbc_scene_instantiate(const rbc_api_v1 *api, const rbc_scene *scene,
         format(err, err_size, "rbc_scene_instantiate: api, scene and out must not be NULL");
         return RBC_ERR_INVALID_ARGUMENT;
     }
+    uint32_t cloth_def_size, collider_def_size;
+    rbc_result r = check_table(api, scene, &cloth_def_size, &collider_def_size, err, err_size);
+    if (r != RBC_OK)
+        return r;
 
     rbc_scene_instance inst;
     memset(&inst, 0, sizeof inst);
@@ -961,7 +1470,7 @@ rbc_result rbc_scene_instantiate(const rbc_api_v1 *api, const rbc_scene *scene,
     /* Start from the library's defaults, asked for at this host's struct size: a
      * newer library writes and reads only the fields this host knows. */
     rbc_world_def wd;
-    rbc_result r = api->world_def_init(&wd, (uint32_t)sizeof wd);
+    r = api->world_def_init(&wd, (uint32_t)sizeof wd);
     if (r != RBC_OK) {
         api_fail(api, r, err, err_size, "initialising the world def of scene \"%s\"", scene->name);
         rbc_scene_instance_destroy(api, &inst);
@@ -991,24 +1500,31 @@ rbc_result rbc_scene_instantiate(const rbc_api_v1 *api, const rbc_scene *scene,
     for (uint32_t i = 0; i < scene->cloth_count; ++i) {
         const rbc_scene_cloth *c = &scene->cloths[i];
         rbc_cloth_def cd;
-        r = api->cloth_def_init(&cd, (uint32_t)sizeof cd);
+        memset(&cd, 0, sizeof cd);
+        r = api->cloth_def_init(&cd, cloth_def_size);
         if (r == RBC_OK) {
-        cd.vertex_count = c->vertex_count;
-        cd.positions = c->positions;
-        cd.quad_count = c->quad_count;
-        cd.quads = c->quads;
-        cd.spring_count = 0;
-        cd.springs = NULL;
-        cd.masses = NULL;
-        cd.density = 0.0f;
-        cd.vertex_mass = c->vertex_mass;
-        cd.stiffness = c->stiffness;
-        cd.damping = c->damping;
-        cd.shear_stiffness = c->shear_stiffness;
-        cd.bend_stiffness = c->bend_stiffness;
-        cd.pin_count = c->pin_count;
-        cd.pins = c->pins;
-        r = api->cloth_create(inst.world, &cd, &inst.cloths[i]);
+            cd.vertex_count = c->vertex_count;
+            cd.positions = c->positions;
+            cd.quad_count = c->quad_count;
+            cd.quads = c->quads;
+            cd.spring_count = 0;
+            cd.springs = NULL;
+            cd.masses = NULL;
+            cd.density = 0.0f;
+            cd.vertex_mass = c->vertex_mass;
+            cd.stiffness = c->stiffness;
+            cd.damping = c->damping;
+            cd.shear_stiffness = c->shear_stiffness;
+            cd.bend_stiffness = c->bend_stiffness;
+            cd.pin_count = c->pin_count;
+            cd.pins = c->pins;
+            if (cloth_def_size == sizeof cd) {
+                cd.thickness = c->thickness;
+                cd.friction = c->friction;
+                cd.collision_flags = c->collision_flags;
+                cd.tear_strain = c->tear_strain;
+            }
+            r = api->cloth_create(inst.world, &cd, &inst.cloths[i]);
         }
         if (r != RBC_OK) {
             api_fail(api, r, err, err_size, "creating cloths[%u] \"%s\"", i, c->name);
@@ -1021,24 +1537,198 @@ rbc_result rbc_scene_instantiate(const rbc_api_v1 *api, const rbc_scene *scene,
     for (uint32_t i = 0; i < scene->collider_count; ++i) {
         const rbc_scene_collider *c = &scene->colliders[i];
         rbc_collider_def cd;
-        r = api->collider_def_init(&cd, (uint32_t)sizeof cd);
+        float *file_positions = NULL;
+        uint32_t *file_triangles = NULL;
+        int import_failed = 0;
+        memset(&cd, 0, sizeof cd);
+        r = api->collider_def_init(&cd, collider_def_size);
         if (r == RBC_OK) {
-        cd.shape = c->shape;
-        cd.radius = c->shape == RBC_SHAPE_SPHERE ? c->radius : cd.radius;
-        cd.thickness = c->thickness;
-        memcpy(cd.position, c->position, sizeof cd.position);
-        memcpy(cd.rotation, c->rotation, sizeof cd.rotation);
-        r = api->collider_create(inst.world, &cd, &inst.colliders[i]);
+            cd.shape = c->shape;
+            if (c->shape == RBC_SHAPE_SPHERE || c->shape == RBC_SHAPE_CAPSULE)
+                cd.radius = c->radius;
+            cd.thickness = c->thickness;
+            rbc_scene_collider_pose(c, 0.0, cd.position, cd.rotation);
+            if (collider_def_size == sizeof cd) {
+                cd.friction = c->friction;
+                if (c->shape == RBC_SHAPE_BOX)
+                    memcpy(cd.half_extents, c->half_extents, sizeof cd.half_extents);
+                if (c->shape == RBC_SHAPE_CAPSULE)
+                    cd.half_extents[1] = c->half_extents[1];
+                if (c->shape == RBC_SHAPE_TRIANGLE_MESH && !c->mesh_file) {
+                    cd.mesh_positions = c->mesh_positions;
+                    cd.mesh_vertex_count = c->mesh_vertex_count;
+                    cd.mesh_triangles = c->mesh_triangles;
+                    cd.mesh_triangle_count = c->mesh_triangle_count;
+                }
+                if (c->shape == RBC_SHAPE_TRIANGLE_MESH && c->mesh_file) {
+                    r = import_collider_mesh(api, scene, i, &cd, &file_positions,
+                                             &file_triangles, err, err_size);
+                    import_failed = r != RBC_OK;
+                }
+            }
+            if (r == RBC_OK)
+                r = api->collider_create(inst.world, &cd, &inst.colliders[i]);
         }
+        free(file_positions);
+        free(file_triangles);
         if (r != RBC_OK) {
-            api_fail(api, r, err, err_size, "creating colliders[%u]", i);
+            if (!import_failed)
+                api_fail(api, r, err, err_size, "creating colliders[%u]", i);
             rbc_scene_instance_destroy(api, &inst);
             return r;
         }
         inst.collider_count = i + 1;
     }
 
+    if (scene->world.has_wind) {
+        r = api->world_set_wind(inst.world, scene->world.wind_velocity, scene->world.wind_drag,
+                                scene->world.wind_lift);
+        if (r != RBC_OK) {
+            api_fail(api, r, err, err_size, "setting world.wind of scene \"%s\"", scene->name);
+            rbc_scene_instance_destroy(api, &inst);
+            return r;
+        }
+    }
+
     *out = inst;
+    return RBC_OK;
+}
+
+/* ------------------------------------------------------------------------- */
+/* Motion                                                                    */
+/* ------------------------------------------------------------------------- */
+
+/* Index i of the segment [keys[i], keys[i+1]) holding t, for keys[0].time <= t <
+ * keys[n-1].time (binary search over increasing times). */
+#define FIND_SEGMENT(keys, n, t, out)                                                      \
+    do {                                                                                   \
+        uint32_t lo_ = 0, hi_ = (n) - 1;                                                   \
+        while (hi_ - lo_ > 1) {                                                            \
+            uint32_t mid_ = lo_ + (hi_ - lo_) / 2;                                         \
+            if ((keys)[mid_].time <= (t))                                                  \
+                lo_ = mid_;                                                                \
+            else                                                                           \
+                hi_ = mid_;                                                                \
+        }                                                                                  \
+        (out) = lo_;                                                                       \
+    } while (0)
+
+void rbc_scene_collider_pose(const rbc_scene_collider *c, double t, float position[3],
+                             float rotation[4]) {
+    if (c->motion == RBC_SCENE_MOTION_VELOCITY) {
+        for (int i = 0; i < 3; ++i)
+            position[i] = (float)((double)c->position[i] + (double)c->velocity[i] * t);
+        const double w[3] = {c->angular_velocity[0], c->angular_velocity[1], c->angular_velocity[2]};
+        double rate = sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2]);
+        if (!(rate > 0.0)) {
+            memcpy(rotation, c->rotation, 4 * sizeof *rotation);
+            return;
+        }
+        /* q(t) = exp(w t / 2) q0: a turn by |w| t about the world axis w / |w|,
+         * after the creation rotation (Hamilton product, x y z w). */
+        double half = 0.5 * rate * t, sh = sin(half) / rate;
+        const double a[4] = {w[0] * sh, w[1] * sh, w[2] * sh, cos(half)};
+        const double b[4] = {c->rotation[0], c->rotation[1], c->rotation[2], c->rotation[3]};
+        double q[4] = {a[3] * b[0] + b[3] * a[0] + a[1] * b[2] - a[2] * b[1],
+                       a[3] * b[1] + b[3] * a[1] + a[2] * b[0] - a[0] * b[2],
+                       a[3] * b[2] + b[3] * a[2] + a[0] * b[1] - a[1] * b[0],
+                       a[3] * b[3] - a[0] * b[0] - a[1] * b[1] - a[2] * b[2]};
+        double norm = sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+        for (int i = 0; i < 4; ++i)
+            rotation[i] = (float)(q[i] / norm);
+        return;
+    }
+    if (c->motion != RBC_SCENE_MOTION_KEYFRAMES || c->key_count == 0) {
+        memcpy(position, c->position, 3 * sizeof *position);
+        memcpy(rotation, c->rotation, 4 * sizeof *rotation);
+        return;
+    }
+    const rbc_scene_collider_key *k = c->keys;
+    const uint32_t n = c->key_count;
+    const rbc_scene_collider_key *hold = !(t > k[0].time) ? &k[0] : t >= k[n - 1].time ? &k[n - 1] : NULL;
+    if (hold) {
+        memcpy(position, hold->position, 3 * sizeof *position);
+        memcpy(rotation, hold->rotation, 4 * sizeof *rotation);
+        return;
+    }
+    uint32_t i;
+    FIND_SEGMENT(k, n, t, i);
+    const rbc_scene_collider_key *ka = &k[i], *kb = &k[i + 1];
+    double s = (t - ka->time) / (kb->time - ka->time);
+    if (s == 0.0) {
+        memcpy(position, ka->position, 3 * sizeof *position);
+        memcpy(rotation, ka->rotation, 4 * sizeof *rotation);
+        return;
+    }
+    for (int j = 0; j < 3; ++j)
+        position[j] = (float)((double)ka->position[j] +
+                              s * ((double)kb->position[j] - (double)ka->position[j]));
+    /* Normalised lerp along the shorter arc (q and -q are one rotation). */
+    double dot = 0.0;
+    for (int j = 0; j < 4; ++j)
+        dot += (double)ka->rotation[j] * kb->rotation[j];
+    double sign = dot < 0.0 ? -1.0 : 1.0, q[4], norm = 0.0;
+    for (int j = 0; j < 4; ++j) {
+        q[j] = (1.0 - s) * ka->rotation[j] + s * sign * kb->rotation[j];
+        norm += q[j] * q[j];
+    }
+    norm = sqrt(norm);
+    for (int j = 0; j < 4; ++j)
+        rotation[j] = (float)(q[j] / norm);
+}
+
+rbc_scene_drag_state rbc_scene_drag_target(const rbc_scene_drag *d, double t, float target[3]) {
+    if (d->release >= 0.0 && t >= d->release)
+        return RBC_SCENE_DRAG_RELEASED;
+    if (d->key_count == 0 || t < d->keys[0].time)
+        return RBC_SCENE_DRAG_WAITING;
+    const rbc_scene_drag_key *k = d->keys;
+    const uint32_t n = d->key_count;
+    if (t >= k[n - 1].time) {
+        memcpy(target, k[n - 1].target, 3 * sizeof *target);
+        return RBC_SCENE_DRAG_PINNED;
+    }
+    uint32_t i;
+    FIND_SEGMENT(k, n, t, i);
+    double s = (t - k[i].time) / (k[i + 1].time - k[i].time);
+    for (int j = 0; j < 3; ++j)
+        target[j] = (float)((double)k[i].target[j] +
+                            s * ((double)k[i + 1].target[j] - (double)k[i].target[j]));
+    return RBC_SCENE_DRAG_PINNED;
+}
+
+rbc_result rbc_scene_apply_frame(const rbc_api_v1 *api, const rbc_scene *scene,
+                                 const rbc_scene_instance *inst, uint32_t frame, char *err,
+                                 size_t err_size) {
+    /* Time at the end of the frame, in double (frame counts reach 10^7). */
+    const double t = (double)scene->dt * ((double)frame + 1.0);
+    const double t_before = (double)scene->dt * (double)frame;
+    for (uint32_t i = 0; i < scene->collider_count && i < inst->collider_count; ++i) {
+        const rbc_scene_collider *c = &scene->colliders[i];
+        if (c->motion == RBC_SCENE_MOTION_NONE)
+            continue;
+        float position[3], rotation[4];
+        rbc_scene_collider_pose(c, t, position, rotation);
+        rbc_result r = api->collider_set_transform(inst->world, inst->colliders[i], position, rotation);
+        if (r != RBC_OK)
+            return api_fail(api, r, err, err_size, "moving colliders[%u] at t = %g s", i, t);
+    }
+    for (uint32_t i = 0; i < scene->cloth_count && i < inst->cloth_count; ++i) {
+        const rbc_scene_cloth *c = &scene->cloths[i];
+        for (uint32_t j = 0; j < c->drag_count; ++j) {
+            const rbc_scene_drag *d = &c->drags[j];
+            float target[3], unused[3];
+            rbc_scene_drag_state state = rbc_scene_drag_target(d, t, target);
+            rbc_result r = RBC_OK;
+            if (state == RBC_SCENE_DRAG_PINNED)
+                r = api->cloth_set_pin(inst->world, inst->cloths[i], d->vertex, target);
+            else if (state == RBC_SCENE_DRAG_RELEASED &&
+                     rbc_scene_drag_target(d, t_before, unused) != RBC_SCENE_DRAG_RELEASED)
+                r = api->cloth_set_pin(inst->world, inst->cloths[i], d->vertex, NULL);
+            if (r != RBC_OK)
+                return api_fail(api, r, err, err_size, "cloths[%u].drags[%u] at t = %g s", i, j, t);
+        }
+    }
     return RBC_OK;
 }
 

@@ -6,6 +6,7 @@
 
 #include <cJSON.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -100,6 +101,10 @@ static double float_as_decimal(float value) {
 typedef struct cloth_output {
     char *obj_path;
     char *pc2_path;
+    /// A cloth that can tear (tear_strain > 0): STEM_torn.obj, its last frame with the
+    /// quads that remain (rbc_cloth_get_quads), and their count. NULL otherwise.
+    char *torn_obj_path;
+    uint32_t quads_remaining;
     rbc_cache_id cache;
     uint32_t spring_count;
     uint32_t color_count;
@@ -127,6 +132,7 @@ static void run_state_free(run_state *s) {
             s->api->cache_destroy(s->outputs[i].cache); /* removes the temporary file */
         free(s->outputs[i].obj_path);
         free(s->outputs[i].pc2_path);
+        free(s->outputs[i].torn_obj_path);
     }
     free(s->outputs);
     free(s->summary_path);
@@ -204,10 +210,25 @@ static int plan_outputs(run_state *s) {
             return out_of_memory(s);
         s->outputs[i].obj_path = fs_path(dir, stem, ".obj");
         s->outputs[i].pc2_path = fs_path(dir, stem, ".pc2");
+        /* PC2 keeps the vertices, not the faces: a cloth that tears also gets its
+         * last frame with the quads that remain. */
+        if (s->scene.cloths[i].tear_strain > 0.0f &&
+            !(s->outputs[i].torn_obj_path = fs_path(dir, stem, "_torn.obj"))) {
+            free(stem);
+            return out_of_memory(s);
+        }
         free(stem);
         if (!s->outputs[i].obj_path || !s->outputs[i].pc2_path)
             return out_of_memory(s);
     }
+    return 0;
+}
+
+/* Whether a cloth can tear, so that its remaining quads are written at the end. */
+static int any_torn_output(const run_state *s) {
+    for (uint32_t i = 0; i < s->scene.cloth_count; ++i)
+        if (s->outputs[i].torn_obj_path)
+            return 1;
     return 0;
 }
 
@@ -228,6 +249,15 @@ static int create_world(run_state *s) {
             return report_api(api, r);
         if (s->scene.cloths[i].vertex_count > max_vertices)
             max_vertices = s->scene.cloths[i].vertex_count;
+    }
+    /* A cloth that can tear needs rbc_cloth_get_quads (ABI 1.3) for its last frame. */
+    if (any_torn_output(s) &&
+        (api->struct_size < offsetof(rbc_api_v1, cloth_get_quads) + sizeof api->cloth_get_quads ||
+         !api->cloth_get_quads)) {
+        fprintf(stderr, "rbcloth: %s: a cloth with tear_strain needs rbc_cloth_get_quads (ABI "
+                        "1.3), which this plugin's function table does not have\n",
+                s->scene.source);
+        return 1;
     }
     s->positions_capacity = (size_t)max_vertices * 3;
     s->positions = malloc(s->positions_capacity * sizeof *s->positions);
@@ -265,14 +295,50 @@ static int start_outputs(run_state *s) {
     return 0;
 }
 
+/* STEM_torn.obj of each cloth that can tear: the last frame's positions and the quads
+ * that remain (rbc_cloth_get_quads, ABI 1.3). */
+static int write_torn_meshes(run_state *s) {
+    const rbc_api_v1 *api = s->api;
+    for (uint32_t i = 0; i < s->scene.cloth_count; ++i) {
+        cloth_output *o = &s->outputs[i];
+        if (!o->torn_obj_path)
+            continue;
+        const size_t floats = (size_t)s->scene.cloths[i].vertex_count * 3;
+        size_t count = 0;
+        rbc_result r = api->cloth_read_positions(s->instance.world, s->instance.cloths[i],
+                                                 s->positions, s->positions_capacity, NULL);
+        if (r == RBC_OK)
+            r = api->cloth_get_quads(s->instance.world, s->instance.cloths[i], NULL, 0, &count);
+        if (r != RBC_OK)
+            return report_api(api, r);
+        uint32_t *quads = malloc((count ? count : 1) * sizeof *quads);
+        if (!quads)
+            return out_of_memory(s);
+        r = api->cloth_get_quads(s->instance.world, s->instance.cloths[i], quads, count, &count);
+        if (r == RBC_OK)
+            r = api->write_obj(o->torn_obj_path, s->positions, (uint32_t)(floats / 3), quads,
+                               (uint32_t)(count / 4));
+        free(quads);
+        if (r != RBC_OK)
+            return report_api(api, r);
+        o->quads_remaining = (uint32_t)(count / 4);
+    }
+    return 0;
+}
+
 static int simulate(run_state *s) {
     const rbc_api_v1 *api = s->api;
     const int show_progress = !s->options->quiet && isatty(STDERR_FILENO);
     const uint32_t frames = s->scene.frames;
     double start = now_seconds(), last_draw = 0.0;
+    char err[RBC_SCENE_ERROR_MAX];
 
     for (uint32_t frame = 0; frame < frames; ++frame) {
-        rbc_result r = api->world_step(s->instance.world, s->scene.dt);
+        /* Moving colliders and drags to where they are at the end of this frame. */
+        rbc_result r = rbc_scene_apply_frame(api, &s->scene, &s->instance, frame, err, sizeof err);
+        if (r != RBC_OK)
+            return report(api, r, err);
+        r = api->world_step(s->instance.world, s->scene.dt);
         if (r != RBC_OK)
             return report_api(api, r);
         /* Timings every frame; Eq. 7 and the energies (a pass over the cloth) once,
@@ -313,6 +379,8 @@ static int simulate(run_state *s) {
     }
     s->wall_seconds = now_seconds() - start;
     progress_clear();
+    if (write_torn_meshes(s))
+        return 1;
 
     for (uint32_t i = 0; i < s->scene.cloth_count; ++i) {
         rbc_result r = api->cache_finish(s->outputs[i].cache);
@@ -409,6 +477,10 @@ static cJSON *build_summary(const run_state *s, json_builder *b) {
         jnum(b, c, "pins", sc->cloths[i].pin_count);
         jstr(b, c, "obj", s->outputs[i].obj_path);
         jstr(b, c, "pc2", s->outputs[i].pc2_path);
+        if (s->outputs[i].torn_obj_path) {
+            jstr(b, c, "torn_obj", s->outputs[i].torn_obj_path);
+            jnum(b, c, "quads_remaining", s->outputs[i].quads_remaining);
+        }
     }
 
     cJSON *timing = jcheck(b, cJSON_AddObjectToObject(root, "ms_per_frame"));
@@ -429,6 +501,8 @@ static cJSON *build_summary(const run_state *s, json_builder *b) {
     jnum(b, final, "energy_budget", st->energy_budget);
     jnum(b, final, "energy_clamped_steps", (double)st->energy_clamped_steps);
     jnum(b, final, "memory_bytes", (double)st->memory_bytes);
+    if (any_torn_output(s))
+        jnum(b, final, "torn_springs", (double)st->torn_springs);
 
     cJSON *outputs = jcheck(b, cJSON_AddObjectToObject(root, "outputs"));
     cJSON *objs = outputs ? jcheck(b, cJSON_AddArrayToObject(outputs, "obj")) : NULL;
@@ -485,8 +559,15 @@ static void print_table(const run_state *s) {
            (unsigned long long)st->energy_clamped_steps);
     printf("  memory %.2f MB (%.0f bytes per particle)\n", (double)st->memory_bytes / 1e6,
            st->particle_count ? (double)st->memory_bytes / st->particle_count : 0.0);
-    for (uint32_t i = 0; i < sc->cloth_count; ++i)
+    if (any_torn_output(s))
+        printf("  springs torn: %llu\n", (unsigned long long)st->torn_springs);
+    for (uint32_t i = 0; i < sc->cloth_count; ++i) {
         printf("  wrote %s, %s\n", s->outputs[i].obj_path, s->outputs[i].pc2_path);
+        if (s->outputs[i].torn_obj_path)
+            printf("  wrote %s (last frame, %u quads remain of %u)\n",
+                   s->outputs[i].torn_obj_path, s->outputs[i].quads_remaining,
+                   sc->cloths[i].quad_count);
+    }
     printf("  wrote %s\n", s->summary_path);
 }
 

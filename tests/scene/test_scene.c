@@ -13,6 +13,8 @@
 
 static const char *scenes_dir = ".";
 
+#define TEST_PI 3.14159265358979323846
+
 static int load_sample(const char *file, rbc_scene *scene, char *err, size_t err_size) {
     char path[1024];
     snprintf(path, sizeof path, "%s/%s", scenes_dir, file);
@@ -323,9 +325,10 @@ static void test_malformed(void) {
          "cloths[0].vertices[1]: must be an array of 3 numbers"},
         /* colliders */
         {BASE_HEAD "\"cloths\":[" GRID_CLOTH "],\"colliders\":[{\"shape\":\"plane\",\"radius\":1}]}",
-         "colliders[0].radius: only spheres have a radius"},
+         "colliders[0].radius: not for a plane: only spheres and capsules have a radius"},
         {BASE_HEAD "\"cloths\":[" GRID_CLOTH "],\"colliders\":[{\"shape\":\"cube\"}]}",
-         "colliders[0].shape: must be one of \"sphere\", \"plane\", got \"cube\""},
+         "colliders[0].shape: must be one of \"sphere\", \"plane\", \"capsule\", \"box\", "
+         "\"mesh\", got \"cube\""},
         {BASE_HEAD "\"cloths\":[" GRID_CLOTH "],\"colliders\":[{\"shape\":\"sphere\",\"radius\":1,\"rotation\":[0,0,0,2]}]}",
          "colliders[0].rotation: must be a unit quaternion [x, y, z, w], got one of length 2"},
         {BASE_HEAD "\"cloths\":[" GRID_CLOTH "],\"colliders\":[{\"shape\":\"sphere\",\"radius\":-0.5}]}",
@@ -354,6 +357,362 @@ static void test_malformed(void) {
         if (rc == 0)
             rbc_scene_free(&s);
     }
+}
+
+/* The ABI 1.3 keys: every bad value names its key. */
+#define C3 "\"cloths\":[" GRID_CLOTH "],"
+#define COLLIDER(body) BASE_HEAD C3 "\"colliders\":[{" body "}]}"
+#define CLOTH(body) BASE_HEAD "\"cloths\":[{\"grid\":{\"nx\":3,\"ny\":3,\"spacing\":0.1}," body "}]}"
+#define DRAG(body) CLOTH("\"drags\":[{" body "}]")
+#define KEYS(body) COLLIDER("\"shape\":\"sphere\",\"radius\":1,\"keyframes\":[" body "]")
+#define WIND(body) BASE_HEAD C3 "\"world\":{\"wind\":" body "}}"
+#define TRI "\"shape\":\"mesh\",\"vertices\":[[0,0,0],[1,0,0],[0,0,1]],"
+
+static void test_malformed_v1_3(void) {
+    static const bad_case cases[] = {
+        /* shapes */
+        {COLLIDER("\"shape\":\"capsule\",\"half_length\":1"),
+         "bad.json: colliders[0].radius: required key is missing (capsules need a radius)"},
+        {COLLIDER("\"shape\":\"capsule\",\"radius\":0.1"),
+         "bad.json: colliders[0].half_length: required key is missing"},
+        {COLLIDER("\"shape\":\"capsule\",\"radius\":0.1,\"half_length\":-1"),
+         "bad.json: colliders[0].half_length: must be a number > 0, got -1"},
+        {COLLIDER("\"shape\":\"sphere\",\"radius\":0.1,\"half_length\":1"),
+         "bad.json: colliders[0].half_length: not for a sphere: only capsules have a half_length"},
+        {COLLIDER("\"shape\":\"box\""), "bad.json: colliders[0].half_extents: required key is missing"},
+        {COLLIDER("\"shape\":\"box\",\"half_extents\":[1,0,1]"),
+         "bad.json: colliders[0].half_extents[1]: must be a number > 0, got 0"},
+        {COLLIDER("\"shape\":\"box\",\"half_extents\":[1,1]"),
+         "bad.json: colliders[0].half_extents: must be an array of 3 numbers"},
+        {COLLIDER("\"shape\":\"box\",\"half_extents\":[1,1,1],\"radius\":1"),
+         "bad.json: colliders[0].radius: not for a box: only spheres and capsules have a radius"},
+        {COLLIDER("\"shape\":\"plane\",\"half_extents\":[1,1,1]"),
+         "bad.json: colliders[0].half_extents: not for a plane: only boxes have half_extents"},
+        {COLLIDER("\"shape\":\"plane\",\"friction\":-0.1"),
+         "bad.json: colliders[0].friction: must be a number >= 0, got -0.1"},
+        {COLLIDER("\"shape\":\"plane\",\"friction\":\"x\""),
+         "bad.json: colliders[0].friction: must be a number >= 0, got a string"},
+        /* meshes */
+        {COLLIDER("\"shape\":\"mesh\""),
+         "bad.json: colliders[0].vertices: required key is missing (a mesh needs"},
+        {COLLIDER("\"shape\":\"mesh\",\"vertices\":[[0,0,0],[1,0,0],[0,0,1]]"),
+         "bad.json: colliders[0].triangles: required key is missing"},
+        {COLLIDER(TRI "\"triangles\":[[0,1,3]]"),
+         "bad.json: colliders[0].triangles[0][2]: must be an integer in [0, 2], got 3"},
+        {COLLIDER(TRI "\"triangles\":[[0,1,2],[0,1,1]]"),
+         "bad.json: colliders[0].triangles[1]: degenerate triangle: vertex 1 appears twice"},
+        {COLLIDER(TRI "\"triangles\":[[0,1,2,0]]"),
+         "bad.json: colliders[0].triangles[0]: must be an array of 3 vertex indices"},
+        {COLLIDER(TRI "\"triangles\":[]"),
+         "bad.json: colliders[0].triangles: must have 1 to"},
+        {COLLIDER("\"shape\":\"mesh\",\"vertices\":[[0,0,0],[1,0,0]],\"triangles\":[[0,1,0]]"),
+         "bad.json: colliders[0].vertices: must have 3 to 16777216 elements, got 2"},
+        {COLLIDER("\"shape\":\"mesh\",\"vertices\":[[0,0,0],[1,0],[0,0,1]],\"triangles\":[[0,1,2]]"),
+         "bad.json: colliders[0].vertices[1]: must be an array of 3 numbers"},
+        {COLLIDER(TRI "\"triangles\":[[0,1,2]],\"file\":\"x.obj\""),
+         "bad.json: colliders[0].file: give either \"file\" or \"vertices\" and \"triangles\""},
+        {COLLIDER("\"shape\":\"mesh\",\"file\":\"/nonexistent/x.obj\""),
+         "bad.json: colliders[0].file: cannot open /nonexistent/x.obj: No such file or directory"},
+        {COLLIDER("\"shape\":\"mesh\",\"file\":\"\""), "bad.json: colliders[0].file: must name a mesh file"},
+        {COLLIDER("\"shape\":\"mesh\",\"file\":5"),
+         "bad.json: colliders[0].file: must be a string, got a number"},
+        {COLLIDER(TRI "\"triangles\":[[0,1,2]],\"scale\":2"),
+         "bad.json: colliders[0].scale: only mesh files have a scale"},
+        {COLLIDER("\"shape\":\"sphere\",\"radius\":1,\"scale\":2"),
+         "bad.json: colliders[0].scale: not for a sphere: only mesh files have a scale"},
+        {COLLIDER("\"shape\":\"sphere\",\"radius\":1,\"vertices\":[]"),
+         "bad.json: colliders[0].vertices: not for a sphere: only meshes have vertices"},
+        /* motion */
+        {COLLIDER("\"shape\":\"sphere\",\"radius\":1,\"velocity\":[0,0,1],\"keyframes\":[{\"time\":0}]"),
+         "bad.json: colliders[0].keyframes: give either \"keyframes\" or \"velocity\"/\"angular_velocity\""},
+        {COLLIDER("\"shape\":\"sphere\",\"radius\":1,\"angular_velocity\":[0,0,1],\"keyframes\":[{\"time\":0}]"),
+         "bad.json: colliders[0].keyframes: give either"},
+        {COLLIDER("\"shape\":\"sphere\",\"radius\":1,\"velocity\":[1,2]"),
+         "bad.json: colliders[0].velocity: must be an array of 3 numbers"},
+        {COLLIDER("\"shape\":\"sphere\",\"radius\":1,\"angular_velocity\":\"x\""),
+         "bad.json: colliders[0].angular_velocity: must be an array of 3 numbers, got a string"},
+        {KEYS(""), "bad.json: colliders[0].keyframes: must have 1 to 1000000 elements, got 0"},
+        {KEYS("{\"position\":[0,0,0]}"), "bad.json: colliders[0].keyframes[0].time: required key is missing"},
+        {KEYS("{\"time\":-1}"), "bad.json: colliders[0].keyframes[0].time: must be a number >= 0, got -1"},
+        {KEYS("{\"time\":1},{\"time\":1}"),
+         "bad.json: colliders[0].keyframes[1].time: keyframe times must increase: got 1 after 1"},
+        {KEYS("{\"time\":0},{\"time\":1,\"rotation\":[0,0,0,3]}"),
+         "bad.json: colliders[0].keyframes[1].rotation: must be a unit quaternion [x, y, z, w], got one of length 3"},
+        {KEYS("{\"time\":0,\"position\":[1]}"),
+         "bad.json: colliders[0].keyframes[0].position: must be an array of 3 numbers"},
+        {KEYS("{\"time\":0,\"velocity\":[0,0,0]}"),
+         "bad.json: colliders[0].keyframes[0].velocity: unknown key (expected one of: time, position, rotation)"},
+        {KEYS("5"), "bad.json: colliders[0].keyframes[0]: must be an object, got a number"},
+        /* cloths */
+        {CLOTH("\"thickness\":-1"), "bad.json: cloths[0].thickness: must be a number >= 0, got -1"},
+        {CLOTH("\"friction\":\"a\""), "bad.json: cloths[0].friction: must be a number >= 0, got a string"},
+        {CLOTH("\"self_collision\":1"), "bad.json: cloths[0].self_collision: must be true or false, got a number"},
+        {CLOTH("\"cloth_collision\":\"yes\""),
+         "bad.json: cloths[0].cloth_collision: must be true or false, got a string"},
+        {CLOTH("\"self_collision\":true"),
+         "bad.json: cloths[0].self_collision: cloth contact needs a \"thickness\" > 0"},
+        {CLOTH("\"cloth_collision\":true,\"thickness\":0"),
+         "bad.json: cloths[0].cloth_collision: cloth contact needs a \"thickness\" > 0"},
+        {CLOTH("\"tear_strain\":-0.5"), "bad.json: cloths[0].tear_strain: must be a number >= 0, got -0.5"},
+        {CLOTH("\"tear_strain\":1e39"), "bad.json: cloths[0].tear_strain: must be a number >= 0 that fits a float"},
+        /* drags */
+        {CLOTH("\"drags\":{}"), "bad.json: cloths[0].drags: must be an array, got an object"},
+        {DRAG("\"keyframes\":[{\"time\":0,\"target\":[0,0,0]}]"),
+         "bad.json: cloths[0].drags[0].vertex: required key is missing"},
+        {DRAG("\"vertex\":9,\"keyframes\":[{\"time\":0,\"target\":[0,0,0]}]"),
+         "bad.json: cloths[0].drags[0].vertex: vertex index 9 is out of range (the cloth has 9 vertices)"},
+        {DRAG("\"vertex\":1.5,\"keyframes\":[{\"time\":0,\"target\":[0,0,0]}]"),
+         "bad.json: cloths[0].drags[0].vertex: must be a vertex index (an integer >= 0), got 1.5"},
+        {DRAG("\"vertex\":1"), "bad.json: cloths[0].drags[0].keyframes: required key is missing"},
+        {DRAG("\"vertex\":1,\"keyframes\":[{\"time\":0}]"),
+         "bad.json: cloths[0].drags[0].keyframes[0].target: required key is missing"},
+        {DRAG("\"vertex\":1,\"keyframes\":[{\"time\":0,\"target\":[0,0]}]"),
+         "bad.json: cloths[0].drags[0].keyframes[0].target: must be an array of 3 numbers"},
+        {DRAG("\"vertex\":1,\"keyframes\":[{\"time\":1,\"target\":[0,0,0]},{\"time\":0.5,\"target\":[0,0,0]}]"),
+         "bad.json: cloths[0].drags[0].keyframes[1].time: keyframe times must increase: got 0.5 after 1"},
+        {DRAG("\"vertex\":1,\"keyframes\":[{\"time\":1,\"target\":[0,0,0]}],\"release\":0.5"),
+         "bad.json: cloths[0].drags[0].release: must be after the first keyframe (time 1), got 0.5"},
+        {DRAG("\"vertex\":1,\"keyframes\":[{\"time\":1,\"target\":[0,0,0]}],\"release\":\"x\""),
+         "bad.json: cloths[0].drags[0].release: must be a number >= 0, got a string"},
+        {DRAG("\"vertex\":1,\"pin\":true,\"keyframes\":[{\"time\":1,\"target\":[0,0,0]}]"),
+         "bad.json: cloths[0].drags[0].pin: unknown key (expected one of: vertex, keyframes, release)"},
+        {CLOTH("\"drags\":[{\"vertex\":4,\"keyframes\":[{\"time\":0,\"target\":[0,0,0]}]},"
+               "{\"vertex\":4,\"keyframes\":[{\"time\":1,\"target\":[0,0,0]}]}]"),
+         "bad.json: cloths[0].drags[1].vertex: vertex 4 is already dragged by cloths[0].drags[0]"},
+        /* wind */
+        {WIND("[]"), "bad.json: world.wind: must be an object, got an array"},
+        {WIND("{\"drag\":1}"), "bad.json: world.wind.velocity: required key is missing"},
+        {WIND("{\"velocity\":[1,0,0],\"drag\":-1}"), "bad.json: world.wind.drag: must be a number >= 0, got -1"},
+        {WIND("{\"velocity\":[1,0,0],\"lift\":\"x\"}"),
+         "bad.json: world.wind.lift: must be a number >= 0, got a string"},
+        {WIND("{\"velocity\":[1,0]}"), "bad.json: world.wind.velocity: must be an array of 3 numbers"},
+        {WIND("{\"velocity\":[1,0,0],\"speed\":1}"),
+         "bad.json: world.wind.speed: unknown key (expected one of: velocity, drag, lift)"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
+        rbc_scene s;
+        memset(&s, 0xAB, sizeof s);
+        char err[RBC_SCENE_ERROR_MAX] = "";
+        int rc = rbc_scene_parse(cases[i].json, strlen(cases[i].json), "bad.json", &s, err,
+                                 sizeof err);
+        CHECK_EQ(rc, -1);
+        CHECK(is_zeroed(&s, sizeof s));
+        if (!strstr(err, cases[i].expect)) {
+            CHECK(!"message names the key and the problem");
+            fprintf(stderr, "  1.3 case %zu: expected \"%s\"\n               got      \"%s\"\n", i,
+                    cases[i].expect, err);
+        }
+        if (rc == 0)
+            rbc_scene_free(&s);
+    }
+}
+
+/* Every 1.3 key with a good value reaches the scene struct. */
+static void test_v1_3_keys(void) {
+    static const char json[] =
+        "{\"name\":\"all\",\"frames\":2,\"dt\":0.5,\n"
+        " \"world\":{\"wind\":{\"velocity\":[1,0,-2],\"drag\":0.6,\"lift\":0.25}},\n"
+        " \"cloths\":[{\"grid\":{\"nx\":3,\"ny\":3,\"spacing\":0.1},\"thickness\":0.003,\"friction\":0.4,\n"
+        "              \"self_collision\":true,\"cloth_collision\":false,\"tear_strain\":0.5,\n"
+        "              \"drags\":[{\"vertex\":8,\"keyframes\":[{\"time\":1,\"target\":[0,0,0]},\n"
+        "                                       {\"time\":2,\"target\":[1,2,3]}],\"release\":3},\n"
+        "                         {\"vertex\":0,\"keyframes\":[{\"time\":0,\"target\":[5,5,5]}]}]},\n"
+        "            {\"grid\":{\"nx\":2,\"ny\":2,\"spacing\":0.1},\"thickness\":0.001,\"cloth_collision\":true}],\n"
+        " \"colliders\":[\n"
+        "  {\"shape\":\"capsule\",\"radius\":0.1,\"half_length\":0.3,\"friction\":0.2,\"velocity\":[0,1,0],\n"
+        "   \"angular_velocity\":[0,0,3.14159]},\n"
+        "  {\"shape\":\"box\",\"half_extents\":[0.1,0.2,0.3],\"position\":[1,2,3],\n"
+        "   \"keyframes\":[{\"time\":0},{\"time\":1,\"position\":[2,2,3],\"rotation\":[0,0,1,0]}]},\n"
+        "  {\"shape\":\"mesh\",\"vertices\":[[0,0,0],[1,0,0],[0,0,1],[0,1,0]],\n"
+        "   \"triangles\":[[0,1,2],[0,3,1]],\"thickness\":0.01},\n"
+        "  {\"shape\":\"sphere\",\"radius\":0.5,\"angular_velocity\":[1,0,0]}]}";
+    rbc_scene s;
+    char err[RBC_SCENE_ERROR_MAX];
+    int rc = rbc_scene_parse(json, sizeof json - 1, "all.json", &s, err, sizeof err);
+    CHECK_EQ(rc, 0);
+    if (rc) {
+        fprintf(stderr, "%s\n", err);
+        return;
+    }
+    CHECK(strcmp(s.source, "all.json") == 0);
+    CHECK_EQ(s.world.has_wind, 1);
+    CHECK(s.world.wind_velocity[0] == 1.0f && s.world.wind_velocity[2] == -2.0f);
+    CHECK(s.world.wind_drag == 0.6f && s.world.wind_lift == 0.25f);
+    const rbc_scene_cloth *c = &s.cloths[0];
+    CHECK(c->thickness == 0.003f && c->friction == 0.4f && c->tear_strain == 0.5f);
+    CHECK_EQ(c->collision_flags, RBC_CLOTH_COLLIDE_SELF);
+    CHECK_EQ(s.cloths[1].collision_flags, RBC_CLOTH_COLLIDE_CLOTHS);
+    CHECK_EQ(c->drag_count, 2);
+    CHECK(c->drags[0].vertex == 8 && c->drags[0].key_count == 2 && c->drags[0].release == 3.0);
+    CHECK(c->drags[0].keys[1].time == 2.0 && c->drags[0].keys[1].target[2] == 3.0f);
+    CHECK(c->drags[1].vertex == 0 && c->drags[1].release < 0.0);
+    CHECK_EQ(s.collider_count, 4);
+    const rbc_scene_collider *k = s.colliders;
+    CHECK_EQ(k[0].shape, RBC_SHAPE_CAPSULE);
+    CHECK(k[0].radius == 0.1f && k[0].half_extents[1] == 0.3f && k[0].half_extents[0] == 0.0f);
+    CHECK(k[0].friction == 0.2f);
+    CHECK_EQ(k[0].motion, RBC_SCENE_MOTION_VELOCITY);
+    CHECK(k[0].velocity[1] == 1.0f && k[0].angular_velocity[2] == 3.14159f);
+    CHECK_EQ(k[1].shape, RBC_SHAPE_BOX);
+    CHECK(k[1].half_extents[0] == 0.1f && k[1].half_extents[1] == 0.2f && k[1].half_extents[2] == 0.3f);
+    CHECK(k[1].radius == 0.0f);
+    CHECK_EQ(k[1].motion, RBC_SCENE_MOTION_KEYFRAMES);
+    CHECK_EQ(k[1].key_count, 2);
+    /* A keyframe without position or rotation takes the collider's. */
+    CHECK(k[1].keys[0].position[0] == 1.0f && k[1].keys[0].position[2] == 3.0f);
+    CHECK(k[1].keys[0].rotation[3] == 1.0f);
+    CHECK(k[1].keys[1].position[0] == 2.0f && k[1].keys[1].rotation[2] == 1.0f);
+    CHECK_EQ(k[2].shape, RBC_SHAPE_TRIANGLE_MESH);
+    CHECK(k[2].mesh_vertex_count == 4 && k[2].mesh_triangle_count == 2);
+    CHECK(k[2].mesh_positions[3 * 3 + 1] == 1.0f);
+    CHECK(k[2].mesh_triangles[3] == 0 && k[2].mesh_triangles[4] == 3 && k[2].mesh_triangles[5] == 1);
+    CHECK(k[2].mesh_file == NULL && k[2].thickness == 0.01f);
+    CHECK_EQ(k[2].motion, RBC_SCENE_MOTION_NONE);
+    /* angular_velocity alone: turning in place. */
+    CHECK_EQ(k[3].motion, RBC_SCENE_MOTION_VELOCITY);
+    char key[128];
+    CHECK_EQ(rbc_scene_needs_v1_3(&s, key, sizeof key), 1);
+    CHECK(strcmp(key, "world.wind") == 0);
+    rbc_scene_free(&s);
+    CHECK(is_zeroed(&s, sizeof s));
+
+    /* needs_v1_3 names the first 1.3 key; the existing scenes need none. */
+    CHECK_EQ(load_sample("hanging_cloth.json", &s, err, sizeof err), 0);
+    CHECK_EQ(rbc_scene_needs_v1_3(&s, key, sizeof key), 0);
+    CHECK(key[0] == '\0');
+    rbc_scene_free(&s);
+    CHECK_EQ(load_sample("cloth_on_sphere.json", &s, err, sizeof err), 0);
+    CHECK_EQ(rbc_scene_needs_v1_3(&s, key, sizeof key), 0);
+    rbc_scene_free(&s);
+    CHECK_EQ(load_sample("cloth_on_chair.json", &s, err, sizeof err), 0);
+    CHECK_EQ(rbc_scene_needs_v1_3(&s, key, sizeof key), 1);
+    CHECK(strcmp(key, "cloths[0].thickness") == 0);
+    rbc_scene_free(&s);
+
+    /* A mesh file is resolved against the scene file's directory. */
+    char path[1024], text[512];
+    snprintf(path, sizeof path, "%s/inline.json", scenes_dir);
+    snprintf(text, sizeof text,
+             BASE_HEAD C3 "\"colliders\":[{\"shape\":\"mesh\",\"file\":\"../meshes/tri_patch.obj\","
+                          "\"scale\":0.5}]}");
+    rc = rbc_scene_parse(text, strlen(text), path, &s, err, sizeof err);
+    CHECK_EQ(rc, 0);
+    if (rc == 0) {
+        char expect[1024];
+        snprintf(expect, sizeof expect, "%s/../meshes/tri_patch.obj", scenes_dir);
+        CHECK(strcmp(s.colliders[0].mesh_file, expect) == 0);
+        CHECK(s.colliders[0].mesh_scale == 0.5f);
+        rbc_scene_free(&s);
+    } else {
+        fprintf(stderr, "%s\n", err);
+    }
+    snprintf(text, sizeof text,
+             BASE_HEAD C3 "\"colliders\":[{\"shape\":\"mesh\",\"file\":\"../meshes/tri_patch.obj\","
+                          "\"scale\":0}]}");
+    CHECK_EQ(rbc_scene_parse(text, strlen(text), path, &s, err, sizeof err), -1);
+    CHECK(strstr(err, "inline.json: colliders[0].scale: must be a number > 0, got 0") != NULL);
+    snprintf(text, sizeof text,
+             BASE_HEAD C3 "\"colliders\":[{\"shape\":\"mesh\",\"file\":\"no_such_mesh.obj\"}]}");
+    CHECK_EQ(rbc_scene_parse(text, strlen(text), path, &s, err, sizeof err), -1);
+    CHECK(strstr(err, "inline.json: colliders[0].file: cannot open ") != NULL);
+    CHECK(strstr(err, "/no_such_mesh.obj: No such file or directory") != NULL);
+}
+
+/* Collider keyframes: linear positions, normalised-lerp rotations, the first pose held
+ * before and the last after; velocity motion; drags. Expected values worked out by
+ * hand; tolerances are float rounding of numbers of order 1 (2^-23 ~ 1.2e-7, a few
+ * roundings). */
+static void test_motion_numbers(void) {
+    const double tol = 5e-7;
+    const double h = sqrt(0.5); /* sin 45 deg = cos 45 deg */
+    rbc_scene_collider_key keys[3] = {
+        {1.0, {0, 0, 0}, {0, 0, 0, 1}},
+        {3.0, {2, 4, -6}, {0, 0, (float)h, (float)h}}, /* 90 deg about z */
+        {4.0, {2, 4, -6}, {0, 0, -(float)h, -(float)h}}, /* the same rotation as -q */
+    };
+    rbc_scene_collider c;
+    memset(&c, 0, sizeof c);
+    c.shape = RBC_SHAPE_SPHERE;
+    c.position[1] = 9.0f; /* the creation pose: not used by keyframed colliders */
+    c.rotation[3] = 1.0f;
+    c.motion = RBC_SCENE_MOTION_KEYFRAMES;
+    c.key_count = 3;
+    c.keys = keys;
+    float p[3], q[4];
+    /* Before the first keyframe: its pose, bit for bit. */
+    rbc_scene_collider_pose(&c, 0.0, p, q);
+    CHECK(p[0] == 0.0f && p[1] == 0.0f && p[2] == 0.0f && q[3] == 1.0f && q[2] == 0.0f);
+    rbc_scene_collider_pose(&c, 1.0, p, q);
+    CHECK(p[1] == 0.0f && q[3] == 1.0f);
+    /* Half way: position (1, 2, -3); nlerp at the midpoint is the slerp, 45 deg about z:
+     * (0, 0, sin 22.5, cos 22.5). */
+    rbc_scene_collider_pose(&c, 2.0, p, q);
+    CHECK_NEAR(p[0], 1.0, tol);
+    CHECK_NEAR(p[1], 2.0, tol);
+    CHECK_NEAR(p[2], -3.0, tol);
+    CHECK_NEAR(q[0], 0.0, 0.0);
+    CHECK_NEAR(q[2], sin(TEST_PI / 8), tol);
+    CHECK_NEAR(q[3], cos(TEST_PI / 8), tol);
+    /* Three quarters: position (1.5, 3, -4.5); nlerp (1/4) q0 + (3/4) q1, normalised:
+     * z = 0.75 h / |(0.75 h, 0.25 + 0.75 h)|. */
+    rbc_scene_collider_pose(&c, 2.5, p, q);
+    CHECK_NEAR(p[0], 1.5, tol);
+    CHECK_NEAR(p[1], 3.0, tol);
+    CHECK_NEAR(p[2], -4.5, tol);
+    double qz = 0.75 * h, qw = 0.25 + 0.75 * h, n = sqrt(qz * qz + qw * qw);
+    CHECK_NEAR(q[2], qz / n, tol);
+    CHECK_NEAR(q[3], qw / n, tol);
+    CHECK_NEAR(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3], 1.0, tol);
+    /* q1 to -q1 is no rotation at all: the shorter arc keeps the orientation (up to
+     * the sign of q). */
+    rbc_scene_collider_pose(&c, 3.5, p, q);
+    CHECK_NEAR(fabs(q[2]), h, tol);
+    CHECK_NEAR(fabs(q[3]), h, tol);
+    CHECK(q[2] * q[3] > 0.0f);
+    /* After the last keyframe: its pose. */
+    rbc_scene_collider_pose(&c, 100.0, p, q);
+    CHECK(p[2] == -6.0f && q[2] == -(float)h && q[3] == -(float)h);
+
+    /* Velocity motion: (1, 0, 0) + (0, 2, 0) t; pi rad/s about z after 90 deg about x.
+     * At t = 0.5: position (1, 1, 0), rotation (0, 0, h, h) * (h, 0, 0, h) =
+     * (0.5, 0.5, 0.5, 0.5). */
+    rbc_scene_collider v;
+    memset(&v, 0, sizeof v);
+    v.position[0] = 1.0f;
+    v.rotation[0] = (float)h;
+    v.rotation[3] = (float)h;
+    v.motion = RBC_SCENE_MOTION_VELOCITY;
+    v.velocity[1] = 2.0f;
+    v.angular_velocity[2] = (float)TEST_PI;
+    rbc_scene_collider_pose(&v, 0.5, p, q);
+    CHECK(p[0] == 1.0f && p[1] == 1.0f && p[2] == 0.0f);
+    for (int i = 0; i < 4; ++i)
+        CHECK_NEAR(q[i], 0.5, tol);
+    /* Without a turn the rotation is kept bit for bit. */
+    v.angular_velocity[2] = 0.0f;
+    rbc_scene_collider_pose(&v, 0.25, p, q);
+    CHECK(p[1] == 0.5f && q[0] == (float)h && q[3] == (float)h);
+    /* No motion: the creation pose bit for bit, at any time. */
+    v.motion = RBC_SCENE_MOTION_NONE;
+    rbc_scene_collider_pose(&v, 7.0, p, q);
+    CHECK(p[0] == 1.0f && p[1] == 0.0f && q[0] == (float)h);
+
+    /* Drags: waiting before the first keyframe, linear in between, held at the last
+     * target, released at `release`. */
+    rbc_scene_drag_key dk[2] = {{1.0, {0, 0, 0}}, {2.0, {1, 2, 3}}};
+    rbc_scene_drag d = {5, 2, dk, 3.0};
+    float t[3] = {-1, -1, -1};
+    CHECK_EQ(rbc_scene_drag_target(&d, 0.5, t), RBC_SCENE_DRAG_WAITING);
+    CHECK(t[0] == -1.0f);
+    CHECK_EQ(rbc_scene_drag_target(&d, 1.0, t), RBC_SCENE_DRAG_PINNED);
+    CHECK(t[0] == 0.0f && t[1] == 0.0f && t[2] == 0.0f);
+    CHECK_EQ(rbc_scene_drag_target(&d, 1.25, t), RBC_SCENE_DRAG_PINNED);
+    CHECK(t[0] == 0.25f && t[1] == 0.5f && t[2] == 0.75f);
+    CHECK_EQ(rbc_scene_drag_target(&d, 2.5, t), RBC_SCENE_DRAG_PINNED);
+    CHECK(t[0] == 1.0f && t[1] == 2.0f && t[2] == 3.0f);
+    CHECK_EQ(rbc_scene_drag_target(&d, 3.0, t), RBC_SCENE_DRAG_RELEASED);
+    d.release = -1.0;
+    CHECK_EQ(rbc_scene_drag_target(&d, 1e6, t), RBC_SCENE_DRAG_PINNED);
 }
 
 static void test_messages(void) {
@@ -395,6 +754,20 @@ static struct {
     rbc_world_def world_def;
     rbc_cloth_def cloth_def;
     rbc_collider_def collider_def;
+    /* ABI 1.3: the last collider's mesh (copied: the def's arrays live only during
+     * the call), wind, transforms and pins. */
+    float mesh_positions[12];
+    uint32_t mesh_triangles[12];
+    int winds;
+    float wind[5];
+    int transforms, pins, releases;
+    rbc_collider_id last_collider;
+    float last_position[3], last_rotation[4];
+    uint32_t last_vertex;
+    float last_target[3];
+    char imported[1024];
+    float import_scale;
+    int fail_import;
 } fake;
 
 static const char *RBC_CALL fake_last_error(void) { return "cloth def: vertex 3 is bad"; }
@@ -444,11 +817,79 @@ static rbc_result RBC_CALL fake_cloth_create(rbc_world_id world, const rbc_cloth
 static rbc_result RBC_CALL fake_collider_create(rbc_world_id world, const rbc_collider_def *def,
                                                 rbc_collider_id *out) {
     fake.collider_def = *def;
+    if (def->struct_size == sizeof *def && def->mesh_positions && def->mesh_vertex_count <= 4 &&
+        def->mesh_triangle_count <= 4) {
+        memcpy(fake.mesh_positions, def->mesh_positions, 12 * def->mesh_vertex_count);
+        memcpy(fake.mesh_triangles, def->mesh_triangles, 12 * def->mesh_triangle_count);
+    }
     *out = 200 + (rbc_collider_id)++fake.colliders_created;
     return RBC_OK;
 }
 
 static void RBC_CALL fake_log(void *user, rbc_log_level level, const char *message) {}
+
+static rbc_result RBC_CALL fake_set_wind(rbc_world_id world, const float v[3], float drag,
+                                         float lift) {
+    fake.winds++;
+    memcpy(fake.wind, v, 3 * sizeof *v);
+    fake.wind[3] = drag;
+    fake.wind[4] = lift;
+    return RBC_OK;
+}
+static rbc_result RBC_CALL fake_set_transform(rbc_world_id world, rbc_collider_id collider,
+                                              const float position[3], const float rotation[4]) {
+    fake.transforms++;
+    fake.last_collider = collider;
+    memcpy(fake.last_position, position, sizeof fake.last_position);
+    memcpy(fake.last_rotation, rotation, sizeof fake.last_rotation);
+    return RBC_OK;
+}
+static rbc_result RBC_CALL fake_set_pin(rbc_world_id world, rbc_cloth_id cloth, uint32_t vertex,
+                                        const float *target) {
+    fake.last_vertex = vertex;
+    if (target) {
+        fake.pins++;
+        memcpy(fake.last_target, target, sizeof fake.last_target);
+    } else {
+        fake.releases++;
+    }
+    return RBC_OK;
+}
+/* A "file" that is a tetrahedron: 4 vertices, 4 triangles. */
+static const float tetra_positions[12] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+static const uint32_t tetra_triangles[12] = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+static rbc_result RBC_CALL fake_mesh_import_def_init(rbc_mesh_import_def *d, uint32_t size) {
+    memset(d, 0, sizeof *d);
+    d->struct_size = size;
+    d->scale = 1.0f;
+    return RBC_OK;
+}
+static rbc_result RBC_CALL fake_mesh_import(const char *path, const rbc_mesh_import_def *d,
+                                            rbc_mesh_id *out) {
+    snprintf(fake.imported, sizeof fake.imported, "%s", path);
+    fake.import_scale = d->scale;
+    if (fake.fail_import)
+        return RBC_ERR_BAD_MESH;
+    *out = 7;
+    return RBC_OK;
+}
+static rbc_result RBC_CALL fake_mesh_destroy(rbc_mesh_id mesh) { return RBC_OK; }
+static rbc_result RBC_CALL fake_mesh_get_positions(rbc_mesh_id mesh, float *xyz, size_t capacity,
+                                                   size_t *out_count) {
+    if (out_count)
+        *out_count = 12;
+    if (xyz && capacity >= 12)
+        memcpy(xyz, tetra_positions, sizeof tetra_positions);
+    return RBC_OK;
+}
+static rbc_result RBC_CALL fake_mesh_get_triangles(rbc_mesh_id mesh, uint32_t *tris,
+                                                   size_t capacity, size_t *out_count) {
+    if (out_count)
+        *out_count = 12;
+    if (tris && capacity >= 12)
+        memcpy(tris, tetra_triangles, sizeof tetra_triangles);
+    return RBC_OK;
+}
 
 static void test_instantiate(void) {
     rbc_api_v1 api;
@@ -550,6 +991,239 @@ static void test_instantiate(void) {
     rbc_scene_free(&s);
 }
 
+
+/* ABI 1.3 through the scripted table: the new def fields, wind, mesh files, moving
+ * colliders and drags per frame, and what an older library gets. */
+static void test_instantiate_v1_3(void) {
+    rbc_api_v1 api;
+    memset(&api, 0, sizeof api);
+    api.struct_size = sizeof api;
+    api.abi_version = RBC_ABI_VERSION;
+    api.last_error = fake_last_error;
+    api.result_string = fake_result_string;
+    api.world_def_init = fake_world_def_init;
+    api.cloth_def_init = fake_cloth_def_init;
+    api.collider_def_init = fake_collider_def_init;
+    api.world_create = fake_world_create;
+    api.world_destroy = fake_world_destroy;
+    api.cloth_create = fake_cloth_create;
+    api.collider_create = fake_collider_create;
+    api.collider_set_transform = fake_set_transform;
+    api.cloth_set_pin = fake_set_pin;
+    api.world_set_wind = fake_set_wind;
+    api.mesh_import_def_init = fake_mesh_import_def_init;
+    api.mesh_import = fake_mesh_import;
+    api.mesh_destroy = fake_mesh_destroy;
+    api.mesh_get_positions = fake_mesh_get_positions;
+    api.mesh_get_triangles = fake_mesh_get_triangles;
+
+    static const char json[] =
+        "{\"name\":\"new\",\"frames\":8,\"dt\":0.5,\n"
+        " \"world\":{\"wind\":{\"velocity\":[3,0,0],\"drag\":0.6,\"lift\":0.1}},\n"
+        " \"cloths\":[{\"grid\":{\"nx\":3,\"ny\":3,\"spacing\":0.1},\"thickness\":0.002,\"friction\":0.3,\n"
+        "              \"self_collision\":true,\"cloth_collision\":true,\"tear_strain\":0.4,\n"
+        "              \"drags\":[{\"vertex\":4,\"keyframes\":[{\"time\":1,\"target\":[0,0,0]},\n"
+        "                                               {\"time\":2,\"target\":[1,2,3]}],\"release\":3}]}],\n"
+        " \"colliders\":[\n"
+        "  {\"shape\":\"capsule\",\"radius\":0.1,\"half_length\":0.3,\"friction\":0.2},\n"
+        "  {\"shape\":\"box\",\"half_extents\":[0.1,0.2,0.3],\"position\":[9,9,9],\n"
+        "   \"keyframes\":[{\"time\":1,\"position\":[0,1,0]},{\"time\":2,\"position\":[2,1,0]}]},\n"
+        "  {\"shape\":\"mesh\",\"vertices\":[[0,0,0],[1,0,0],[0,0,1]],\"triangles\":[[0,2,1]]}]}";
+    rbc_scene s;
+    char err[RBC_SCENE_ERROR_MAX];
+    int rc = rbc_scene_parse(json, sizeof json - 1, "new.json", &s, err, sizeof err);
+    CHECK_EQ(rc, 0);
+    if (rc) {
+        fprintf(stderr, "%s\n", err);
+        return;
+    }
+    memset(&fake, 0, sizeof fake);
+    rbc_scene_instance inst;
+    rbc_result r = rbc_scene_instantiate(&api, &s, NULL, NULL, &inst, err, sizeof err);
+    CHECK_EQ(r, RBC_OK);
+    if (r != RBC_OK)
+        fprintf(stderr, "%s\n", err);
+    CHECK_EQ(fake_init_sizes[1], sizeof(rbc_cloth_def));
+    CHECK_EQ(fake_init_sizes[2], sizeof(rbc_collider_def));
+    CHECK(fake.cloth_def.thickness == 0.002f && fake.cloth_def.friction == 0.3f);
+    CHECK_EQ(fake.cloth_def.collision_flags, RBC_CLOTH_COLLIDE_SELF | RBC_CLOTH_COLLIDE_CLOTHS);
+    CHECK(fake.cloth_def.tear_strain == 0.4f);
+    /* The last collider is the inline mesh. */
+    CHECK_EQ(fake.collider_def.shape, RBC_SHAPE_TRIANGLE_MESH);
+    CHECK(fake.collider_def.mesh_vertex_count == 3 && fake.collider_def.mesh_triangle_count == 1);
+    CHECK(fake.mesh_positions[3] == 1.0f && fake.mesh_triangles[1] == 2);
+    CHECK_EQ(fake.winds, 1);
+    CHECK(fake.wind[0] == 3.0f && fake.wind[3] == 0.6f && fake.wind[4] == 0.1f);
+    rbc_scene_instance_destroy(&api, &inst);
+
+    /* The capsule: radius, half length in half_extents[1], friction. */
+    s.collider_count = 1;
+    memset(&fake, 0, sizeof fake);
+    CHECK_EQ(rbc_scene_instantiate(&api, &s, NULL, NULL, &inst, err, sizeof err), RBC_OK);
+    CHECK_EQ(fake.collider_def.shape, RBC_SHAPE_CAPSULE);
+    CHECK(fake.collider_def.radius == 0.1f && fake.collider_def.half_extents[1] == 0.3f);
+    CHECK(fake.collider_def.friction == 0.2f);
+    rbc_scene_instance_destroy(&api, &inst);
+    /* The keyframed box is created at its first keyframe's pose, not "position". */
+    s.collider_count = 2;
+    memset(&fake, 0, sizeof fake);
+    CHECK_EQ(rbc_scene_instantiate(&api, &s, NULL, NULL, &inst, err, sizeof err), RBC_OK);
+    CHECK_EQ(fake.collider_def.shape, RBC_SHAPE_BOX);
+    CHECK(fake.collider_def.half_extents[0] == 0.1f && fake.collider_def.half_extents[2] == 0.3f);
+    CHECK(fake.collider_def.position[0] == 0.0f && fake.collider_def.position[1] == 1.0f);
+
+    /* Per frame (dt 0.5 s): frame k sets the pose and pins of t = (k + 1) 0.5 s. Only
+     * the moving box is moved; the drag waits until t = 1, follows its keyframes,
+     * holds the last target and is released once, at t = 3. */
+    static const struct {
+        uint32_t frame;
+        int transforms, pins, releases;
+        float box_x, target_z;
+    } expect[] = {
+        {0, 1, 0, 0, 0.0f, -1.0f}, /* t = 0.5: before both */
+        {1, 2, 1, 0, 0.0f, 0.0f},  /* t = 1.0: first keyframes */
+        {2, 3, 2, 0, 1.0f, 1.5f},  /* t = 1.5: half way */
+        {3, 4, 3, 0, 2.0f, 3.0f},  /* t = 2.0: last keyframes */
+        {4, 5, 4, 0, 2.0f, 3.0f},  /* t = 2.5: held */
+        {5, 6, 4, 1, 2.0f, 3.0f},  /* t = 3.0: released */
+        {6, 7, 4, 1, 2.0f, 3.0f},  /* t = 3.5: nothing more */
+    };
+    memset(&fake, 0, sizeof fake);
+    fake.last_target[2] = -1.0f;
+    for (size_t i = 0; i < sizeof expect / sizeof expect[0]; ++i) {
+        CHECK_EQ(rbc_scene_apply_frame(&api, &s, &inst, expect[i].frame, err, sizeof err), RBC_OK);
+        CHECK_EQ(fake.transforms, expect[i].transforms);
+        CHECK_EQ(fake.pins, expect[i].pins);
+        CHECK_EQ(fake.releases, expect[i].releases);
+        CHECK_EQ(fake.last_collider, inst.colliders[1]);
+        CHECK(fake.last_position[0] == expect[i].box_x && fake.last_position[1] == 1.0f);
+        CHECK(fake.last_target[2] == expect[i].target_z);
+        if (fake.pins)
+            CHECK_EQ(fake.last_vertex, 4);
+    }
+    rbc_scene_instance_destroy(&api, &inst);
+    s.collider_count = 3;
+
+    /* A table without world_set_wind: refused before anything is created. */
+    api.world_set_wind = NULL;
+    memset(&fake, 0, sizeof fake);
+    CHECK_EQ(rbc_scene_instantiate(&api, &s, NULL, NULL, &inst, err, sizeof err), RBC_ERR_UNSUPPORTED);
+    CHECK(strstr(err, "new.json: world.wind: needs rbc_world_set_wind (ABI 1.3)") != NULL);
+    CHECK_EQ(fake.worlds_created, 0);
+    api.world_set_wind = fake_set_wind;
+
+    /* An ABI 1.2 library: a scene with 1.3 keys is refused naming the first. */
+    api.abi_version = (1u << 16) | 2u;
+    CHECK_EQ(rbc_scene_instantiate(&api, &s, NULL, NULL, &inst, err, sizeof err), RBC_ERR_UNSUPPORTED);
+    CHECK(strstr(err, "new.json: world.wind: needs an ABI 1.3 library; the plugin has ABI 1.2") != NULL);
+    CHECK(is_zeroed(&inst, sizeof inst));
+    s.world.has_wind = 0;
+    CHECK_EQ(rbc_scene_instantiate(&api, &s, NULL, NULL, &inst, err, sizeof err), RBC_ERR_UNSUPPORTED);
+    CHECK(strstr(err, "new.json: cloths[0].thickness: needs an ABI 1.3 library") != NULL);
+    rbc_scene_free(&s);
+    /* ... and a scene without them gets the library's own def sizes. */
+    CHECK_EQ(load_sample("cloth_on_sphere.json", &s, err, sizeof err), 0);
+    memset(&fake, 0, sizeof fake);
+    CHECK_EQ(rbc_scene_instantiate(&api, &s, NULL, NULL, &inst, err, sizeof err), RBC_OK);
+    CHECK_EQ(fake_init_sizes[1], RBC_CLOTH_DEF_SIZE_V1_1);
+    CHECK_EQ(fake_init_sizes[2], RBC_COLLIDER_DEF_SIZE_V1_0);
+    CHECK_EQ(fake.colliders_created, 2);
+    rbc_scene_instance_destroy(&api, &inst);
+    /* A static scene makes no call per frame. */
+    memset(&fake, 0, sizeof fake);
+    CHECK_EQ(rbc_scene_apply_frame(&api, &s, &inst, 3, err, sizeof err), RBC_OK);
+    CHECK(fake.transforms == 0 && fake.pins == 0 && fake.releases == 0);
+    rbc_scene_free(&s);
+    api.abi_version = RBC_ABI_VERSION;
+
+    /* A mesh file: imported with the scene's scale, its triangles in the def. */
+    char path[1024], text[512];
+    snprintf(path, sizeof path, "%s/inline.json", scenes_dir);
+    snprintf(text, sizeof text,
+             BASE_HEAD C3 "\"colliders\":[{\"shape\":\"mesh\",\"file\":\"../meshes/tri_patch.obj\","
+                          "\"scale\":0.5}]}");
+    CHECK_EQ(rbc_scene_parse(text, strlen(text), path, &s, err, sizeof err), 0);
+    memset(&fake, 0, sizeof fake);
+    CHECK_EQ(rbc_scene_instantiate(&api, &s, NULL, NULL, &inst, err, sizeof err), RBC_OK);
+    CHECK(strcmp(fake.imported, s.colliders[0].mesh_file) == 0);
+    CHECK(fake.import_scale == 0.5f);
+    CHECK(fake.collider_def.mesh_vertex_count == 4 && fake.collider_def.mesh_triangle_count == 4);
+    CHECK(memcmp(fake.mesh_positions, tetra_positions, sizeof tetra_positions) == 0);
+    CHECK(memcmp(fake.mesh_triangles, tetra_triangles, sizeof tetra_triangles) == 0);
+    rbc_scene_instance_destroy(&api, &inst);
+    /* An import that fails names the key and the file; nothing is left. */
+    memset(&fake, 0, sizeof fake);
+    fake.fail_import = 1;
+    CHECK_EQ(rbc_scene_instantiate(&api, &s, NULL, NULL, &inst, err, sizeof err), RBC_ERR_BAD_MESH);
+    CHECK(strstr(err, "inline.json: colliders[0].file: cannot read ") != NULL);
+    CHECK(strstr(err, "tri_patch.obj as a triangle mesh: cloth def: vertex 3 is bad") != NULL);
+    CHECK_EQ(fake.worlds_destroyed, 1);
+    CHECK(is_zeroed(&inst, sizeof inst));
+    rbc_scene_free(&s);
+}
+
+/* The paper's four scenes load with the sizes the paper gives (structural springs
+ * counted as distinct quad edges). */
+static uint64_t distinct_edges(const rbc_scene_cloth *c) {
+    /* Grids and the shipped scenes only: edges of a grid = nx (ny - 1) + ny (nx - 1). */
+    return c->from_grid ? (uint64_t)c->grid.nx * (c->grid.ny - 1) + (uint64_t)c->grid.ny * (c->grid.nx - 1)
+                        : 0;
+}
+
+static void test_paper_scenes(void) {
+    static const struct {
+        const char *file;
+        uint32_t cloths, particles, springs, colliders;
+    } scenes[] = {
+        {"cloth_on_chair.json", 1, 10000, 19800, 7},
+        {"four_layers_sphere.json", 4, 16384, 32256, 2},
+        {"funnel.json", 3, 30000, 59400, 3},
+        {"cannonballs_tearing.json", 1, 4096, 8064, 3},
+    };
+    for (size_t i = 0; i < sizeof scenes / sizeof scenes[0]; ++i) {
+        rbc_scene s;
+        char err[RBC_SCENE_ERROR_MAX];
+        int rc = load_sample(scenes[i].file, &s, err, sizeof err);
+        CHECK_EQ(rc, 0);
+        if (rc) {
+            fprintf(stderr, "%s\n", err);
+            continue;
+        }
+        uint64_t particles = 0, springs = 0;
+        for (uint32_t c = 0; c < s.cloth_count; ++c) {
+            particles += s.cloths[c].vertex_count;
+            springs += distinct_edges(&s.cloths[c]);
+        }
+        CHECK_EQ(s.cloth_count, scenes[i].cloths);
+        CHECK_EQ(particles, scenes[i].particles);
+        CHECK_EQ(springs, scenes[i].springs);
+        CHECK_EQ(s.collider_count, scenes[i].colliders);
+        CHECK(s.description != NULL && strstr(s.description, "Fig. ") != NULL);
+        /* 2 to 4 s of simulated time (dt is a float: 2^-24 relative). */
+        double seconds = (double)s.frames * s.dt;
+        CHECK(seconds >= 2.0 * (1.0 - 0x1p-24) && seconds <= 4.0 * (1.0 + 0x1p-24));
+        rbc_scene_free(&s);
+    }
+    /* The funnel: an inline mesh of 480 vertices and 864 triangles. */
+    rbc_scene s;
+    char err[RBC_SCENE_ERROR_MAX];
+    if (load_sample("funnel.json", &s, err, sizeof err) == 0) {
+        CHECK_EQ(s.colliders[0].shape, RBC_SHAPE_TRIANGLE_MESH);
+        CHECK_EQ(s.colliders[0].mesh_vertex_count, 480);
+        CHECK_EQ(s.colliders[0].mesh_triangle_count, 864);
+        rbc_scene_free(&s);
+    }
+    /* Cannonballs: a tearing cloth with one drag and three keyframed spheres. */
+    if (load_sample("cannonballs_tearing.json", &s, err, sizeof err) == 0) {
+        CHECK(s.cloths[0].tear_strain > 0.0f);
+        CHECK_EQ(s.cloths[0].drag_count, 1);
+        CHECK_EQ(s.cloths[0].pin_count, 64);
+        for (uint32_t i = 0; i < s.collider_count; ++i)
+            CHECK_EQ(s.colliders[i].motion, RBC_SCENE_MOTION_KEYFRAMES);
+        rbc_scene_free(&s);
+    }
+}
+
 int main(int argc, char **argv) {
     if (argc > 1)
         scenes_dir = argv[1];
@@ -559,7 +1233,12 @@ int main(int argc, char **argv) {
     test_cloth_on_sphere();
     test_inline_mesh();
     test_malformed();
+    test_malformed_v1_3();
+    test_v1_3_keys();
+    test_motion_numbers();
     test_messages();
     test_instantiate();
+    test_instantiate_v1_3();
+    test_paper_scenes();
     return check_report("test_scene");
 }

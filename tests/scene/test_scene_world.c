@@ -101,6 +101,110 @@ static void test_cloth_on_sphere(const char *dir) {
     rbc_scene_free(&s);
 }
 
+/* Parse an inline scene and create it with one thread. */
+static int create_inline(const char *json, rbc_scene *s, rbc_scene_instance *inst) {
+    char err[RBC_SCENE_ERROR_MAX];
+    if (rbc_scene_parse(json, strlen(json), "inline.json", s, err, sizeof err)) {
+        fprintf(stderr, "%s\n", err);
+        CHECK(!"inline scene parses");
+        return -1;
+    }
+    s->world.thread_count = 1;
+    rbc_result r = rbc_scene_instantiate(api, s, NULL, NULL, inst, err, sizeof err);
+    CHECK_EQ(r, RBC_OK);
+    if (r != RBC_OK) {
+        fprintf(stderr, "%s\n", err);
+        rbc_scene_free(s);
+        return -1;
+    }
+    return 0;
+}
+
+/* One frame as rbcloth run does it: poses and pins of the frame's end, then the step. */
+static rbc_result frame_step(const rbc_scene *s, const rbc_scene_instance *inst, uint32_t frame) {
+    char err[RBC_SCENE_ERROR_MAX];
+    rbc_result r = rbc_scene_apply_frame(api, s, inst, frame, err, sizeof err);
+    if (r != RBC_OK) {
+        fprintf(stderr, "%s\n", err);
+        return r;
+    }
+    return api->world_step(inst->world, s->dt);
+}
+
+/* A sphere moving up at 1 m/s (velocity motion, rbc_collider_set_transform per frame)
+ * lifts a free cloth without gravity: from when its top reaches the cloth (t = 0.3 s)
+ * the cloth's middle rides on it, within the step's travel (2 cm) and the contact
+ * tolerance below its top and not far above it. ABI 1.0 only. */
+static void test_moving_collider(void) {
+    static const char json[] =
+        "{\"name\":\"lift\",\"frames\":50,\"dt\":0.02,\"world\":{\"gravity\":[0,0,0],\"substeps\":4},\n"
+        " \"cloths\":[{\"grid\":{\"nx\":11,\"ny\":11,\"spacing\":0.05,\"origin\":[-0.25,0,-0.25]}}],\n"
+        " \"colliders\":[{\"shape\":\"sphere\",\"radius\":0.2,\"position\":[0,-0.5,0],\"velocity\":[0,1,0]}]}";
+    rbc_scene s;
+    rbc_scene_instance inst;
+    if (create_inline(json, &s, &inst))
+        return;
+    float xyz[3 * 121];
+    const uint32_t middle = 5 + 11 * 5;
+    for (uint32_t frame = 0; frame < s.frames; ++frame) {
+        rbc_result r = frame_step(&s, &inst, frame);
+        CHECK_EQ(r, RBC_OK);
+        if (r != RBC_OK)
+            break;
+        CHECK_EQ(api->cloth_read_positions(inst.world, inst.cloths[0], xyz, sizeof xyz / sizeof xyz[0], NULL),
+                 RBC_OK);
+        double t = (double)s.dt * (frame + 1), top = -0.5 + t + 0.2;
+        double y = xyz[3 * middle + 1];
+        if (top < -0.02) {
+            CHECK(y == 0.0f); /* untouched until the sphere arrives */
+        } else if (top > 0.02) {
+            if (!(y >= top - 0.02 && y <= top + 0.05))
+                fprintf(stderr, "frame %u: cloth middle at y = %g, sphere top at %g\n", frame, y, top);
+            CHECK(y >= top - 0.02 && y <= top + 0.05);
+        }
+    }
+    rbc_scene_instance_destroy(api, &inst);
+    rbc_scene_free(&s);
+}
+
+/* A drag: the vertex is exactly on the interpolated target after each step while
+ * pinned (the pin reaches its target at the step's end), and falls once released.
+ * ABI 1.0 only (rbc_cloth_set_pin). */
+static void test_drag(void) {
+    static const char json[] =
+        "{\"name\":\"drag\",\"frames\":20,\"dt\":0.1,\"world\":{\"substeps\":2},\n"
+        " \"cloths\":[{\"grid\":{\"nx\":5,\"ny\":5,\"spacing\":0.1},\"damping\":1,\n"
+        "   \"drags\":[{\"vertex\":12,\"keyframes\":[{\"time\":0.3,\"target\":[0.2,0,0.2]},\n"
+        "                                     {\"time\":1.0,\"target\":[0.2,0.7,0.2]}],\n"
+        "              \"release\":1.5}]}]}";
+    rbc_scene s;
+    rbc_scene_instance inst;
+    if (create_inline(json, &s, &inst))
+        return;
+    float xyz[3 * 25], target[3], held = 0.0f;
+    for (uint32_t frame = 0; frame < s.frames; ++frame) {
+        rbc_result r = frame_step(&s, &inst, frame);
+        CHECK_EQ(r, RBC_OK);
+        if (r != RBC_OK)
+            break;
+        CHECK_EQ(api->cloth_read_positions(inst.world, inst.cloths[0], xyz, 75, NULL), RBC_OK);
+        double t = (double)s.dt * (frame + 1);
+        rbc_scene_drag_state state = rbc_scene_drag_target(&s.cloths[0].drags[0], t, target);
+        if (state == RBC_SCENE_DRAG_WAITING) {
+            CHECK(xyz[3 * 12 + 1] < 0.0f); /* falling with the rest */
+        } else if (state == RBC_SCENE_DRAG_PINNED) {
+            CHECK(memcmp(xyz + 3 * 12, target, sizeof target) == 0);
+            held = target[1];
+        } else if (t >= 1.5 + 0.3) {
+            /* Released at 1.5 s: three frames later it has fallen. */
+            CHECK(xyz[3 * 12 + 1] < held - 0.01f);
+        }
+    }
+    CHECK(held == 0.7f);
+    rbc_scene_instance_destroy(api, &inst);
+    rbc_scene_free(&s);
+}
+
 /* A world the plugin refuses: the message is the library's and names what was being
  * created; nothing is left behind. A CUDA build on a GPU machine may accept it. */
 static void test_refused(void) {
@@ -143,6 +247,8 @@ int main(int argc, char **argv) {
         CHECK(api->struct_size >= sizeof(rbc_api_v1));
         test_hanging_cloth();
         test_cloth_on_sphere(dir);
+        test_moving_collider();
+        test_drag();
         test_refused();
     }
     dlclose(handle);
