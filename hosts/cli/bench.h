@@ -1,4 +1,4 @@
-/* bench.h -- what `rbcloth bench accuracy`, `stability` and `perf` share:
+/* bench.h -- what `rbcloth bench accuracy`, `stability`, `perf` and `scenes` share:
  * the solver list, a host-side copy of a cloth's mesh (to evaluate Eq. 7, spring
  * energy and the Projective Dynamics objective without trusting the library's
  * stats), world creation through the function table, CSV and gnuplot helpers.
@@ -45,6 +45,12 @@ int cli_bench_stability(const cli_plugin *plugin, const cli_bench_options *optio
 /// irregular quad mesh against the grid, and Jacobi and serial Gauss-Seidel at equal
 /// iterations (issue 4). Returns 0, or 1 after a message on stderr.
 int cli_bench_perf(const cli_plugin *plugin, const cli_bench_options *options);
+
+/// `rbcloth bench scenes`: the paper's scenes (samples/scenes: chair, four layers and
+/// a sphere, funnel, cannonballs and tearing; cloth_on_sphere and hanging_cloth for
+/// reference) with 1 and N threads, collisions included, beside the paper's figures
+/// (ABI 1.3). Returns 0, or 1 after a message on stderr.
+int cli_bench_scenes(const cli_plugin *plugin, const cli_bench_options *options);
 
 /* ------------------------------------------------------------------------- */
 /* Solvers                                                                   */

@@ -63,6 +63,14 @@ static const char usage_text[] =
     "                              irregular quad mesh against the grid, Jacobi and\n"
     "                              serial Gauss-Seidel at equal iterations: perf.csv,\n"
     "                              perf.md, perf_scaling.png\n"
+    "  bench scenes [OPTIONS]      the paper's scenes (samples/scenes: cloth on a chair,\n"
+    "                              four layers and a sphere, funnel, cannonballs and\n"
+    "                              tearing; two reference scenes) with 1 and N threads,\n"
+    "                              collisions included: ms per step and substep (median,\n"
+    "                              p90), stages, contacts, torn springs, penetration,\n"
+    "                              beside the paper's GTX 970 figures: scenes.csv,\n"
+    "                              scenes.md, scenes.png (scenes from $RBC_SCENES_DIR,\n"
+    "                              else ./samples/scenes, else the source tree's)\n"
     "  info                        print the plugin's path, ABI version and version\n"
     "\n"
     "Options of run:\n"
@@ -87,9 +95,10 @@ static const char usage_text[] =
     "Options of bench:\n"
     "  --out DIR         output directory, created if missing (default: out/bench)\n"
     "  --frames N        frames per run (accuracy: default 240; stability: 200;\n"
-    "                    perf: 200 up to 10K particles, fewer above, 20 at 1M)\n"
-    "  --threads N       worker threads of every world; 0 = one per core (perf:\n"
-    "                    measures 1 thread and N threads, default N = 2)\n"
+    "                    perf: 200 up to 10K particles, fewer above, 20 at 1M;\n"
+    "                    scenes: the scene's, measured after 2 warm-up frames)\n"
+    "  --threads N       worker threads of every world; 0 = one per core (perf,\n"
+    "                    scenes: measure 1 thread and N threads, default N = 2)\n"
     "  --quick           fewer frames, budgets and cases (a smoke run, for tests;\n"
     "                    perf: only cloths up to 10K particles)\n"
     "\n"
@@ -404,21 +413,22 @@ static int command_bench(int argc, char **argv) {
         }
     }
     if (argc < 1)
-        return usage_error("%s", "bench needs 'accuracy', 'stability' or 'perf'");
+        return usage_error("%s", "bench needs 'accuracy', 'stability', 'perf' or 'scenes'");
     typedef int (*bench_fn)(const cli_plugin *, const cli_bench_options *);
     static const struct {
         const char *name;
         bench_fn run;
     } benches[] = {{"accuracy", cli_bench_accuracy},
                    {"stability", cli_bench_stability},
-                   {"perf", cli_bench_perf}};
+                   {"perf", cli_bench_perf},
+                   {"scenes", cli_bench_scenes}};
     const char *which = argv[0];
     bench_fn run = NULL;
     for (size_t k = 0; k < sizeof benches / sizeof benches[0]; ++k)
         if (strcmp(which, benches[k].name) == 0)
             run = benches[k].run;
     if (!run)
-        return usage_error("unknown bench '%s' (accuracy, stability or perf)", which);
+        return usage_error("unknown bench '%s' (accuracy, stability, perf or scenes)", which);
     int rc = parse_bench_args(argc - 1, argv + 1, &options);
     if (rc != EXIT_OK)
         return rc;
