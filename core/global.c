@@ -81,6 +81,12 @@ void rbc_global_chebyshev_blend(rbc_cloth_state *c, float omega, uint32_t tid, u
 
 void rbc_global_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst[3],
                        int chebyshev, float omega, uint32_t tid, uint32_t nt) {
+    /* A lattice: the same sums in the same order over rows, vectorized (grid.h);
+     * bitwise this loop's result, whatever the split of the rows over threads. */
+    if (c->grid && c->grid->csr_order) {
+        rbc_grid_jacobi(c->grid, c, src, dst, chebyshev, omega, tid, nt);
+        return;
+    }
     const rbc_topology *t = &c->topo;
     uint32_t b, e;
     rbc_split(t->n, tid, nt, &b, &e);
@@ -114,6 +120,12 @@ void rbc_global_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst
 }
 
 void rbc_global_gs_serial(rbc_cloth_state *c) {
+    /* A lattice: the same updates in the same order, the neighbours found by the
+     * stencil instead of index arrays (grid.h); bitwise this loop's result. */
+    if (c->grid && c->grid->csr_order) {
+        rbc_grid_gs_serial(c->grid, c);
+        return;
+    }
     const rbc_topology *t = &c->topo;
     for (uint32_t v = 0; v < t->n; ++v) {
         uint32_t i = t->to_internal[v];

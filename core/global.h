@@ -31,10 +31,13 @@ void rbc_global_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, f
 void rbc_global_chebyshev_blend(rbc_cloth_state *c, float omega, uint32_t tid, uint32_t nt);
 /* One Jacobi iteration, this thread's share: dst = Eq. 6 of src for free particles,
  * dst = src for pinned ones; with chebyshev, dst = omega (g - prev) + prev and
- * prev = src. */
+ * prev = src. On a lattice the share is rows (rbc_grid_jacobi), else particles: every
+ * particle is written by exactly one thread either way, and the result does not depend
+ * on the split (callers barrier before reading dst). */
 void rbc_global_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst[3],
                        int chebyshev, float omega, uint32_t tid, uint32_t nt);
-/* One serial lexicographic Gauss-Seidel iteration in the host's vertex order. */
+/* One serial lexicographic Gauss-Seidel iteration in the host's vertex order, one
+ * thread (on a lattice rbc_grid_gs_serial, the same result bitwise). */
 void rbc_global_gs_serial(rbc_cloth_state *c);
 /* Squared residual and right-hand side norms of the global system at p, over this
  * thread's share of the particles of colors [0, color_end). */

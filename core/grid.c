@@ -32,6 +32,7 @@ void rbc_grid_free(rbc_grid *g, const rbc_allocator *a) {
     rbc_mem_free(a, g->ld, sizeof(float) * n);
     rbc_mem_free(a, g->lu, sizeof(float) * n);
     rbc_mem_free(a, g->zeros, sizeof(float) * (g->nx / 2 + 2));
+    rbc_mem_free(a, g->nzeros, sizeof(float) * (g->nx / 2 + 2));
     rbc_mem_free(a, g, sizeof *g);
 }
 
@@ -78,13 +79,15 @@ int rbc_grid_detect(const rbc_topology *t, const rbc_allocator *a, rbc_grid **ou
     h->ld = rbc_mem_alloc(a, sizeof(float) * n);
     h->lu = rbc_mem_alloc(a, sizeof(float) * n);
     h->zeros = rbc_mem_alloc(a, sizeof(float) * (nx / 2 + 2)); /* zero-filled */
+    h->nzeros = rbc_mem_alloc(a, sizeof(float) * (nx / 2 + 2));
     if (!h->row_first[0] || !h->row_first[1] || !h->kl || !h->kr || !h->kd || !h->ku ||
-        !h->ll || !h->lr || !h->ld || !h->lu || !h->zeros) {
+        !h->ll || !h->lr || !h->ld || !h->lu || !h->zeros || !h->nzeros) {
         rbc_grid_free(h, a);
         return -1;
     }
+    for (uint32_t m = 0; m < nx / 2 + 2; ++m) h->nzeros[m] = -0.0f;
     h->bytes = sizeof *h + 2 * sizeof(uint32_t) * (ny + 1) + 8 * sizeof(float) * (size_t)n +
-               sizeof(float) * (nx / 2 + 2);
+               2 * sizeof(float) * (nx / 2 + 2);
     for (uint32_t c = 0; c < 2; ++c) {
         uint32_t at = t->color_start[c];
         for (uint32_t j = 0; j < ny; ++j) {
@@ -121,18 +124,30 @@ int rbc_grid_detect(const rbc_topology *t, const rbc_allocator *a, rbc_grid **ou
             goto not_grid;
         }
     }
-    /* One stiffness for every spring: the sweep broadcasts it. */
-    float ku0 = 0.0f;
-    int uniform = 1;
-    for (uint32_t i = 0; i < n && uniform; ++i) {
-        const float ks[4] = {h->kl[i], h->kr[i], h->kd[i], h->ku[i]};
-        for (int d = 0; d < 4; ++d) {
-            if (ks[d] == 0.0f) continue;
-            if (ku0 == 0.0f) ku0 = ks[d];
-            if (ks[d] != ku0) uniform = 0;
+    /* Every lattice edge a spring, and the CSR rows in the stencil's order (grid.h,
+     * csr_order): topology.c sorts springs by host (lower, upper) vertex, which gives
+     * each row down, left, right, up; checked rather than assumed, because the
+     * Jacobi and serial Gauss-Seidel paths promise the CSR rows' result bitwise. */
+    int full = 1;
+    for (uint32_t v = 0; v < n && full; ++v) {
+        const uint32_t col = v % nx, row = v / nx, i = t->to_internal[v];
+        const int has[4] = {row > 0, col > 0, col + 1 < nx, row + 1 < ny};
+        const float ks[4] = {h->kd[i], h->kl[i], h->kr[i], h->ku[i]};
+        int last = -1, count = 0;
+        for (uint32_t s = t->adj_start[i]; s < t->adj_start[i + 1]; ++s, ++count) {
+            const uint32_t u = t->to_host[t->adj_nbr[s]];
+            const int d = u + nx == v ? 0 : u + 1 == v ? 1 : u == v + 1 ? 2 : u == v + nx ? 3 : 4;
+            if (d == 4 || d <= last || !has[d] || t->adj_k[s] != ks[d]) full = 0;
+            last = d;
         }
+        full &= count == has[0] + has[1] + has[2] + has[3];
     }
-    h->k_uniform = uniform ? ku0 : 0.0f;
+    h->csr_order = (uint32_t)full;
+    /* One stiffness for every spring, and a spring on every lattice edge: the sweep
+     * broadcasts it (with an edge missing, the broadcast would add its spring). */
+    int uniform = full && t->ns > 0;
+    for (uint32_t k = 0; k < t->ns && uniform; ++k) uniform = t->stiff[k] == t->stiff[0];
+    h->k_uniform = uniform ? t->stiff[0] : 0.0f;
     *out = h;
     return 1;
 not_grid:
@@ -314,6 +329,270 @@ void rbc_grid_wavefront(const rbc_grid *g, rbc_cloth_state *c, uint32_t iteratio
         }
         __atomic_store_n(mine, w + 1, __ATOMIC_RELEASE);
     }
+}
+
+/* ------------------------------------------------------------------------- */
+/* Jacobi and serial Gauss-Seidel on the lattice                             */
+/* ------------------------------------------------------------------------- */
+
+/* Inlined with constant flags into each variant below (GCC and Clang; elsewhere an
+ * ordinary inline, the same arithmetic). */
+#if defined(__GNUC__)
+#define RBC_ALWAYS_INLINE static inline __attribute__((always_inline))
+#else
+#define RBC_ALWAYS_INLINE static inline
+#endif
+
+/* One coordinate of a row's interior (both horizontal neighbours exist): the Jacobi
+ * update in the CSR row's order, b + s_d d + s_l l + s_r r + s_u u, each term rounded
+ * as rbc_k_eq6b rounds it. A row beyond the edge is g->nzeros: s * (-0) = -0 for any
+ * s >= 0 (kuni > 0, or the array's 0), and x + (-0) == x for every float x, +0 and
+ * NaN included (round to nearest, the default), so the missing term changes nothing
+ * (+0 would turn a -0 sum into +0).
+ * Stiffness kuni when uniform, else the per-direction arrays; q (prev) only with
+ * cheb. */
+RBC_ALWAYS_INLINE void jacobi_axis_body(uint32_t count, float *restrict o, float *restrict q,
+                                        const float *restrict s, const float *restrict l,
+                                        const float *restrict r, const float *restrict d,
+                                        const float *restrict u, const float *restrict b,
+                                        const float *restrict inv, const uint8_t *restrict pin,
+                                        const float *restrict kl, const float *restrict kr,
+                                        const float *restrict kd, const float *restrict ku,
+                                        float kuni, float omega, const int uni,
+                                        const int cheb) {
+    for (uint32_t m = 0; m < count; ++m) {
+        float acc = b[m];
+        acc += (uni ? kuni : kd[m]) * d[m];
+        acc += (uni ? kuni : kl[m]) * l[m];
+        acc += (uni ? kuni : kr[m]) * r[m];
+        acc += (uni ? kuni : ku[m]) * u[m];
+        float gv = acc * inv[m];
+        if (cheb) {
+            gv = omega * (gv - q[m]) + q[m];
+            q[m] = rbc_keep_if(pin[m], q[m], s[m]);
+        }
+        o[m] = rbc_keep_if(pin[m], s[m], gv); /* pinned: dst = src */
+    }
+}
+
+/* The variants, each a loop with no branch inside (clones for AVX2 and AVX-512 picked
+ * at load time, simd.h): uniform stiffness or arrays, Chebyshev or plain. */
+RBC_VECTOR_CLONES
+static void jacobi_axis(uint32_t count, float *restrict o, float *restrict q,
+                        const float *restrict s, const float *restrict l, const float *restrict r,
+                        const float *restrict d, const float *restrict u, const float *restrict b,
+                        const float *restrict inv, const uint8_t *restrict pin,
+                        const float *restrict kl, const float *restrict kr,
+                        const float *restrict kd, const float *restrict ku, float kuni,
+                        float omega, int cheb) {
+#define RBC_JAC(UNI, CHEB)                                                                \
+    jacobi_axis_body(count, o, q, s, l, r, d, u, b, inv, pin, kl, kr, kd, ku, kuni, omega, UNI, \
+                     CHEB)
+    if (kuni != 0.0f) {
+        if (cheb) RBC_JAC(1, 1);
+        else RBC_JAC(1, 0);
+    } else if (cheb) {
+        RBC_JAC(0, 1);
+    } else {
+        RBC_JAC(0, 0);
+    }
+#undef RBC_JAC
+}
+
+/* A particle of column 0 (has_l 0) or nx - 1 (has_r 0), scalar: rbc_k_eq6b's sum over
+ * its existing neighbours (down, left, right, up at dn, lt, rt, up) of src, written to
+ * dst as rbc_global_jacobi writes it. */
+RBC_ALWAYS_INLINE void jacobi_edge(const rbc_grid *g, rbc_cloth_state *c, float *const S[3],
+                                   float *const D[3], uint32_t i, uint32_t dn, uint32_t lt,
+                                   uint32_t rt, uint32_t up, int has_d, const int has_l,
+                                   const int has_r, int has_u, int cheb, float omega) {
+    if (c->pinned[i]) {
+        for (int a = 0; a < 3; ++a) D[a][i] = S[a][i];
+        return;
+    }
+    const float kd = g->kd[i], kl = g->kl[i], kr = g->kr[i], ku = g->ku[i];
+    const float *B[3] = {c->bx, c->by, c->bz};
+    for (int a = 0; a < 3; ++a) {
+        const float *p = S[a];
+        float acc = B[a][i];
+        if (has_d) acc += kd * p[dn];
+        if (has_l) acc += kl * p[lt];
+        if (has_r) acc += kr * p[rt];
+        if (has_u) acc += ku * p[up];
+        float gv = acc * c->inv_denom[i];
+        if (cheb) {
+            float *q = c->prev[a];
+            D[a][i] = omega * (gv - q[i]) + q[i];
+            q[i] = p[i];
+        } else {
+            D[a][i] = gv;
+        }
+    }
+}
+
+/* One row of one color of a Jacobi iteration. */
+static void jacobi_row(const rbc_grid *g, rbc_cloth_state *c, float *const S[3],
+                       float *const D[3], uint32_t color, uint32_t j, int cheb, float omega) {
+    const uint32_t nx = g->nx, ny = g->ny, o = 1u - color;
+    const uint32_t s0 = g->row_first[color][j], cnt = g->row_first[color][j + 1] - s0;
+    if (!cnt) return;
+    const uint32_t f = first_col(g, color, j), ro = g->row_first[o][j];
+    const int has_d = j > 0, has_u = j + 1 < ny;
+    /* The other color's particles in the rows below and above: same first column. */
+    const uint32_t rd = has_d ? g->row_first[o][j - 1] : 0;
+    const uint32_t ru = has_u ? g->row_first[o][j + 1] : 0;
+    uint32_t lo = f == 0 ? 1u : 0u;
+    uint32_t hi = nx >= 2 + f ? (nx - 2 - f) / 2 + 1 : 0u;
+    if (hi > cnt) hi = cnt;
+    if (lo > hi) lo = hi;
+    /* Column 0 (m < lo) and nx - 1 (m >= hi) one by one, the interior as rows. */
+    for (uint32_t m = 0; m < lo; ++m)
+        jacobi_edge(g, c, S, D, s0 + m, rd + m, 0, ro + f + m, ru + m, has_d, 0, 1, has_u, cheb,
+                    omega);
+    for (uint32_t m = hi; m < cnt; ++m)
+        jacobi_edge(g, c, S, D, s0 + m, rd + m, ro + f + m - 1, 0, ru + m, has_d, 1, 0, has_u,
+                    cheb, omega);
+    if (hi > lo) {
+        const uint32_t i = s0 + lo, li = ro + f - 1 + lo, ri = ro + f + lo;
+        const float *B[3] = {c->bx, c->by, c->bz};
+        for (int a = 0; a < 3; ++a)
+            jacobi_axis(hi - lo, D[a] + i, cheb ? c->prev[a] + i : NULL, S[a] + i, S[a] + li,
+                        S[a] + ri, has_d ? S[a] + rd + lo : g->nzeros + lo,
+                        has_u ? S[a] + ru + lo : g->nzeros + lo, B[a] + i, c->inv_denom + i,
+                        c->pinned + i, g->kl + i, g->kr + i, g->kd + i, g->ku + i, g->k_uniform,
+                        omega, cheb);
+    }
+}
+
+void rbc_grid_jacobi(const rbc_grid *g, rbc_cloth_state *c, float *const src[3],
+                     float *const dst[3], int chebyshev, float omega, uint32_t tid, uint32_t nt) {
+    uint32_t j0, j1;
+    rbc_split(g->ny, tid, nt, &j0, &j1);
+    for (uint32_t j = j0; j < j1; ++j)
+        for (uint32_t color = 0; color < 2; ++color)
+            jacobi_row(g, c, src, dst, color, j, chebyshev, omega);
+}
+
+/* The arrays of the serial sweep, loaded once: the stores to p cannot make the
+ * compiler reload them. */
+typedef struct gs_arrays {
+    float *px, *py, *pz;
+    const float *bx, *by, *bz, *inv, *kd, *kl, *kr, *ku;
+    const uint8_t *pin;
+    float kuni;
+} gs_arrays;
+
+/* One update of the serial sweep, in place, particle i with its neighbours at dn, rt,
+ * up (read where the flag says it exists) and the left one's new value carried in L:
+ * rbc_k_eq6b's sum in the CSR row's order (down, left, right, up). The left neighbour
+ * was updated just before; carrying its value keeps serial Gauss-Seidel's dependency
+ * chain in registers instead of a store and a reload. */
+RBC_ALWAYS_INLINE void gs_update(const gs_arrays *A, uint32_t i, uint32_t dn, uint32_t rt,
+                                 uint32_t up, int has_d, int has_l, int has_r, int has_u,
+                                 const int uni, float L[3]) {
+    if (A->pin[i]) {
+        L[0] = A->px[i], L[1] = A->py[i], L[2] = A->pz[i];
+        return;
+    }
+    const float kd = uni ? A->kuni : A->kd[i], kl = uni ? A->kuni : A->kl[i],
+                kr = uni ? A->kuni : A->kr[i], ku = uni ? A->kuni : A->ku[i];
+    float *const P[3] = {A->px, A->py, A->pz};
+    const float bv[3] = {A->bx[i], A->by[i], A->bz[i]}, inv = A->inv[i];
+    for (int a = 0; a < 3; ++a) {
+        float acc = bv[a];
+        if (has_d) acc += kd * P[a][dn];
+        if (has_l) acc += kl * L[a];
+        if (has_r) acc += kr * P[a][rt];
+        if (has_u) acc += ku * P[a][up];
+        L[a] = acc * inv;
+        P[a][i] = L[a];
+    }
+}
+
+/* Row j of the serial sweep in the stencil: column 2m + e is the particle of parity e
+ * (e = 0: the color of column 0) at row[e] + m, its neighbours below and above the
+ * other color's particles at dn[e] + m and up[e] + m (same column), its right one at
+ * row[1 - e] + m + e. L: the left neighbour's new value. */
+typedef struct gs_row {
+    uint32_t row[2], dn[2], up[2];
+    int has_d, has_u;
+    float L[3];
+} gs_row;
+
+static gs_row gs_row_at(const rbc_grid *g, uint32_t j) {
+    const uint32_t cA = (j + g->c0) & 1u, cB = 1u - cA; /* first_col(g, cA, j) == 0 */
+    gs_row r;
+    r.has_d = j > 0;
+    r.has_u = j + 1 < g->ny;
+    r.row[0] = g->row_first[cA][j];
+    r.row[1] = g->row_first[cB][j];
+    r.dn[0] = r.has_d ? g->row_first[cB][j - 1] : 0;
+    r.dn[1] = r.has_d ? g->row_first[cA][j - 1] : 0;
+    r.up[0] = r.has_u ? g->row_first[cB][j + 1] : 0;
+    r.up[1] = r.has_u ? g->row_first[cA][j + 1] : 0;
+    r.L[0] = r.L[1] = r.L[2] = 0.0f;
+    return r;
+}
+
+/* Column col of row r, any column (flags at run time). */
+RBC_ALWAYS_INLINE void gs_col(const gs_arrays *A, uint32_t nx, gs_row *r, uint32_t col,
+                              const int uni) {
+    const uint32_t e = col & 1u, m = col >> 1;
+    gs_update(A, r->row[e] + m, r->dn[e] + m, r->row[1u - e] + m + e, r->up[e] + m, r->has_d,
+              col > 0, col + 1 < nx, r->has_u, uni, r->L);
+}
+
+/* Column 2m + E of row r, an interior one of a row with rows below and above. */
+#define RBC_GS_INNER(R, M, E)                                                             \
+    gs_update(A, R.row[E] + (M), R.dn[E] + (M), R.row[1 - (E)] + (M) + (E), R.up[E] + (M), 1, \
+              1, 1, 1, uni, R.L)
+
+/* Rows j and j + 1 together, the upper one a column behind: (col, j + 1) is updated
+ * after (col, j) and before (col + 1, j + 1), (col, j) before (col, j + 1), so every
+ * update reads exactly the values it reads in host order (new below and to the left,
+ * old above and to the right): the result is bitwise host order's, and the two rows'
+ * chains through their left neighbours run side by side. Step c updates (c, j) and
+ * (c - 1, j + 1); steps 2 .. nx - 2 of rows with neighbours above and below take the
+ * branch-free path, two steps (an even and an odd column) per turn. */
+RBC_ALWAYS_INLINE void gs_two_rows(const gs_arrays *A, const rbc_grid *g, uint32_t j,
+                                   const int uni) {
+    const uint32_t nx = g->nx;
+    gs_row a = gs_row_at(g, j), b = gs_row_at(g, j + 1);
+    gs_col(A, nx, &a, 0, uni);
+    uint32_t c = 1;
+    if (a.has_d && b.has_u) {
+        gs_col(A, nx, &a, 1, uni);
+        gs_col(A, nx, &b, 0, uni);
+        for (c = 2; c + 2 < nx; c += 2) { /* steps c and c + 1, both <= nx - 2 */
+            const uint32_t m = c >> 1;
+            RBC_GS_INNER(a, m, 0);
+            RBC_GS_INNER(b, m - 1, 1);
+            RBC_GS_INNER(a, m, 1);
+            RBC_GS_INNER(b, m, 0);
+        }
+    }
+    for (; c < nx; ++c) {
+        gs_col(A, nx, &a, c, uni);
+        gs_col(A, nx, &b, c - 1, uni);
+    }
+    gs_col(A, nx, &b, nx - 1, uni);
+}
+#undef RBC_GS_INNER
+
+RBC_ALWAYS_INLINE void gs_serial(const rbc_grid *g, rbc_cloth_state *c, const int uni) {
+    const gs_arrays A = {c->p[0], c->p[1], c->p[2], c->bx, c->by, c->bz, c->inv_denom,
+                         g->kd, g->kl, g->kr, g->ku, c->pinned, g->k_uniform};
+    uint32_t j = 0;
+    for (; j + 1 < g->ny; j += 2) gs_two_rows(&A, g, j, uni);
+    if (j < g->ny) {
+        gs_row a = gs_row_at(g, j);
+        for (uint32_t col = 0; col < g->nx; ++col) gs_col(&A, g->nx, &a, col, uni);
+    }
+}
+
+void rbc_grid_gs_serial(const rbc_grid *g, rbc_cloth_state *c) {
+    if (g->k_uniform != 0.0f) gs_serial(g, c, 1);
+    else gs_serial(g, c, 0);
 }
 
 /* ------------------------------------------------------------------------- */

@@ -29,7 +29,15 @@ typedef struct rbc_grid {
                                    right, down (j - 1) and up neighbour; 0 if none */
     float *ll, *lr, *ld, *lu;   /* [n] their rest lengths (as topology.c computes them) */
     float *zeros;               /* [nx / 2 + 2] neighbours of rows beyond the edges */
-    float k_uniform;            /* the one stiffness of every spring, or 0 */
+    float *nzeros;              /* [nx / 2 + 2] -0.0f, the same for the Jacobi rows: a term
+                                   s * (-0) = -0 added to any float leaves it unchanged */
+    float k_uniform;            /* the one stiffness of every spring, or 0 (also 0 when a
+                                   lattice edge has no spring: the broadcast would add it) */
+    uint32_t csr_order;         /* 1: every lattice edge is a spring and every CSR row lists
+                                   the neighbours down, left, right, up (j - 1, i - 1, i + 1,
+                                   j + 1) with these stiffnesses, so rbc_grid_jacobi and
+                                   rbc_grid_gs_serial add the same terms in the same order as
+                                   the CSR rows (rbc_k_eq6b) and give their result bitwise */
     size_t bytes;
 } rbc_grid;
 
@@ -49,6 +57,26 @@ void rbc_grid_rhs(const rbc_grid *g, struct rbc_cloth_state *c, uint32_t tid, ui
  * keep their positions. */
 void rbc_grid_sweep(const rbc_grid *g, struct rbc_cloth_state *c, uint32_t color, float omega,
                     uint32_t tid, uint32_t nt);
+
+/* One Jacobi iteration (Eq. 6 of src into dst; rbc_global_jacobi), this thread's rows
+ * of both colors: dst_i = g_i(src) for free particles, dst_i = src_i for pinned ones;
+ * with chebyshev, dst_i = omega (g_i - prev_i) + prev_i and prev_i = src_i. Each
+ * particle's sum is b_i + s_down p_down + s_left p_left + s_right p_right + s_up p_up,
+ * in that order, the terms of missing neighbours left out (a row beyond the edge
+ * adds s * (-0), which changes no float): the CSR row's order, so the result is
+ * bitwise rbc_global_jacobi's (g->csr_order must be 1) whatever nt. Reads src only:
+ * the interior of a row vectorizes with no dependency. */
+void rbc_grid_jacobi(const rbc_grid *g, struct rbc_cloth_state *c, float *const src[3],
+                     float *const dst[3], int chebyshev, float omega, uint32_t tid, uint32_t nt);
+
+/* One serial lexicographic Gauss-Seidel iteration in the host's vertex order (row by
+ * row, one thread; rbc_global_gs_serial): every update sees its left and lower
+ * neighbours' new values. The left one is carried in registers from the previous
+ * update, the other neighbours are found by the stencil, not by index arrays, and two
+ * rows advance together, the upper one a column behind (each update still reads what
+ * it reads in host order). Same sums in the same order as the CSR rows: bitwise
+ * rbc_global_gs_serial's result (g->csr_order must be 1). */
+void rbc_grid_gs_serial(const rbc_grid *g, struct rbc_cloth_state *c);
 
 /* `iterations` whole red-black iterations, temporally blocked: at step w iteration
  * it updates red row w - 2 it, then black row w - 2 it - 1, so a band of 2 iterations

@@ -8,7 +8,12 @@
  *    to a bound derived from that rounding, with pins, for 1 and 2 threads, and the
  *    fast path's result does not depend on the thread count (bitwise);
  *  - the temporally blocked wavefront equals plain red-black iterations bitwise;
- *  - the ELLPACK sweep of other meshes agrees with the CSR rows in the same way.
+ *  - the ELLPACK sweep of other meshes agrees with the CSR rows in the same way;
+ *  - the lattice Jacobi (plain and Chebyshev) and serial Gauss-Seidel give the CSR
+ *    rows' result bitwise (same sums in the same order), in whole steps with pins,
+ *    1 and 2 threads, odd and even sides, uniform and non-uniform stiffness;
+ *  - a lattice with an edge that is no spring (a notch) is not treated as uniform:
+ *    the broadcast stiffness would add the missing spring.
  */
 #include <math.h>
 #include <string.h>
@@ -296,6 +301,210 @@ static void test_threads(void) {
     free(res[1]);
 }
 
+/* Per-spring stiffness k (1 + 0.5 sin(1.7 k)) N/m for every spring, in the topology
+ * (stiff, the CSR rows, ksum) and in the lattice (rebuilt from it): the same cloth
+ * for the CSR and the lattice paths, with no uniform stiffness to broadcast. */
+static void vary_stiffness(rbc_cloth_state *c, const rbc_allocator *al) {
+    rbc_topology *t = &c->topo;
+    memset(t->ksum, 0, sizeof(float) * t->n);
+    for (uint32_t k = 0; k < t->ns; ++k) {
+        float sk = t->stiff[k] * (1.0f + 0.5f * sinf(1.7f * (float)k));
+        t->stiff[k] = t->adj_k[t->he_a[k]] = t->adj_k[t->he_b[k]] = sk;
+        t->ksum[t->sa[k]] += sk;
+        t->ksum[t->sb[k]] += sk;
+    }
+    rbc_grid_free(c->grid, al);
+    c->grid = NULL;
+    CHECK_EQ(rbc_grid_detect(t, al, &c->grid), 1);
+}
+
+/* Whole steps of Jacobi, Jacobi + Chebyshev or serial Gauss-Seidel: one cloth on the
+ * lattice path, one identical cloth whose lattice serves the local step and b only
+ * (csr_order cleared: rbc_global_jacobi and rbc_global_gs_serial take the CSR rows).
+ * The lattice path adds the same terms in the same order, so the positions must be
+ * equal bitwise, and the same for 1 and 2 threads (ref: the 1-thread result, or NULL
+ * to record it). */
+static int test_lattice_solver(rbc_solver_kind kind, uint32_t nx, uint32_t ny, int vary,
+                               uint32_t threads, float **ref) {
+    rbc_allocator al = rbc_allocator_default();
+    rbc_solver s, s2;
+    CHECK_EQ(rbc_solver_init(&s, &al, threads), RBC_OK);
+    CHECK_EQ(rbc_solver_init(&s2, &al, threads), RBC_OK);
+    rbc_solver_settings st = s.settings;
+    st.kind = kind;
+    st.energy_guard = RBC_ENERGY_GUARD_OFF;
+    test_mesh m = mesh_grid(nx, ny, 1.0f / (float)(nx - 1));
+    /* Two corners and an interior particle (an edge one when a side is 2). */
+    uint32_t pins[3] = {0, nx - 1, nx * (ny / 2) + nx / 2};
+    rbc_cloth_state *fast = make(&s, &m, pins, 3, 0.0f);
+    rbc_cloth_state *csr = make(&s2, &m, pins, 3, 0.0f);
+    CHECK_EQ(rbc_solver_set_settings(&s, &st), RBC_OK);
+    CHECK_EQ(rbc_solver_set_settings(&s2, &st), RBC_OK);
+    if (vary) {
+        vary_stiffness(fast, &al);
+        vary_stiffness(csr, &al);
+    }
+    CHECK(fast->grid != NULL && csr->grid != NULL);
+    if (!fast->grid || !csr->grid) return 0;
+    CHECK(fast->grid->csr_order == 1);
+    CHECK(vary ? fast->grid->k_uniform == 0.0f : fast->grid->k_uniform == 1000.0f);
+    csr->grid->csr_order = 0;
+    char err[256];
+    int same = 1;
+    for (int f = 0; f < 5; ++f) {
+        CHECK_EQ(rbc_solver_step(&s, 0.002f, err, sizeof err), RBC_OK);
+        CHECK_EQ(rbc_solver_step(&s2, 0.002f, err, sizeof err), RBC_OK);
+        for (int ax = 0; ax < 3; ++ax)
+            same &= memcmp(fast->x[ax], csr->x[ax], sizeof(float) * fast->topo.n) == 0;
+    }
+    if (!same)
+        fprintf(stderr, "solver %d, %ux%u%s, %u thread(s): the lattice path differs from the "
+                        "CSR path\n",
+                (int)kind, nx, ny, vary ? " (varied stiffness)" : "", threads);
+    CHECK(same);
+    float *res = malloc(sizeof(float) * 3 * fast->topo.n);
+    rbc_cloth_state_read(fast, res);
+    if (*ref) {
+        CHECK(memcmp(*ref, res, sizeof(float) * 3 * fast->topo.n) == 0);
+        free(res);
+    } else {
+        *ref = res;
+    }
+    /* The pins did not move. */
+    const rbc_topology *t = &fast->topo;
+    for (int p = 0; p < 3; ++p) {
+        uint32_t i = t->to_internal[pins[p]];
+        CHECK(fast->x[0][i] == t->rest_x[i] && fast->x[1][i] == t->rest_y[i] &&
+              fast->x[2][i] == t->rest_z[i]);
+    }
+    mesh_free(&m);
+    rbc_solver_fini(&s);
+    rbc_solver_fini(&s2);
+    return same;
+}
+
+static void test_lattice_solvers(void) {
+    const rbc_solver_kind kinds[3] = {RBC_SOLVER_JACOBI, RBC_SOLVER_JACOBI_CHEBYSHEV,
+                                      RBC_SOLVER_GAUSS_SEIDEL};
+    /* odd x even, even x odd, odd x odd, even x even, two columns, two rows */
+    const uint32_t dims[][2] = {{41, 30}, {40, 31}, {33, 17}, {64, 48}, {2, 9}, {9, 2}};
+    const char *names[3] = {"jacobi", "jacobi_chebyshev", "gauss_seidel"};
+    for (int k = 0; k < 3; ++k) {
+        int runs = 0, equal = 0;
+        for (size_t d = 0; d < sizeof dims / sizeof dims[0]; ++d)
+            for (int vary = 0; vary < 2; ++vary) {
+                float *ref = NULL;
+                for (uint32_t nt = 1; nt <= 2; ++nt, ++runs)
+                    equal += test_lattice_solver(kinds[k], dims[d][0], dims[d][1], vary, nt, &ref);
+                free(ref);
+            }
+        printf("%s: lattice path bitwise equal to the CSR path in %d of %d runs (6 grids, "
+               "uniform and varied stiffness, 1 and 2 threads, 5 frames each)\n",
+               names[k], equal, runs);
+    }
+}
+
+/* Signed zeros: with p_y and b_y all -0 (a flat cloth at y = -0 with no load), every
+ * CSR sum in y is -0. The lattice Jacobi's rows beyond the edges must add nothing
+ * (s * (-0) = -0 does; a row of +0 would make the edge rows' sums +0), and the serial
+ * sweep must leave the missing terms out: bitwise the CSR rows' results. */
+static void test_negative_zero(void) {
+    rbc_allocator al = rbc_allocator_default();
+    rbc_solver s;
+    CHECK_EQ(rbc_solver_init(&s, &al, 1), RBC_OK);
+    rbc_solver_settings st = s.settings;
+    st.kind = RBC_SOLVER_JACOBI_CHEBYSHEV; /* allocates alt and prev */
+    CHECK_EQ(rbc_solver_set_settings(&s, &st), RBC_OK);
+    test_mesh m = mesh_grid(9, 6, 0.1f);
+    uint32_t pins[1] = {4};
+    rbc_cloth_state *c = make(&s, &m, pins, 1, 0.0f);
+    CHECK(c->grid != NULL && c->grid->csr_order == 1);
+    if (!c->grid) return;
+    const rbc_topology *t = &c->topo;
+    const uint32_t n = t->n;
+    for (uint32_t i = 0; i < n; ++i) {
+        c->inv_denom[i] = 1.0f / (25.0f + t->ksum[i]);
+        c->bx[i] = 25.0f * t->rest_x[i];
+        c->by[i] = -0.0f;
+        c->bz[i] = 25.0f * t->rest_z[i];
+    }
+    /* [path][result][axis]: path 0 the CSR rows, 1 the lattice; results: Jacobi,
+     * Jacobi + Chebyshev (prev = p), serial Gauss-Seidel. */
+    float *out[2][3][3];
+    for (int path = 0; path < 2; ++path) {
+        c->grid->csr_order = (uint32_t)path;
+        for (int r = 0; r < 3; ++r) {
+            for (int ax = 0; ax < 3; ++ax)
+                for (uint32_t i = 0; i < n; ++i) {
+                    c->p[ax][i] = ax == 0 ? t->rest_x[i] : ax == 1 ? -0.0f : t->rest_z[i];
+                    c->prev[ax][i] = 0.9f * c->p[ax][i];
+                }
+            if (r < 2) rbc_global_jacobi(c, c->p, c->alt, r, 1.3f, 0, 1);
+            else rbc_global_gs_serial(c);
+            for (int ax = 0; ax < 3; ++ax) {
+                out[path][r][ax] = malloc(sizeof(float) * n);
+                memcpy(out[path][r][ax], r < 2 ? c->alt[ax] : c->p[ax], sizeof(float) * n);
+            }
+        }
+    }
+    int same = 1, negative = 1;
+    for (int r = 0; r < 3; ++r)
+        for (int ax = 0; ax < 3; ++ax)
+            same &= memcmp(out[0][r][ax], out[1][r][ax], sizeof(float) * n) == 0;
+    for (uint32_t i = 0; i < n; ++i) /* CSR's y: -0 (Chebyshev's: +0 = 1.3 (-0 - -0) + -0) */
+        negative &= signbit(out[0][0][1][i]) && signbit(out[0][2][1][i]) &&
+                    out[0][0][1][i] == 0.0f && out[0][2][1][i] == 0.0f;
+    printf("signed zeros: lattice Jacobi, Chebyshev and serial Gauss-Seidel %s the CSR rows "
+           "(whose Jacobi and Gauss-Seidel y are all -0: %s)\n",
+           same ? "bitwise equal to" : "DIFFER from", negative ? "yes" : "no");
+    CHECK(same);
+    CHECK(negative);
+    for (int p = 0; p < 2; ++p)
+        for (int r = 0; r < 3; ++r)
+            for (int ax = 0; ax < 3; ++ax) free(out[p][r][ax]);
+    mesh_free(&m);
+    rbc_solver_fini(&s);
+}
+
+/* A lattice with a notch: the bottom edge of the fourth quad of row 0 is no spring
+ * (its quad removed). Still a lattice, but not every edge a spring: no uniform
+ * stiffness (the broadcast would add the missing spring to the sweep's sum) and no
+ * CSR-order path. RBGS on it agrees with the CSR path to test_steps' bound. */
+static void test_notch(void) {
+    rbc_allocator al = rbc_allocator_default();
+    rbc_solver s, s2;
+    CHECK_EQ(rbc_solver_init(&s, &al, 1), RBC_OK);
+    CHECK_EQ(rbc_solver_init(&s2, &al, 1), RBC_OK);
+    rbc_solver_settings st = s.settings;
+    st.energy_guard = RBC_ENERGY_GUARD_OFF;
+    CHECK_EQ(rbc_solver_set_settings(&s, &st), RBC_OK);
+    CHECK_EQ(rbc_solver_set_settings(&s2, &st), RBC_OK);
+    test_mesh m = mesh_grid(30, 20, 1.0f / 29.0f);
+    memcpy(m.quads + 4 * 3, m.quads + 4 * (m.nq - 1), 4 * sizeof(uint32_t)); /* quad (3, 0) */
+    m.nq--;
+    uint32_t pins[2] = {0, 29};
+    rbc_cloth_state *fast = make(&s, &m, pins, 2, 0.0f);
+    rbc_cloth_state *csr = make(&s2, &m, pins, 2, 0.0f);
+    CHECK(fast->grid != NULL);
+    if (!fast->grid) return;
+    CHECK(fast->grid->k_uniform == 0.0f && fast->grid->csr_order == 0);
+    rbc_grid_free(csr->grid, &al);
+    csr->grid = NULL;
+    char err[256];
+    double worst = 0.0;
+    for (int f = 0; f < 5; ++f) {
+        CHECK_EQ(rbc_solver_step(&s, 0.002f, err, sizeof err), RBC_OK);
+        CHECK_EQ(rbc_solver_step(&s2, 0.002f, err, sizeof err), RBC_OK);
+        worst = fmax(worst, max_diff(fast, csr));
+    }
+    printf("notched lattice, rbgs: fast path vs CSR path, worst |dp| over 5 frames %.3g m\n",
+           worst);
+    CHECK(worst <= 5.0 * 11 * 2 * 5 * ldexp(1.0, -24));
+    mesh_free(&m);
+    rbc_solver_fini(&s);
+    rbc_solver_fini(&s2);
+}
+
 int main(void) {
     test_detection();
     test_rhs();
@@ -305,5 +514,8 @@ int main(void) {
     test_threads();
     test_ell();
     test_wavefront();
+    test_lattice_solvers();
+    test_negative_zero();
+    test_notch();
     return check_report("core_grid");
 }
