@@ -1,0 +1,979 @@
+/* clothcontact.c -- cloth-cloth and self contacts (see clothcontact.h).
+ *
+ * Detection, per substep:
+ *  1. boxes: the swept box (x..p) of every vertex and triangle of the bodies that
+ *     collide at all;
+ *  2. two spatial hashes over one uniform grid of cell size
+ *     max(2 (thickness + margin), mean longest triangle edge at x): triangles by
+ *     their swept box grown by the largest thickness + margin, and vertices by theirs
+ *     grown by thickness + margin / 2 (for vertex-vertex pairs). A cell's integer
+ *     coordinates are hashed to a bucket; a counting sort puts the objects of every
+ *     cell into one flat table, bucket by bucket, in object order;
+ *  3. every vertex looks up the buckets of the cells its own box covers and tests the
+ *     boxes exactly (this also drops the objects of other cells that share a bucket).
+ *     A pair whose boxes share several cells is taken only in the cell holding the
+ *     lower corner of the boxes' intersection, so it is seen once and no set is
+ *     needed (an object in two cells of one bucket can still be seen twice: the sort
+ *     below drops the copy);
+ *  4. exact tests: bounds from each triangle's boxes and planes at x and at p
+ *     (computed once per triangle) reject most pairs before a corner is read; then
+ *     the rest exclusion, and closest points for distance at x, the plane crossing
+ *     and distance at p. The vertex's contacts are sorted by partner, so the list
+ *     does not depend on the cell size, the table size or the order of a bucket.
+ * A box over more than CC_BIG_CELLS cells (a vertex moving many cells in one
+ * substep, a non-finite position) is not hashed: it is tested against everything.
+ */
+#include "clothcontact.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "../abi/rbcloth.h"
+
+/* Boxes over more cells than this are tested by brute force: a hash lookup over a
+ * huge box costs more than the scan, and the table stays O(objects). */
+#define CC_BIG_CELLS 512u
+/* Cell coordinates are clamped to +-(2^20 - 1) and packed in 21 bits each. */
+#define CC_CELL_OFF (1 << 20)
+#define CC_CELL_MAX ((1 << 20) - 1)
+
+/* A buffer that only grows (by half its size at least), kept between steps. */
+typedef struct cc_buf {
+    void *ptr;
+    size_t bytes;
+} cc_buf;
+
+typedef struct cc_hash {
+    cc_buf start;               /* uint32 [nb + 1]: bucket b holds entries start[b] .. start[b+1]-1 */
+    cc_buf id;                  /* uint32 [entries]: object */
+    cc_buf big;                 /* uint32 [objects]: boxes too big to hash, ascending */
+    uint32_t nb, big_count;
+} cc_hash;
+
+struct rbc_clothcontact {
+    rbc_allocator alloc;
+    uint32_t body_count;        /* of the last detect */
+    float cell, inv_cell;
+    float tri_grow;             /* largest thickness + margin: what triangle boxes are grown by */
+    cc_buf vbase, tbase;        /* uint32 [count + 1]: first global vertex / triangle of a body */
+    cc_buf bgrow;               /* float [count]: thickness + margin / 2 (vertex hash) */
+    cc_buf active;              /* uint8 [count]: 1 if the body collides at all */
+    cc_buf vbox, tbox;          /* float [6 per object]: swept box lo[3], hi[3] */
+    cc_buf vbody, tbody;        /* uint32 [object]: its body */
+    cc_buf trec;                /* float [CC_TREC per triangle]: see tri_record() */
+    cc_hash th, vh;             /* triangles; vertices */
+    cc_buf contacts;            /* rbc_contact */
+    uint32_t count;
+};
+
+static int buf_reserve(const rbc_allocator *a, cc_buf *b, size_t count, size_t elem,
+                       size_t keep_bytes) {
+    size_t need = rbc_mul_size(count, elem);
+    if (need <= b->bytes) return 1;
+    if (need == SIZE_MAX) return 0;
+    size_t nb = b->bytes + b->bytes / 2;
+    if (nb < need) nb = need;
+    if (nb < 256) nb = 256;
+    void *p = rbc_mem_alloc(a, nb);
+    if (!p) return 0;
+    if (keep_bytes) memcpy(p, b->ptr, keep_bytes);
+    rbc_mem_free(a, b->ptr, b->bytes);
+    b->ptr = p;
+    b->bytes = nb;
+    return 1;
+}
+
+static void buf_free(const rbc_allocator *a, cc_buf *b) {
+    rbc_mem_free(a, b->ptr, b->bytes);
+    b->ptr = NULL;
+    b->bytes = 0;
+}
+
+int32_t rbc_clothcontact_create(const rbc_allocator *a, rbc_clothcontact **out) {
+    *out = NULL;
+    rbc_clothcontact *cc = rbc_mem_alloc(a, sizeof *cc);
+    if (!cc) return RBC_ERR_OUT_OF_MEMORY;
+    cc->alloc = *a;
+    *out = cc;
+    return RBC_OK;
+}
+
+static void hash_free(const rbc_allocator *a, cc_hash *h) {
+    buf_free(a, &h->start);
+    buf_free(a, &h->id);
+    buf_free(a, &h->big);
+}
+
+void rbc_clothcontact_destroy(rbc_clothcontact *cc) {
+    if (!cc) return;
+    const rbc_allocator a = cc->alloc;
+    cc_buf *bufs[] = {&cc->vbase, &cc->tbase, &cc->bgrow, &cc->active, &cc->vbox,
+                      &cc->tbox, &cc->vbody, &cc->tbody, &cc->trec, &cc->contacts};
+    for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) buf_free(&a, bufs[k]);
+    hash_free(&a, &cc->th);
+    hash_free(&a, &cc->vh);
+    rbc_mem_free(&a, cc, sizeof *cc);
+}
+
+uint32_t rbc_clothcontact_count(const rbc_clothcontact *cc) { return cc->count; }
+
+const rbc_contact *rbc_clothcontact_list(const rbc_clothcontact *cc) {
+    return (const rbc_contact *)cc->contacts.ptr;
+}
+
+size_t rbc_clothcontact_bytes(const rbc_clothcontact *cc) {
+    const cc_buf *bufs[] = {&cc->vbase, &cc->tbase, &cc->bgrow, &cc->active, &cc->vbox,
+                            &cc->tbox, &cc->vbody, &cc->tbody, &cc->contacts,
+                            &cc->trec, &cc->th.start, &cc->th.id, &cc->th.big,
+                            &cc->vh.start, &cc->vh.id, &cc->vh.big};
+    size_t b = sizeof *cc;
+    for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) b += bufs[k]->bytes;
+    return b;
+}
+
+/* ---- small vector helpers ---------------------------------------------------- */
+
+static inline float dot3(const float a[3], const float b[3]) {
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+static inline void sub3(float r[3], const float a[3], const float b[3]) {
+    r[0] = a[0] - b[0], r[1] = a[1] - b[1], r[2] = a[2] - b[2];
+}
+static inline void cross3(float r[3], const float a[3], const float b[3]) {
+    r[0] = a[1] * b[2] - a[2] * b[1];
+    r[1] = a[2] * b[0] - a[0] * b[2];
+    r[2] = a[0] * b[1] - a[1] * b[0];
+}
+static inline void load3(float r[3], const float *const s[3], uint32_t i) {
+    r[0] = s[0][i], r[1] = s[1][i], r[2] = s[2][i];
+}
+/* The iterate p as the read-only view load3 takes (C has no implicit
+ * float ** -> const float *const * conversion). */
+#define CONST3(a) ((const float *const *)(a))
+
+/* Barycentric weights w of the point of triangle abc closest to p (Ericson,
+ * Real-Time Collision Detection, 5.1.5: the Voronoi regions of the corners, then of
+ * the edges, then the face). The closest point is w0 a + w1 b + w2 c. A degenerate
+ * triangle that reaches the face case gets a (the caller skips those). */
+static void closest_bary(const float p[3], const float a[3], const float b[3], const float c[3],
+                         float w[3]) {
+    float ab[3], ac[3], ap[3], bp[3], cp[3];
+    sub3(ab, b, a);
+    sub3(ac, c, a);
+    sub3(ap, p, a);
+    float d1 = dot3(ab, ap), d2 = dot3(ac, ap);
+    if (d1 <= 0.0f && d2 <= 0.0f) {
+        w[0] = 1.0f, w[1] = 0.0f, w[2] = 0.0f;
+        return;
+    }
+    sub3(bp, p, b);
+    float d3 = dot3(ab, bp), d4 = dot3(ac, bp);
+    if (d3 >= 0.0f && d4 <= d3) {
+        w[0] = 0.0f, w[1] = 1.0f, w[2] = 0.0f;
+        return;
+    }
+    float vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0f && d1 >= 0.0f && d3 <= 0.0f) {
+        float v = d1 / (d1 - d3);
+        w[0] = 1.0f - v, w[1] = v, w[2] = 0.0f;
+        return;
+    }
+    sub3(cp, p, c);
+    float d5 = dot3(ab, cp), d6 = dot3(ac, cp);
+    if (d6 >= 0.0f && d5 <= d6) {
+        w[0] = 0.0f, w[1] = 0.0f, w[2] = 1.0f;
+        return;
+    }
+    float vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0f && d2 >= 0.0f && d6 <= 0.0f) {
+        float t = d2 / (d2 - d6);
+        w[0] = 1.0f - t, w[1] = 0.0f, w[2] = t;
+        return;
+    }
+    float va = d3 * d6 - d5 * d4;
+    if (va <= 0.0f && (d4 - d3) >= 0.0f && (d5 - d6) >= 0.0f) {
+        float t = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        w[0] = 0.0f, w[1] = 1.0f - t, w[2] = t;
+        return;
+    }
+    float sum = va + vb + vc;
+    if (!(sum > 0.0f)) {
+        w[0] = 1.0f, w[1] = 0.0f, w[2] = 0.0f;
+        return;
+    }
+    float v = vb / sum, t = vc / sum;
+    w[0] = 1.0f - v - t, w[1] = v, w[2] = t;
+}
+
+static inline void bary_point(float r[3], const float w[3], const float a[3], const float b[3],
+                              const float c[3]) {
+    for (int k = 0; k < 3; ++k) r[k] = w[0] * a[k] + w[1] * b[k] + w[2] * c[k];
+}
+
+/* Distance from p to triangle abc (m). */
+static float tri_distance(const float p[3], const float a[3], const float b[3], const float c[3]) {
+    float w[3], q[3], d[3];
+    closest_bary(p, a, b, c, w);
+    bary_point(q, w, a, b, c);
+    sub3(d, p, q);
+    return sqrtf(dot3(d, d));
+}
+
+/* ---- the hash ------------------------------------------------------------------ */
+
+typedef struct cc_range {
+    int32_t lo[3], hi[3];
+} cc_range;
+
+/* floor(v / cell), clamped. The conversion and a correction for negatives stand in
+ * for floorf, which without SSE4.1 is a library call (the hottest line otherwise). */
+static inline int32_t cell_of(float v, float inv) {
+    float c = v * inv;
+    if (!(c >= -(float)CC_CELL_MAX)) c = -(float)CC_CELL_MAX; /* NaN lands here too */
+    if (c > (float)CC_CELL_MAX) c = (float)CC_CELL_MAX;
+    int32_t i = (int32_t)c;
+    return (float)i > c ? i - 1 : i;
+}
+
+static inline uint64_t cell_key(int32_t i, int32_t j, int32_t k) {
+    return ((uint64_t)(uint32_t)(i + CC_CELL_OFF) << 42) |
+           ((uint64_t)(uint32_t)(j + CC_CELL_OFF) << 21) | (uint64_t)(uint32_t)(k + CC_CELL_OFF);
+}
+
+/* splitmix64's finalizer: neighbouring cells land in unrelated buckets. */
+static inline uint32_t cell_bucket(uint64_t key, uint32_t mask) {
+    key ^= key >> 30;
+    key *= 0xbf58476d1ce4e5b9ull;
+    key ^= key >> 27;
+    key *= 0x94d049bb133111ebull;
+    key ^= key >> 31;
+    return (uint32_t)key & mask;
+}
+
+static inline void box_range(const float lo[3], const float hi[3], float inv, cc_range *r) {
+    for (int k = 0; k < 3; ++k) {
+        r->lo[k] = cell_of(lo[k], inv);
+        r->hi[k] = cell_of(hi[k], inv);
+        if (r->hi[k] < r->lo[k]) r->hi[k] = r->lo[k]; /* NaN boxes */
+    }
+}
+
+static inline uint64_t range_cells(const cc_range *r) {
+    return (uint64_t)(r->hi[0] - r->lo[0] + 1) * (uint64_t)(r->hi[1] - r->lo[1] + 1) *
+           (uint64_t)(r->hi[2] - r->lo[2] + 1);
+}
+
+/* The box of object i as hashed: its swept box grown by g. Computed by this one
+ * function wherever it is needed, so the lower-corner test sees the very floats the
+ * insertion saw. */
+static inline void grown_box(const float *box, uint32_t i, float g, float lo[3], float hi[3]) {
+    for (int k = 0; k < 3; ++k) {
+        lo[k] = box[6 * (size_t)i + k] - g;
+        hi[k] = box[6 * (size_t)i + 3 + k] + g;
+    }
+}
+
+/* 1: the pair of boxes (query lo/hi, object olo/ohi) is to be taken in cell c, the one
+ * holding the lower corner of their intersection. */
+static inline int lower_corner_is(const float lo[3], const float olo[3], float inv,
+                                  const int32_t c[3]) {
+    for (int k = 0; k < 3; ++k)
+        if (cell_of(lo[k] > olo[k] ? lo[k] : olo[k], inv) != c[k]) return 0;
+    return 1;
+}
+
+/* Hash the m objects (boxes grown by grow[body[i]], or by grow0 when grow is NULL)
+ * whose body is active. Entries of a bucket are in object order. 0 = out of memory. */
+static int hash_build(rbc_clothcontact *cc, cc_hash *h, uint32_t m, const float *box,
+                      const uint32_t *body, const float *grow, float grow0,
+                      const uint8_t *active) {
+    const rbc_allocator *a = &cc->alloc;
+    uint32_t nb = 16;
+    while (nb < (uint64_t)m * 2u && nb < (1u << 30)) nb *= 2u;
+    if (!buf_reserve(a, &h->start, (size_t)nb + 1, sizeof(uint32_t), 0)) return 0;
+    if (!buf_reserve(a, &h->big, m, sizeof(uint32_t), 0)) return 0;
+    uint32_t *start = h->start.ptr, *big = h->big.ptr;
+    memset(start, 0, sizeof(uint32_t) * ((size_t)nb + 1));
+    const uint32_t mask = nb - 1;
+    const float inv = cc->inv_cell;
+    uint64_t total = 0;
+    uint32_t nbig = 0;
+    for (uint32_t i = 0; i < m; ++i) {
+        if (!active[body[i]]) continue;
+        float lo[3], hi[3];
+        grown_box(box, i, grow ? grow[body[i]] : grow0, lo, hi);
+        cc_range r;
+        box_range(lo, hi, inv, &r);
+        uint64_t cells = range_cells(&r);
+        if (cells > CC_BIG_CELLS) {
+            big[nbig++] = i;
+            continue;
+        }
+        total += cells;
+        for (int32_t x = r.lo[0]; x <= r.hi[0]; ++x)
+            for (int32_t y = r.lo[1]; y <= r.hi[1]; ++y)
+                for (int32_t z = r.lo[2]; z <= r.hi[2]; ++z)
+                    start[cell_bucket(cell_key(x, y, z), mask)]++;
+    }
+    if (total > UINT32_MAX) return 0;
+    h->nb = nb;
+    h->big_count = nbig;
+    if (!buf_reserve(a, &h->id, (size_t)total, sizeof(uint32_t), 0)) return 0;
+    uint32_t *id = h->id.ptr;
+    uint32_t sum = 0;
+    for (uint32_t b = 0; b < nb; ++b) {
+        uint32_t c = start[b];
+        start[b] = sum;
+        sum += c;
+    }
+    /* Fill: start[b] advances to the end of bucket b (= the start of b + 1). */
+    for (uint32_t i = 0, bi = 0; i < m; ++i) {
+        if (!active[body[i]]) continue;
+        if (bi < nbig && big[bi] == i) {
+            bi++;
+            continue;
+        }
+        float lo[3], hi[3];
+        grown_box(box, i, grow ? grow[body[i]] : grow0, lo, hi);
+        cc_range r;
+        box_range(lo, hi, inv, &r);
+        for (int32_t x = r.lo[0]; x <= r.hi[0]; ++x)
+            for (int32_t y = r.lo[1]; y <= r.hi[1]; ++y)
+                for (int32_t z = r.lo[2]; z <= r.hi[2]; ++z)
+                    id[start[cell_bucket(cell_key(x, y, z), mask)]++] = i;
+    }
+    for (uint32_t b = nb; b > 0; --b) start[b] = start[b - 1];
+    start[0] = 0;
+    return 1;
+}
+
+/* ---- detection ------------------------------------------------------------------ */
+
+typedef struct cc_detect {
+    rbc_clothcontact *cc;
+    const rbc_contact_body *bodies;
+    const uint32_t *vbase, *tbase, *vbody, *tbody;
+    const float *vbox, *tbox, *trec, *bgrow;
+    float margin;
+    int oom;
+} cc_detect;
+
+static rbc_contact *push_contact(cc_detect *d) {
+    rbc_clothcontact *cc = d->cc;
+    if (d->oom) return NULL; /* failed once: ask for nothing more, the list is dropped */
+    if (!buf_reserve(&cc->alloc, &cc->contacts, (size_t)cc->count + 1, sizeof(rbc_contact),
+                     sizeof(rbc_contact) * cc->count)) {
+        d->oom = 1;
+        return NULL;
+    }
+    rbc_contact *c = (rbc_contact *)cc->contacts.ptr + cc->count++;
+    memset(c, 0, sizeof *c);
+    return c;
+}
+
+static inline int boxes_overlap(const float *a, const float *b, float g) {
+    for (int k = 0; k < 3; ++k)
+        if (a[k] > b[3 + k] + g || b[k] - g > a[3 + k]) return 0;
+    return 1;
+}
+
+static inline int bodies_pair(const rbc_contact_body *A, const rbc_contact_body *B, int same) {
+    return same ? A->self != 0 : (A->others != 0 && B->others != 0);
+}
+
+/* Not fminf/fmaxf: their NaN rules make them library calls. */
+static inline float min2(float a, float b) { return a < b ? a : b; }
+static inline float max2(float a, float b) { return a > b ? a : b; }
+
+/* Squared distance from p to the bounding box of a, b, c: a lower bound of the
+ * squared distance to the triangle, to skip most closest-point computations. */
+static inline float box_dist2(const float p[3], const float a[3], const float b[3],
+                              const float c[3]) {
+    float s = 0.0f;
+    for (int k = 0; k < 3; ++k) {
+        float lo = min2(a[k], min2(b[k], c[k])), hi = max2(a[k], max2(b[k], c[k]));
+        float e = p[k] < lo ? lo - p[k] : p[k] > hi ? p[k] - hi : 0.0f;
+        s += e * e;
+    }
+    return s;
+}
+
+/* What a triangle's tests need, once per triangle and substep rather than once per
+ * candidate pair: its boxes at x and at p, and its planes there (unit normal n and
+ * offset n . a; a zero normal where the triangle is degenerate). */
+enum { CC_TREC = 20 };
+enum { CC_XBOX = 0, CC_PBOX = 6, CC_N0 = 12, CC_O0 = 15, CC_N1 = 16, CC_O1 = 19 };
+
+static void tri_record(const rbc_contact_body *B, const uint32_t *tri, float *o) {
+    for (int pass = 0; pass < 2; ++pass) {
+        float P[3][3], e1[3], e2[3], n[3];
+        for (int c = 0; c < 3; ++c) load3(P[c], pass ? CONST3(B->p) : B->x, tri[c]);
+        float *box = o + (pass ? CC_PBOX : CC_XBOX), *no = o + (pass ? CC_N1 : CC_N0);
+        for (int k = 0; k < 3; ++k) {
+            box[k] = min2(P[0][k], min2(P[1][k], P[2][k]));
+            box[3 + k] = max2(P[0][k], max2(P[1][k], P[2][k]));
+        }
+        sub3(e1, P[1], P[0]);
+        sub3(e2, P[2], P[0]);
+        cross3(n, e1, e2);
+        const float l = sqrtf(dot3(n, n));
+        const int ok = l > 0.0f && isfinite(l);
+        for (int k = 0; k < 3; ++k) no[k] = ok ? n[k] / l : 0.0f;
+        no[3] = dot3(no, P[0]);
+    }
+}
+
+/* Squared distance from p to a box lo[3], hi[3]. */
+static inline float point_box2(const float p[3], const float *box) {
+    float s = 0.0f;
+    for (int k = 0; k < 3; ++k) {
+        float e = p[k] < box[k] ? box[k] - p[k] : p[k] > box[3 + k] ? p[k] - box[3 + k] : 0.0f;
+        s += e * e;
+    }
+    return s;
+}
+
+/* One vertex as its candidate pairs see it. */
+typedef struct cc_vq {
+    uint32_t v, bv, i;          /* global index, body, local index */
+    const rbc_contact_body *V;
+    float X[3], P[3], g;        /* at x, at p; thickness + margin */
+} cc_vq;
+
+static void vq_load(const cc_detect *d, uint32_t v, cc_vq *q) {
+    q->v = v;
+    q->bv = d->vbody[v];
+    q->i = v - d->vbase[q->bv];
+    q->V = &d->bodies[q->bv];
+    load3(q->X, q->V->x, q->i);
+    load3(q->P, CONST3(q->V->p), q->i);
+    q->g = q->V->thickness + d->margin;
+}
+
+/* The vertex of q against triangle t (global), whose swept boxes overlap grown by g:
+ * append a contact if they qualify. Cheap bounds reject most candidates before any
+ * corner is read: a vertex near the triangle at x (or p) is within g of its box and
+ * its plane there; one crossing it changes sides of the plane. */
+static void try_vt(cc_detect *d, const cc_vq *q, uint32_t t) {
+    const uint32_t bt = d->tbody[t];
+    const rbc_contact_body *V = q->V, *T = &d->bodies[bt];
+    const int same = q->bv == bt;
+    if (!bodies_pair(V, T, same)) return;
+    const float *rec = d->trec + CC_TREC * (size_t)t;
+    const float *n0 = rec + CC_N0, *n1 = rec + CC_N1;
+    if (n0[0] == 0.0f && n0[1] == 0.0f && n0[2] == 0.0f) return; /* degenerate at x: no side */
+    const float g = q->g, g2 = g * g;
+    const float d0 = dot3(n0, q->X) - rec[CC_O0];
+    const int n1ok = n1[0] != 0.0f || n1[1] != 0.0f || n1[2] != 0.0f;
+    const float d1 = n1ok ? dot3(n1, q->P) - rec[CC_O1] : 0.0f;
+    const int maybe0 = fabsf(d0) < g && point_box2(q->X, rec + CC_XBOX) < g2;
+    const int maybe1 = n1ok && fabsf(d1) < g && point_box2(q->P, rec + CC_PBOX) < g2;
+    const int maybe_cross = n1ok && d0 * d1 <= 0.0f && d0 != d1;
+    if (!maybe0 && !maybe1 && !maybe_cross) return;
+    const uint32_t i = q->i, tl = t - d->tbase[bt];
+    const uint32_t *tri = T->tris + 3 * (size_t)tl;
+    if (same) {
+        if (tri[0] == i || tri[1] == i || tri[2] == i) return;
+        if (V->rest[0]) {
+            /* Neighbours that touch at rest are not contacts. */
+            float RX[3], RA[3], RB[3], RC[3];
+            load3(RX, V->rest, i);
+            load3(RA, V->rest, tri[0]);
+            load3(RB, V->rest, tri[1]);
+            load3(RC, V->rest, tri[2]);
+            const float lim = 2.0f * V->thickness;
+            if (box_dist2(RX, RA, RB, RC) < lim * lim && tri_distance(RX, RA, RB, RC) < lim)
+                return;
+        }
+    }
+    float A[3], B[3], C[3], PA[3], PB[3], PC[3];
+    load3(A, T->x, tri[0]);
+    load3(B, T->x, tri[1]);
+    load3(C, T->x, tri[2]);
+    load3(PA, CONST3(T->p), tri[0]);
+    load3(PB, CONST3(T->p), tri[1]);
+    load3(PC, CONST3(T->p), tri[2]);
+    const float *X = q->X, *P = q->P;
+    /* Near at x, crossing the plane inside the triangle, or near at p. */
+    int crossed = 0;
+    if (maybe_cross) {
+        /* The plane distance, taken linear in time between its end values, is 0 at s;
+         * vertex and triangle there are interpolated linearly. */
+        const float s = d0 / (d0 - d1);
+        float Xs[3], As[3], Bs[3], Cs[3];
+        for (int k = 0; k < 3; ++k) {
+            Xs[k] = X[k] + s * (P[k] - X[k]);
+            As[k] = A[k] + s * (PA[k] - A[k]);
+            Bs[k] = B[k] + s * (PB[k] - B[k]);
+            Cs[k] = C[k] + s * (PC[k] - C[k]);
+        }
+        crossed = box_dist2(Xs, As, Bs, Cs) < g2 && tri_distance(Xs, As, Bs, Cs) < g;
+    }
+    const int hit = crossed || (maybe0 && tri_distance(X, A, B, C) < g) ||
+                    (maybe1 && tri_distance(P, PA, PB, PC) < g);
+    if (!hit) return;
+    float side;
+    if (d0 > 0.0f) {
+        side = 1.0f;
+    } else if (d0 < 0.0f) {
+        side = -1.0f;
+    } else {
+        /* On the plane: the side its motion relative to the triangle point goes to. */
+        float w[3], rel = 0.0f;
+        closest_bary(X, A, B, C, w);
+        for (int k = 0; k < 3; ++k)
+            rel += (P[k] - X[k] - (w[0] * (PA[k] - A[k]) + w[1] * (PB[k] - B[k]) +
+                                   w[2] * (PC[k] - C[k]))) * n0[k];
+        side = rel < 0.0f ? -1.0f : 1.0f;
+    }
+    rbc_contact *c = push_contact(d);
+    if (!c) return;
+    c->kind = RBC_CONTACT_VT;
+    c->flags = crossed ? RBC_CONTACT_CROSSED : 0u;
+    c->body_a = q->bv, c->a = i;
+    c->body_b = bt, c->b = tl;
+    c->side = side;
+}
+
+/* Vertices v < u (global) whose swept boxes overlap (grown by thickness + margin / 2
+ * each): append a contact if they qualify. */
+static void try_vv(cc_detect *d, uint32_t v, uint32_t u) {
+    const uint32_t bv = d->vbody[v], bu = d->vbody[u];
+    const rbc_contact_body *V = &d->bodies[bv], *U = &d->bodies[bu];
+    if (!bodies_pair(V, U, bv == bu)) return;
+    const uint32_t i = v - d->vbase[bv], j = u - d->vbase[bu];
+    float A[3], B[3], e[3];
+    if (bv == bu && V->rest[0]) {
+        load3(A, V->rest, i);
+        load3(B, V->rest, j);
+        sub3(e, A, B);
+        if (sqrtf(dot3(e, e)) < 2.0f * V->thickness) return;
+    }
+    float PA[3], PB[3], d0[3], dd[3];
+    load3(A, V->x, i);
+    load3(B, U->x, j);
+    load3(PA, CONST3(V->p), i);
+    load3(PB, CONST3(U->p), j);
+    sub3(d0, A, B);
+    for (int k = 0; k < 3; ++k) dd[k] = (PA[k] - A[k]) - (PB[k] - B[k]);
+    /* Closest approach of the relative motion d0 + s dd, s in [0, 1]. */
+    float s = 0.0f, dd2 = dot3(dd, dd);
+    if (dd2 > 0.0f) {
+        s = -dot3(d0, dd) / dd2;
+        s = s < 0.0f ? 0.0f : s > 1.0f ? 1.0f : s;
+    }
+    float m[3];
+    for (int k = 0; k < 3; ++k) m[k] = d0[k] + s * dd[k];
+    const float reach = V->thickness + U->thickness + d->margin;
+    if (!(dot3(m, m) < reach * reach)) return;
+    rbc_contact *c = push_contact(d);
+    if (!c) return;
+    c->kind = RBC_CONTACT_VV;
+    c->body_a = bv, c->a = i;
+    c->body_b = bu, c->b = j;
+    c->side = 1.0f;
+    c->w[0] = 1.0f;
+    /* The start direction: x_a - x_b, else their relative motion, else +y. */
+    float l = sqrtf(dot3(d0, d0));
+    if (l > 0.0f) {
+        for (int k = 0; k < 3; ++k) c->n0[k] = d0[k] / l;
+    } else if (dd2 > 0.0f) {
+        l = sqrtf(dd2);
+        for (int k = 0; k < 3; ++k) c->n0[k] = dd[k] / l;
+    } else {
+        c->n0[1] = 1.0f;
+    }
+}
+
+/* Sort contacts [from, to) by partner (body, index), insertion sort (a vertex has
+ * few), and drop copies (an object hashed to one bucket from two cells); returns the
+ * new end. */
+static uint32_t sort_partners(rbc_contact *c, uint32_t from, uint32_t to) {
+    for (uint32_t k = from + 1; k < to; ++k) {
+        rbc_contact t = c[k];
+        uint32_t m = k;
+        while (m > from && (c[m - 1].body_b > t.body_b ||
+                            (c[m - 1].body_b == t.body_b && c[m - 1].b > t.b))) {
+            c[m] = c[m - 1];
+            m--;
+        }
+        c[m] = t;
+    }
+    uint32_t end = from;
+    for (uint32_t k = from; k < to; ++k)
+        if (k == from || c[k].body_b != c[end - 1].body_b || c[k].b != c[end - 1].b) c[end++] = c[k];
+    return end;
+}
+
+int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count,
+                                float margin) {
+    const rbc_allocator *al = &cc->alloc;
+    cc->count = 0;
+    cc->body_count = count;
+    if (!(margin >= 0.0f)) margin = 0.0f;
+    /* Bodies: global numbering, growth, and which take part at all. */
+    if (!buf_reserve(al, &cc->vbase, (size_t)count + 1, sizeof(uint32_t), 0) ||
+        !buf_reserve(al, &cc->tbase, (size_t)count + 1, sizeof(uint32_t), 0) ||
+        !buf_reserve(al, &cc->bgrow, count, sizeof(float), 0) ||
+        !buf_reserve(al, &cc->active, count, 1, 0))
+        goto oom;
+    uint32_t *vbase = cc->vbase.ptr, *tbase = cc->tbase.ptr;
+    float *bgrow = cc->bgrow.ptr;
+    uint8_t *active = cc->active.ptr;
+    uint64_t nv = 0, nt = 0;
+    float thmax = 0.0f;
+    for (uint32_t b = 0; b < count; ++b) {
+        const rbc_contact_body *B = &bodies[b];
+        vbase[b] = (uint32_t)nv;
+        tbase[b] = (uint32_t)nt;
+        nv += B->n;
+        nt += B->tri_count;
+        active[b] = (B->self || B->others) && B->n > 0;
+        bgrow[b] = B->thickness + 0.5f * margin;
+        if (active[b] && B->thickness > thmax) thmax = B->thickness;
+    }
+    if (nv > UINT32_MAX || nt > UINT32_MAX) goto oom;
+    vbase[count] = (uint32_t)nv;
+    tbase[count] = (uint32_t)nt;
+    if (!buf_reserve(al, &cc->vbox, nv, 6 * sizeof(float), 0) ||
+        !buf_reserve(al, &cc->tbox, nt, 6 * sizeof(float), 0) ||
+        !buf_reserve(al, &cc->trec, nt, CC_TREC * sizeof(float), 0) ||
+        !buf_reserve(al, &cc->vbody, nv, sizeof(uint32_t), 0) ||
+        !buf_reserve(al, &cc->tbody, nt, sizeof(uint32_t), 0))
+        goto oom;
+    float *vbox = cc->vbox.ptr, *tbox = cc->tbox.ptr, *trec = cc->trec.ptr;
+    uint32_t *vbody = cc->vbody.ptr, *tbody = cc->tbody.ptr;
+
+    /* Swept boxes, and the mean longest edge at x of the active triangles. */
+    double edge_sum = 0.0;
+    uint64_t edge_count = 0;
+    for (uint32_t b = 0; b < count; ++b) {
+        const rbc_contact_body *B = &bodies[b];
+        for (uint32_t i = 0; i < B->n; ++i) {
+            float *o = vbox + 6 * ((size_t)vbase[b] + i);
+            vbody[vbase[b] + i] = b;
+            for (int k = 0; k < 3; ++k) {
+                float u = B->x[k][i], v = B->p[k][i];
+                o[k] = u < v ? u : v;
+                o[3 + k] = u < v ? v : u;
+            }
+        }
+        for (uint32_t t = 0; t < B->tri_count; ++t) {
+            const uint32_t *tri = B->tris + 3 * (size_t)t;
+            float *o = tbox + 6 * ((size_t)tbase[b] + t);
+            tbody[tbase[b] + t] = b;
+            for (int k = 0; k < 3; ++k) {
+                float lo = B->x[k][tri[0]], hi = lo;
+                for (int c = 0; c < 3; ++c) {
+                    float u = B->x[k][tri[c]], v = B->p[k][tri[c]];
+                    lo = u < lo ? u : lo;
+                    hi = u > hi ? u : hi;
+                    lo = v < lo ? v : lo;
+                    hi = v > hi ? v : hi;
+                }
+                o[k] = lo;
+                o[3 + k] = hi;
+            }
+            if (!active[b]) continue;
+            tri_record(B, tri, trec + CC_TREC * ((size_t)tbase[b] + t));
+            float P[3][3], e[3];
+            for (int c = 0; c < 3; ++c) load3(P[c], B->x, tri[c]);
+            float longest = 0.0f;
+            for (int c = 0; c < 3; ++c) {
+                sub3(e, P[(c + 1) % 3], P[c]);
+                float l = dot3(e, e);
+                longest = l > longest ? l : longest;
+            }
+            longest = sqrtf(longest);
+            if (isfinite(longest)) {
+                edge_sum += longest;
+                edge_count++;
+            }
+        }
+    }
+    cc->tri_grow = thmax + margin;
+    float cell = 2.0f * cc->tri_grow;
+    if (edge_count && edge_sum / (double)edge_count > cell) cell = (float)(edge_sum / (double)edge_count);
+    if (!(cell > 0.0f) || !isfinite(cell)) cell = 1.0f;
+    cc->cell = cell;
+    cc->inv_cell = 1.0f / cell;
+
+    if (!hash_build(cc, &cc->th, (uint32_t)nt, tbox, tbody, NULL, cc->tri_grow, active) ||
+        !hash_build(cc, &cc->vh, (uint32_t)nv, vbox, vbody, bgrow, 0.0f, active))
+        goto oom;
+
+    cc_detect d = {cc, bodies, vbase, tbase, vbody, tbody, vbox, tbox, trec, bgrow, margin, 0};
+    const float inv = cc->inv_cell;
+
+    /* Vertex-triangle: each vertex looks up the triangles around its swept box. */
+    for (uint32_t v = 0; v < (uint32_t)nv && !d.oom; ++v) {
+        if (!active[vbody[v]]) continue;
+        const uint32_t first = cc->count;
+        const float *lo = vbox + 6 * (size_t)v, *hi = lo + 3;
+        cc_vq q;
+        vq_load(&d, v, &q);
+        const float vgrow = q.g;
+        cc_range r;
+        box_range(lo, hi, inv, &r);
+        const uint64_t cells = range_cells(&r);
+        /* A box in one cell meets every object there once (per bucket copy). */
+        const int one_cell = cells == 1;
+        if (cells > CC_BIG_CELLS) {
+            for (uint32_t t = 0; t < (uint32_t)nt; ++t)
+                if (active[tbody[t]] && boxes_overlap(lo, tbox + 6 * (size_t)t, vgrow))
+                    try_vt(&d, &q, t);
+        } else {
+            const cc_hash *h = &cc->th;
+            const uint32_t *start = h->start.ptr, *id = h->id.ptr;
+            int32_t c[3];
+            for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
+                for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
+                    for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
+                        const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
+                        for (uint32_t e = start[bk]; e < start[bk + 1]; ++e) {
+                            const uint32_t t = id[e];
+                            /* The exact box test first: it rejects most, and is
+                             * cheaper than the lower-corner test. */
+                            if (!boxes_overlap(lo, tbox + 6 * (size_t)t, vgrow)) continue;
+                            if (!one_cell) {
+                                float olo[3], ohi[3];
+                                grown_box(tbox, t, cc->tri_grow, olo, ohi);
+                                if (!lower_corner_is(lo, olo, inv, c)) continue;
+                            }
+                            try_vt(&d, &q, t);
+                        }
+                    }
+            const uint32_t *big = h->big.ptr;
+            for (uint32_t m = 0; m < h->big_count; ++m)
+                if (boxes_overlap(lo, tbox + 6 * (size_t)big[m], vgrow)) try_vt(&d, &q, big[m]);
+        }
+        if (!d.oom) cc->count = sort_partners(cc->contacts.ptr, first, cc->count);
+    }
+
+    /* Vertex-vertex: each vertex looks up the vertices after it. */
+    for (uint32_t v = 0; v < (uint32_t)nv && !d.oom; ++v) {
+        if (!active[vbody[v]]) continue;
+        const uint32_t first = cc->count;
+        float lo[3], hi[3];
+        const float vg = bgrow[vbody[v]];
+        const float *vb = vbox + 6 * (size_t)v;
+        grown_box(vbox, v, vg, lo, hi);
+        cc_range r;
+        box_range(lo, hi, inv, &r);
+        const uint64_t cells = range_cells(&r);
+        const int one_cell = cells == 1;
+        if (cells > CC_BIG_CELLS) {
+            for (uint32_t u = v + 1; u < (uint32_t)nv; ++u)
+                if (active[vbody[u]] && boxes_overlap(vb, vbox + 6 * (size_t)u, vg + bgrow[vbody[u]]))
+                    try_vv(&d, v, u);
+        } else {
+            const cc_hash *h = &cc->vh;
+            const uint32_t *start = h->start.ptr, *id = h->id.ptr;
+            int32_t c[3];
+            for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
+                for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
+                    for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
+                        const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
+                        for (uint32_t e = start[bk]; e < start[bk + 1]; ++e) {
+                            const uint32_t u = id[e];
+                            if (u <= v) continue;
+                            const float ug = bgrow[vbody[u]];
+                            if (!boxes_overlap(vb, vbox + 6 * (size_t)u, vg + ug)) continue;
+                            if (!one_cell) {
+                                float olo[3], ohi[3];
+                                grown_box(vbox, u, ug, olo, ohi);
+                                if (!lower_corner_is(lo, olo, inv, c)) continue;
+                            }
+                            try_vv(&d, v, u);
+                        }
+                    }
+            const uint32_t *big = h->big.ptr;
+            for (uint32_t m = 0; m < h->big_count; ++m)
+                if (big[m] > v && boxes_overlap(vb, vbox + 6 * (size_t)big[m], vg + bgrow[vbody[big[m]]]))
+                    try_vv(&d, v, big[m]);
+        }
+        if (!d.oom) cc->count = sort_partners(cc->contacts.ptr, first, cc->count);
+    }
+    if (d.oom) goto oom;
+    return RBC_OK;
+oom:
+    cc->count = 0;
+    return RBC_ERR_OUT_OF_MEMORY;
+}
+
+/* ---- projection and friction ------------------------------------------------ */
+
+static inline float inv_mass(const rbc_contact_body *B, uint32_t i) {
+    if (B->pinned && B->pinned[i]) return 0.0f;
+    if (!B->mass) return 1.0f;
+    return B->mass[i] > 0.0f ? 1.0f / B->mass[i] : 0.0f;
+}
+
+/* Move vertex i of A by +f dir and the triangle point (corners of T by weights w) by
+ * -f dir in total, split by inverse mass: vertex im_a / den, corner k im_k w_k / den. */
+static inline void apply(const rbc_contact_body *A, uint32_t i, float ima,
+                         const rbc_contact_body *T, const uint32_t *tri, const float im[3],
+                         const float w[3], const float dv[3]) {
+    if (ima > 0.0f)
+        for (int k = 0; k < 3; ++k) A->p[k][i] += ima * dv[k];
+    for (int c = 0; c < 3; ++c) {
+        const float f = im[c] * w[c];
+        if (f > 0.0f)
+            for (int k = 0; k < 3; ++k) T->p[k][tri[c]] -= f * dv[k];
+    }
+}
+
+/* What one contact asks for at the current iterate: a relative move of viol along
+ * dir of the vertex against the triangle point (weights w). */
+typedef struct cc_eval {
+    float viol, dir[3], w[3], im[3], ima;
+    const uint32_t *tri;        /* the triangle's corners, or one[] (the other vertex) */
+    uint32_t one[3];
+} cc_eval;
+
+/* 1 and e filled if contact c is violated. */
+static int evaluate(const rbc_contact *c, const rbc_contact_body *bodies, cc_eval *e) {
+    const rbc_contact_body *A = &bodies[c->body_a], *B = &bodies[c->body_b];
+    float q[3];
+    load3(q, CONST3(A->p), c->a);
+    e->w[0] = 1.0f, e->w[1] = 0.0f, e->w[2] = 0.0f;
+    e->im[0] = e->im[1] = e->im[2] = 0.0f;
+    if (c->kind == RBC_CONTACT_VT) {
+        const uint32_t *tri = B->tris + 3 * (size_t)c->b;
+        float P[3][3], e1[3], e2[3], n[3], r[3], cp[3];
+        for (int k = 0; k < 3; ++k) load3(P[k], CONST3(B->p), tri[k]);
+        sub3(e1, P[1], P[0]);
+        sub3(e2, P[2], P[0]);
+        cross3(n, e1, e2);
+        const float nn2 = dot3(n, n), th = A->thickness;
+        if (!(nn2 > 0.0f)) return 0;
+        /* Most contacts are not touching: on their side at >= th from the plane means
+         * >= th from the triangle too, so no closest point and no square root. */
+        sub3(r, q, P[0]);
+        const float hn = c->side * dot3(r, n); /* |n| times the plane distance */
+        if (hn > 0.0f && hn * hn >= th * th * nn2) return 0;
+        const float nn = sqrtf(nn2);
+        for (int k = 0; k < 3; ++k) n[k] *= c->side / nn; /* toward the vertex's side */
+        closest_bary(q, P[0], P[1], P[2], e->w);
+        bary_point(cp, e->w, P[0], P[1], P[2]);
+        sub3(r, q, cp);
+        const float dn = dot3(r, n), r2 = dot3(r, r);
+        if (r2 - dn * dn <= th * th) {
+            /* Over the triangle (its projection on the plane is within th of the
+             * triangle): the plane constraint n . (q - cp) >= th, n on its side. */
+            if (dn >= th) return 0;
+            e->viol = th - dn;
+            for (int k = 0; k < 3; ++k) e->dir[k] = n[k];
+        } else if (dn >= 0.0f) {
+            /* Beside it, on its side: keep th from the closest point. */
+            if (r2 >= th * th) return 0;
+            const float l = sqrtf(r2);
+            e->viol = th - l;
+            for (int k = 0; k < 3; ++k) e->dir[k] = r[k] / l;
+        } else if (c->flags & RBC_CONTACT_CROSSED) {
+            /* Beside it on the other side, after going through it: back to the plane. */
+            e->viol = th - dn;
+            for (int k = 0; k < 3; ++k) e->dir[k] = n[k];
+        } else {
+            return 0; /* beside it on the other side: around the edge, or a neighbour's */
+        }
+        e->tri = tri;
+        for (int k = 0; k < 3; ++k) e->im[k] = inv_mass(B, tri[k]);
+    } else {
+        float o[3], r[3];
+        load3(o, CONST3(B->p), c->b);
+        sub3(r, q, o);
+        const float target = A->thickness + B->thickness;
+        const float r2 = dot3(r, r), along = dot3(r, c->n0);
+        if (along >= 0.0f && r2 > 0.0f) {
+            if (r2 >= target * target) return 0;
+            const float l = sqrtf(r2);
+            e->viol = target - l;
+            for (int k = 0; k < 3; ++k) e->dir[k] = r[k] / l;
+        } else {
+            /* Crossed over, or on top of each other: back along the start direction. */
+            if (along >= target) return 0;
+            e->viol = target - along;
+            for (int k = 0; k < 3; ++k) e->dir[k] = c->n0[k];
+        }
+        e->one[0] = e->one[1] = e->one[2] = c->b;
+        e->tri = e->one;
+        e->im[0] = inv_mass(B, c->b);
+    }
+    e->ima = inv_mass(A, c->a);
+    return 1;
+}
+
+float rbc_clothcontact_project(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count) {
+    if (count != cc->body_count) return 0.0f;
+    rbc_contact *list = cc->contacts.ptr;
+    float worst = 0.0f;
+    for (uint32_t m = 0; m < cc->count; ++m) {
+        rbc_contact *c = &list[m];
+        cc_eval e;
+        if (!evaluate(c, bodies, &e)) continue;
+        if (e.viol > worst) worst = e.viol;
+        const float den = e.ima + e.w[0] * e.w[0] * e.im[0] + e.w[1] * e.w[1] * e.im[1] +
+                          e.w[2] * e.w[2] * e.im[2];
+        if (!(den > 0.0f)) continue; /* everything pinned */
+        /* One Gauss-Seidel update of a linearised inequality (PBD): the
+         * relative move along dir is lam (ima + sum w_k^2 im_k) = viol (Mueller 2007). */
+        const float lam = e.viol / den;
+        const float dv[3] = {lam * e.dir[0], lam * e.dir[1], lam * e.dir[2]};
+        apply(&bodies[c->body_a], c->a, e.ima, &bodies[c->body_b], e.tri, e.im, e.w, dv);
+        for (int k = 0; k < 3; ++k) c->n[k] = e.dir[k], c->w[k] = e.w[k];
+        if (e.viol > c->dn) c->dn = e.viol;
+    }
+    return worst;
+}
+
+float rbc_clothcontact_violation(const rbc_clothcontact *cc, const rbc_contact_body *bodies,
+                                 uint32_t count) {
+    if (count != cc->body_count) return 0.0f;
+    const rbc_contact *list = cc->contacts.ptr;
+    float worst = 0.0f;
+    for (uint32_t m = 0; m < cc->count; ++m) {
+        cc_eval e;
+        if (evaluate(&list[m], bodies, &e) && e.viol > worst) worst = e.viol;
+    }
+    return worst;
+}
+
+void rbc_clothcontact_friction(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count) {
+    if (count != cc->body_count) return;
+    rbc_contact *list = cc->contacts.ptr;
+    for (uint32_t m = 0; m < cc->count; ++m) {
+        const rbc_contact *c = &list[m];
+        if (!(c->dn > 0.0f)) continue;
+        const rbc_contact_body *A = &bodies[c->body_a], *B = &bodies[c->body_b];
+        const float mu = A->friction > B->friction ? A->friction : B->friction;
+        const float limit = mu * c->dn;
+        if (!(limit > 0.0f)) continue;
+        uint32_t tri_one[3] = {c->b, c->b, c->b};
+        const uint32_t *tri = c->kind == RBC_CONTACT_VT ? B->tris + 3 * (size_t)c->b : tri_one;
+        float im[3] = {0.0f, 0.0f, 0.0f};
+        const int corners = c->kind == RBC_CONTACT_VT ? 3 : 1;
+        const float ima = inv_mass(A, c->a);
+        /* Relative displacement over the substep: vertex minus triangle point. */
+        float rel[3];
+        for (int k = 0; k < 3; ++k) {
+            rel[k] = A->p[k][c->a] - A->x[k][c->a];
+            for (int j = 0; j < corners; ++j)
+                rel[k] -= c->w[j] * (B->p[k][tri[j]] - B->x[k][tri[j]]);
+        }
+        for (int j = 0; j < corners; ++j) im[j] = inv_mass(B, tri[j]);
+        const float rn = dot3(rel, c->n);
+        float t[3];
+        for (int k = 0; k < 3; ++k) t[k] = rel[k] - rn * c->n[k];
+        const float tl = sqrtf(dot3(t, t));
+        if (!(tl > 0.0f)) continue;
+        /* Static: remove it all; kinetic: shorten it by mu dn (Macklin 2014). */
+        const float keep = tl < limit ? 0.0f : 1.0f - limit / tl;
+        const float den = ima + c->w[0] * c->w[0] * im[0] + c->w[1] * c->w[1] * im[1] +
+                          c->w[2] * c->w[2] * im[2];
+        if (!(den > 0.0f)) continue;
+        const float f = -(1.0f - keep) / den;
+        float dv[3] = {f * t[0], f * t[1], f * t[2]};
+        apply(A, c->a, ima, B, tri, im, c->w, dv);
+    }
+}

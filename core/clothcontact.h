@@ -1,0 +1,140 @@
+/* clothcontact.h -- cloth-against-cloth and self-collision: vertex-triangle and
+ * vertex-vertex contacts found with a spatial hash, kept apart by a thickness with
+ * an inequality projection, and Coulomb friction.
+ *
+ * Where it sits in a substep (solver.c):
+ *     predict        p = inertial prediction, x = start of the substep
+ *     detect         contacts from the swept boxes x..p (this file)
+ *     solve          after every linear iteration: project (a pass of its own:
+ *                    a contact joins particles that may share a color, so it cannot
+ *                    run inside a parallel color sweep)
+ *     friction       once, after the solve
+ *
+ * A vertex-triangle contact remembers the side of the triangle the vertex was on at
+ * x and is projected back to that side at distance >= thickness (Bridson, Fedkiw and
+ * Anderson 2002, "Robust treatment of collisions, contact and friction for cloth
+ * animation": repulsions spread over the corners by barycentric weights; Mueller et
+ * al. 2007, "Position based dynamics": the mass-weighted projection of a point-
+ * triangle constraint). Friction is position-based (Macklin et al. 2014, "Unified
+ * particle physics for real-time applications": static and kinetic friction as a
+ * limit on the tangential displacement of a contact).
+ *
+ * Everything is single-threaded, and the result depends only on the input: the
+ * contact list is sorted (vertex, then partner, in body order), so it does not depend
+ * on the hash's cell size, table size or buffer capacities. Detection is a loop over
+ * vertices whose output per vertex is sorted on its own, so threads could split the
+ * vertices and concatenate their lists in order with the same result; projection is
+ * Gauss-Seidel over the list and would need a coloring of the contacts to run in
+ * parallel (a different, still deterministic, result).
+ */
+#ifndef RBC_CORE_CLOTHCONTACT_H
+#define RBC_CORE_CLOTHCONTACT_H
+#include <stddef.h>
+#include <stdint.h>
+
+#include "alloc.h"
+
+typedef struct rbc_contact_body { /* one cloth; arrays in the solver's internal order */
+    uint32_t n;
+    float *p[3];                  /* the iterate: projection moves these */
+    const float *x[3];            /* positions at the start of the substep (sides are taken here) */
+    const float *rest[3];         /* rest positions (to exclude pairs that touch at rest);
+                                     NULL: only a triangle's own corners are excluded */
+    const float *mass;            /* [n] kg; NULL = 1 kg each; <= 0 counts as pinned */
+    const uint8_t *pinned;        /* [n] 1 = does not move (infinite mass); NULL = none */
+    uint32_t tri_count;
+    const uint32_t *tris;         /* 3 internal indices per triangle (each quad gives 2) */
+    float thickness;              /* m: distance kept between this cloth's particles and
+                                     cloth surfaces (between two particles: the sum of
+                                     their cloths' thicknesses) */
+    float friction;               /* Coulomb coefficient >= 0 */
+    int self;                     /* 1: collides with itself */
+    int others;                   /* 1: collides with other bodies that have others = 1 */
+} rbc_contact_body;
+
+enum { RBC_CONTACT_VT = 0, RBC_CONTACT_VV = 1 };
+/* rbc_contact.flags: the vertex's motion relative to the triangle crosses the plane
+ * within thickness + margin of the triangle (it would pass through this triangle). */
+enum { RBC_CONTACT_CROSSED = 1 };
+
+/* One contact, as detect made it and project / friction update it. */
+typedef struct rbc_contact {
+    uint32_t kind;                /* RBC_CONTACT_VT or RBC_CONTACT_VV */
+    uint32_t flags;               /* RBC_CONTACT_CROSSED or 0 */
+    uint32_t body_a, a;           /* VT: the vertex; VV: the first vertex (lower global index) */
+    uint32_t body_b, b;           /* VT: the triangle; VV: the second vertex */
+    float side;                   /* VT: +1 / -1, the side of the triangle's normal
+                                     (b - a) x (c - a) the vertex keeps; VV: 1 */
+    float n0[3];                  /* VV: unit direction b -> a at x (used when the pair
+                                     has crossed or coincides); VT: 0 */
+    float n[3];                   /* unit direction of the last correction (moves a) */
+    float w[3];                   /* VT: barycentric weights of the triangle point of
+                                     the last correction; VV: 1, 0, 0 */
+    float dn;                     /* largest normal correction made by one pass since
+                                     detect (m); 0 = the contact was never active */
+} rbc_contact;
+
+typedef struct rbc_clothcontact rbc_clothcontact;
+
+int32_t rbc_clothcontact_create(const rbc_allocator *a, rbc_clothcontact **out);
+void rbc_clothcontact_destroy(rbc_clothcontact *cc);
+
+/* Find the candidate contacts of this substep from x (start) and p (the inertial
+ * prediction, before the solve). With g = thickness of the vertex's cloth + margin:
+ *  - vertex-triangle (a triangle of the same body if self, of another if both have
+ *    others): the swept boxes (x..p of every corner) grown by g overlap, and the
+ *    vertex is within g of the triangle at x, or its motion relative to the triangle
+ *    crosses the triangle's plane where the two are within g (positions interpolated
+ *    linearly to the time the linearised plane distance is 0), or it is within g at
+ *    p. The side is the sign of the plane distance at x (for a vertex exactly on the
+ *    plane, the side its relative motion goes to; +1 if none). Excluded: a vertex of
+ *    the triangle, and a same-body pair within 2 * thickness at rest. Degenerate
+ *    triangles at x (no normal) are skipped.
+ *  - vertex-vertex: of different bodies (both others) or of one body (self) that are
+ *    >= 2 * thickness apart at rest, whose closest approach over the linear motion
+ *    x..p is < thickness_a + thickness_b + margin.
+ * The contacts are sorted by vertex (body, index) and then partner (body, index),
+ * vertex-triangle contacts first. Returns RBC_OK or RBC_ERR_OUT_OF_MEMORY (then the
+ * list is empty and the object still valid). Buffers grow geometrically and are kept,
+ * so a steady scene stops allocating. Cost: O(n + triangles + contacts + hash
+ * entries), single-threaded; a box that spans more than 512 hash cells (a particle
+ * moving far in one substep) is tested by brute force against everything. */
+int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count,
+                                float margin);
+
+/* One Gauss-Seidel pass over the contacts in list order, mass-weighted (pinned =
+ * infinite mass). Vertex-triangle: while the vertex lies over the triangle (its
+ * closest point on the triangle is within thickness of its projection on the plane),
+ * the vertex and the corners move along the normal (corners by the barycentric
+ * weights of the closest point) until the vertex is on its side at plane distance >=
+ * thickness. Beside the triangle, on its side, it is kept >= thickness from the
+ * closest point; beside it on the other side it is put back to the plane if its
+ * motion crossed this triangle (RBC_CONTACT_CROSSED: a fast vertex can end far from
+ * the triangle it went through, and only this contact knows), and left alone if not
+ * (it went around the edge, or it is a neighbouring triangle's business).
+ * Vertex-vertex: apart until >= thickness_a + thickness_b. No pull when separated. bodies and count must be those
+ * given to detect (else nothing happens). Returns the largest violation found before
+ * the pass (m). */
+float rbc_clothcontact_project(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count);
+
+/* The largest violation project would find now, moving nothing (m): for tests and
+ * stats. */
+float rbc_clothcontact_violation(const rbc_clothcontact *cc, const rbc_contact_body *bodies,
+                                 uint32_t count);
+
+/* Coulomb friction after the solve (Macklin et al. 2014): for each
+ * contact that was active (dn > 0), the relative tangential displacement over the
+ * substep (p - x of the vertex minus that of the triangle point, tangent to the last
+ * correction's direction) is removed if it is below mu * dn, else shortened by
+ * mu * dn; mu = max of the two bodies' coefficients. dn is the largest correction of
+ * one pass rather than their sum: the global solve between passes puts back much of
+ * what the previous pass removed, so a sum would count one penetration once per
+ * iteration. */
+void rbc_clothcontact_friction(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count);
+
+uint32_t rbc_clothcontact_count(const rbc_clothcontact *cc);
+/* The contacts of the last detect (valid until the next detect or destroy). */
+const rbc_contact *rbc_clothcontact_list(const rbc_clothcontact *cc);
+/* Bytes held (the object and every buffer at its capacity). */
+size_t rbc_clothcontact_bytes(const rbc_clothcontact *cc);
+#endif
