@@ -54,7 +54,11 @@
  *    memory a world holds (stats.memory_bytes), and mesh import (rbc_mesh_import:
  *    files read with assimp into library-owned meshes, rbc_cloth_create_from_mesh),
  *    MDD and OBJ-sequence caches (RBC_CACHE_MDD, RBC_CACHE_OBJ_SEQUENCE, with
- *    rbc_cache_def.quads).
+ *    rbc_cache_def.quads). 1.3: contact inside the solve (capsule, box and
+ *    triangle mesh colliders, friction, thickness, continuous detection), cloth
+ *    against cloth and self contact (rbc_cloth_def.collision_flags), host contacts
+ *    (rbc_world_set_contact_callback), picking, attachments, tearing and cuts
+ *    (rbc_cloth_cut, rbc_cloth_get_quads), wind, and triangles of imported meshes.
  *  - The ABI version is not the library's release version (rbc_version_string).
  */
 #ifndef RBCLOTH_H
@@ -86,7 +90,7 @@ extern "C" {
 /// Major version of this ABI: incompatible changes bump it.
 #define RBC_ABI_VERSION_MAJOR 1
 /// Minor version of this ABI: appended functions or fields bump it.
-#define RBC_ABI_VERSION_MINOR 2
+#define RBC_ABI_VERSION_MINOR 3
 /// (major << 16) | minor, as returned by rbc_abi_version().
 #define RBC_ABI_VERSION ((RBC_ABI_VERSION_MAJOR << 16) | RBC_ABI_VERSION_MINOR)
 
@@ -167,6 +171,17 @@ enum {
     RBC_SHAPE_PLANE = 1,
     /// A sphere of `radius` around the collider's origin.
     RBC_SHAPE_SPHERE = 2,
+    /// A capsule: the points within `radius` of the segment from (0, -h, 0) to
+    /// (0, h, 0) of the collider's frame, h = half_extents[1]. (1.3)
+    RBC_SHAPE_CAPSULE = 3,
+    /// An oriented box: |x| <= half_extents[0], |y| <= half_extents[1],
+    /// |z| <= half_extents[2] in the collider's frame. (1.3)
+    RBC_SHAPE_BOX = 4,
+    /// A triangle mesh in the collider's frame (mesh_positions, mesh_triangles),
+    /// copied and put in a bounding volume hierarchy. A closed mesh keeps cloth
+    /// outside; an open one keeps cloth on the side it came from (the side of its
+    /// triangles' normals at the first contact). (1.3)
+    RBC_SHAPE_TRIANGLE_MESH = 5,
     RBC_SHAPE_FORCE32 = 0x7FFFFFFF
 };
 
@@ -268,6 +283,40 @@ typedef struct rbc_collision_cloth {
 typedef int32_t (RBC_CALL *rbc_collision_fn)(void *user, rbc_world_id world, float dt,
                                              const rbc_collision_cloth *cloths,
                                              uint32_t cloth_count);
+
+/// A contact the host reports (rbc_contact_fn): keep `vertex` of `cloth` in the
+/// half-space normal . p >= offset (normal unit, world frame, metres), with Coulomb
+/// friction `friction` against a surface moving at `velocity` (m/s). It joins the
+/// solve like a built-in collider's contact: projected after every linear
+/// iteration, so the springs relax around it. (1.3)
+typedef struct rbc_host_contact {
+    rbc_cloth_id cloth;
+    uint32_t vertex;
+    float normal[3];
+    float offset;
+    float friction;
+    float velocity[3];
+} rbc_host_contact;
+
+/// Where the contact callback puts its contacts: call `add` (any number of times,
+/// from the callback's thread, during the callback only). It returns 0, or
+/// RBC_ERR_INVALID_ARGUMENT for a contact with an unknown cloth, a vertex out of
+/// range or a non-finite or non-unit normal (that contact is dropped and the step
+/// fails with RBC_ERR_CALLBACK naming it), or RBC_ERR_OUT_OF_MEMORY. (1.3)
+typedef struct rbc_contact_sink {
+    void *impl;
+    rbc_result (RBC_CALL *add)(struct rbc_contact_sink *sink, const rbc_host_contact *contacts,
+                               uint32_t count);
+} rbc_contact_sink;
+
+/// The host's contact generation, called once per substep on the thread that called
+/// rbc_world_step, after the prediction and before the solve: `positions` hold the
+/// predicted (inertial) positions and `previous_positions` those at the start of the
+/// substep, both read only. Report contacts through `sink`. Return 0 on success;
+/// any other value ends the step with RBC_ERR_CALLBACK and the world as it was. (1.3)
+typedef int32_t (RBC_CALL *rbc_contact_fn)(void *user, rbc_world_id world, float dt,
+                                           const rbc_collision_cloth *cloths,
+                                           uint32_t cloth_count, rbc_contact_sink *sink);
 
 /* ------------------------------------------------------------------------- */
 /* Defs                                                                      */
@@ -425,10 +474,38 @@ typedef struct rbc_cloth_def {
     /// edges that are opposite at a vertex (skip-one springs: (i,j)-(i+2,j) on a
     /// grid); 0 (the default) adds none.
     float bend_stiffness;
+    /* --- 1.3 --- */
+    /// Distance the cloth's particles keep from collider surfaces (added to the
+    /// collider's thickness) and from cloth surfaces (self and cloth-cloth contact),
+    /// metres, >= 0. Default 0.
+    float thickness;
+    /// Coulomb friction coefficient, >= 0: against colliders (the larger of the two
+    /// applies) and against cloth. Default 0.
+    float friction;
+    /// Which cloth contact this cloth takes part in: RBC_CLOTH_COLLIDE_* flags, or 0
+    /// (the default: colliders only; a scene without cloth contact pays nothing for
+    /// it). Cloth contact needs thickness > 0.
+    uint32_t collision_flags;
+    /// Tearing: a spring whose length exceeds (1 + tear_strain) times its rest length
+    /// at the end of a step breaks (it and the quads that have it as an edge are
+    /// removed; rbc_cloth_get_quads reads what remains). 0 (the default) = never;
+    /// else finite and > 0. Explicit cuts (rbc_cloth_cut) work either way.
+    float tear_strain;
 } rbc_cloth_def;
 
 /// sizeof(rbc_cloth_def) in ABI 1.0 (before `shear_stiffness`).
 #define RBC_CLOTH_DEF_SIZE_V1_0 ((uint32_t)offsetof(rbc_cloth_def, shear_stiffness))
+/// sizeof(rbc_cloth_def) in ABI 1.1 and 1.2 (before `thickness`).
+#define RBC_CLOTH_DEF_SIZE_V1_1 ((uint32_t)offsetof(rbc_cloth_def, thickness))
+
+/// rbc_cloth_def.collision_flags. (1.3)
+enum {
+    /// The cloth collides with itself (vertex-triangle and vertex-vertex contact
+    /// between parts that do not touch at rest).
+    RBC_CLOTH_COLLIDE_SELF = 1,
+    /// The cloth collides with the other cloths that have this flag.
+    RBC_CLOTH_COLLIDE_CLOTHS = 2
+};
 
 /// How a collider is made. Fill one with rbc_collider_def_init (or
 /// rbc_collider_def_default).
@@ -445,7 +522,24 @@ typedef struct rbc_collider_def {
     float position[3];
     /// Orientation of the collider's frame, unit quaternion x y z w. Default identity.
     float rotation[4];
+    /* --- 1.3 --- */
+    /// Coulomb friction coefficient against cloth, >= 0 (a contact uses the larger of
+    /// the collider's and the cloth's). Default 0.
+    float friction;
+    /// Box half sizes along the frame's x, y, z (RBC_SHAPE_BOX), metres, each > 0;
+    /// RBC_SHAPE_CAPSULE uses half_extents[1] as the half length of its axis (> 0).
+    /// Default (0.5, 0.5, 0.5).
+    float half_extents[3];
+    /// RBC_SHAPE_TRIANGLE_MESH: vertex positions in the collider's frame (3 floats
+    /// each, metres) and triangles (3 vertex indices each), copied. Default NULL, 0.
+    const float *mesh_positions;
+    uint32_t mesh_vertex_count;
+    const uint32_t *mesh_triangles;
+    uint32_t mesh_triangle_count;
 } rbc_collider_def;
+
+/// sizeof(rbc_collider_def) in ABI 1.0 to 1.2 (before `friction`).
+#define RBC_COLLIDER_DEF_SIZE_V1_0 ((uint32_t)offsetof(rbc_collider_def, friction))
 
 /// How a point cache is written. Fill one with rbc_cache_def_init (or
 /// rbc_cache_def_default).
@@ -563,7 +657,18 @@ typedef struct rbc_world_stats {
     /// reading costs about as much as a step of 11 RBGS iterations. Kept as given.
     uint32_t skip_measures;
     uint32_t reserved1;
+    /* --- 1.3 --- */
+    /// Contacts of the last step's last substep: particles against built-in colliders
+    /// and host contacts (rbc_world_set_contact_callback), and cloth against cloth
+    /// (self contact included).
+    uint32_t collider_contacts;
+    uint32_t cloth_contacts;
+    /// Springs broken so far (tearing and rbc_cloth_cut), over all cloths.
+    uint64_t torn_springs;
 } rbc_world_stats;
+
+/// sizeof(rbc_world_stats) in ABI 1.2 (before `collider_contacts`).
+#define RBC_WORLD_STATS_SIZE_V1_2 ((uint32_t)offsetof(rbc_world_stats, collider_contacts))
 
 /// sizeof(rbc_world_stats) in ABI 1.1 (before `kinetic_energy`).
 #define RBC_WORLD_STATS_SIZE_V1_1 ((uint32_t)offsetof(rbc_world_stats, kinetic_energy))
@@ -706,6 +811,55 @@ RBC_API rbc_result RBC_CALL rbc_cloth_get_state(rbc_world_id world, rbc_cloth_id
 RBC_API rbc_result RBC_CALL rbc_cloth_set_state(rbc_world_id world, rbc_cloth_id cloth,
                                                 const float *positions,
                                                 const float *previous);
+
+/* --- 1.3: contact, interaction, tearing, wind --- */
+/// Install (or with NULL remove) the host contact callback (rbc_contact_fn). Its
+/// contacts join the solve with the built-in colliders'. (1.3)
+RBC_API rbc_result RBC_CALL rbc_world_set_contact_callback(rbc_world_id world,
+                                                           rbc_contact_fn fn, void *user);
+/// The vertex nearest to a ray: over all cloths, the vertex within `radius` metres
+/// of the ray origin + t dir (t in [0, max_distance], dir non-zero, need not be unit)
+/// with the least t (ties: the one nearer the ray). RBC_OK with *out_cloth = 0 when
+/// none is. For picking: grab it with rbc_cloth_set_pin, drag the pin's target,
+/// release with a NULL target. (1.3)
+RBC_API rbc_result RBC_CALL rbc_world_pick(rbc_world_id world, const float origin[3],
+                                           const float dir[3], float max_distance,
+                                           float radius, rbc_cloth_id *out_cloth,
+                                           uint32_t *out_vertex, float *out_t);
+/// Attach a vertex to a collider: it is pinned and follows the collider's frame at
+/// the point `local` (collider frame, metres; NULL = where the vertex is now). The
+/// attachment ends with rbc_cloth_set_pin on that vertex, or when the collider is
+/// destroyed (the vertex is then released). (1.3)
+RBC_API rbc_result RBC_CALL rbc_cloth_attach(rbc_world_id world, rbc_cloth_id cloth,
+                                             uint32_t vertex, rbc_collider_id collider,
+                                             const float local[3]);
+/// Cut springs: for each of `pair_count` vertex pairs (2 indices each) the spring
+/// joining them breaks, with the quads that have both as corners. A pair with no
+/// spring between them (or one already torn) is skipped; an index out of range is
+/// RBC_ERR_INVALID_ARGUMENT and nothing is cut. *out_cut (may be NULL) = springs
+/// cut. The coloring stays valid (removing springs never needs recoloring). (1.3)
+RBC_API rbc_result RBC_CALL rbc_cloth_cut(rbc_world_id world, rbc_cloth_id cloth,
+                                          const uint32_t *pairs, uint32_t pair_count,
+                                          uint32_t *out_cut);
+/// The quads that remain (all of them until something tears), 4 vertex indices
+/// each in the creation order. Pass NULL to learn the count (*out_count, in
+/// uint32_t values); `capacity` counts uint32_t values. (1.3)
+RBC_API rbc_result RBC_CALL rbc_cloth_get_quads(rbc_world_id world, rbc_cloth_id cloth,
+                                                uint32_t *quads, size_t capacity,
+                                                size_t *out_count);
+/// The springs that remain, 2 vertex indices each (creation order); as
+/// rbc_cloth_get_quads. (1.3)
+RBC_API rbc_result RBC_CALL rbc_cloth_get_springs(rbc_world_id world, rbc_cloth_id cloth,
+                                                  uint32_t *pairs, size_t capacity,
+                                                  size_t *out_count);
+/// Wind and aerodynamic drag for every cloth of the world: each quad feels
+/// drag * area * ((w - v) . n) n (n its unit normal, v its mean velocity, w the wind
+/// velocity, m/s) plus lift * area * |(w - v) . n| times the part of w - v along the
+/// quad, in newtons, spread over its corners. drag and lift in kg/m^3 (air: about
+/// 0.6 = 0.5 * 1.2 kg/m^3 for a drag coefficient of 1), finite and >= 0; all zero
+/// (the default) costs nothing. (1.3)
+RBC_API rbc_result RBC_CALL rbc_world_set_wind(rbc_world_id world, const float velocity[3],
+                                               float drag, float lift);
 
 /* --- 1.2: mesh import --- */
 
@@ -893,6 +1047,11 @@ RBC_API rbc_result RBC_CALL rbc_mesh_get_pins(rbc_mesh_id mesh, uint32_t *pins,
 RBC_API rbc_result RBC_CALL rbc_cloth_create_from_mesh(rbc_world_id world, rbc_mesh_id mesh,
                                                        const rbc_cloth_def *settings,
                                                        rbc_cloth_id *out_cloth);
+/// The faces of an imported mesh as triangles (quads split along the diagonal 0-2,
+/// triangles as they were), 3 vertex indices each: for triangle mesh colliders
+/// (rbc_collider_def.mesh_triangles). As rbc_mesh_get_quads. (1.3)
+RBC_API rbc_result RBC_CALL rbc_mesh_get_triangles(rbc_mesh_id mesh, uint32_t *triangles,
+                                                   size_t capacity, size_t *out_count);
 
 /* ------------------------------------------------------------------------- */
 /* Function table                                                            */
@@ -974,12 +1133,35 @@ typedef struct rbc_api_v1 {
     rbc_result (RBC_CALL *cloth_create_from_mesh)(rbc_world_id world, rbc_mesh_id mesh,
                                                   const rbc_cloth_def *settings,
                                                   rbc_cloth_id *out_cloth);
+    /* --- 1.3 --- */
+    rbc_result (RBC_CALL *world_set_contact_callback)(rbc_world_id world, rbc_contact_fn fn,
+                                                      void *user);
+    rbc_result (RBC_CALL *world_pick)(rbc_world_id world, const float origin[3],
+                                      const float dir[3], float max_distance, float radius,
+                                      rbc_cloth_id *out_cloth, uint32_t *out_vertex,
+                                      float *out_t);
+    rbc_result (RBC_CALL *cloth_attach)(rbc_world_id world, rbc_cloth_id cloth, uint32_t vertex,
+                                        rbc_collider_id collider, const float local[3]);
+    rbc_result (RBC_CALL *cloth_cut)(rbc_world_id world, rbc_cloth_id cloth,
+                                     const uint32_t *pairs, uint32_t pair_count,
+                                     uint32_t *out_cut);
+    rbc_result (RBC_CALL *cloth_get_quads)(rbc_world_id world, rbc_cloth_id cloth,
+                                           uint32_t *quads, size_t capacity, size_t *out_count);
+    rbc_result (RBC_CALL *cloth_get_springs)(rbc_world_id world, rbc_cloth_id cloth,
+                                             uint32_t *pairs, size_t capacity,
+                                             size_t *out_count);
+    rbc_result (RBC_CALL *world_set_wind)(rbc_world_id world, const float velocity[3],
+                                          float drag, float lift);
+    rbc_result (RBC_CALL *mesh_get_triangles)(rbc_mesh_id mesh, uint32_t *triangles,
+                                              size_t capacity, size_t *out_count);
 } rbc_api_v1;
 
 /// sizeof(rbc_api_v1) in ABI 1.0 (a host built against 1.0 checks struct_size >= it).
 #define RBC_API_V1_SIZE_V1_0 ((uint32_t)offsetof(rbc_api_v1, solver_def_init))
 /// sizeof(rbc_api_v1) in ABI 1.1 (before the 1.2 mesh import entries).
 #define RBC_API_V1_SIZE_V1_1 ((uint32_t)offsetof(rbc_api_v1, mesh_import_def_init))
+/// sizeof(rbc_api_v1) in ABI 1.2 (before the 1.3 entries).
+#define RBC_API_V1_SIZE_V1_2 ((uint32_t)offsetof(rbc_api_v1, world_set_contact_callback))
 
 /// The function table of ABI major `abi_major`, or NULL if this library does not
 /// implement that major. The table is static: never free it.

@@ -30,13 +30,14 @@
 #include <string.h>
 #include <time.h>
 
+#include "clothcontact.h"
 #include "direct.h"
 #include "energy.h"
 #include "ell.h"
 #include "grid.h"
+#include "interact.h"
 #include "simd.h"
 #include "global.h"
-#include "kernels/collide_kernels.h"
 #include "kernels/pd_kernels.h"
 
 static double now_ms(void) {
@@ -73,7 +74,12 @@ void rbc_solver_fini(rbc_solver *s) {
     for (uint32_t k = 0; k < s->cloth_count; ++k) rbc_cloth_state_destroy(s, s->cloths[k]);
     rbc_mem_free(&s->alloc, s->cloths, sizeof(*s->cloths) * s->cloth_cap);
     rbc_mem_free(&s->alloc, s->cb_list, sizeof(*s->cb_list) * s->cloth_cap);
+    for (uint32_t k = 0; k < s->collider_count; ++k) rbc_trimesh_destroy(s->colliders[k].mesh, &s->alloc);
     rbc_mem_free(&s->alloc, s->colliders, sizeof(*s->colliders) * s->collider_cap);
+    for (uint32_t k = 0; k < 64; ++k) rbc_contact_list_free(&s->contacts[k], &s->alloc);
+    rbc_contact_list_free(&s->host_contacts, &s->alloc);
+    rbc_clothcontact_destroy(s->cc);
+    rbc_mem_free(&s->alloc, s->cc_bodies, sizeof(*s->cc_bodies) * s->cc_bodies_cap);
     rbc_pool_destroy(s->pool);
     memset(s, 0, sizeof *s);
 }
@@ -167,6 +173,11 @@ void rbc_cloth_state_destroy(rbc_solver *s, rbc_cloth_state *c) {
     rbc_ell_free(c->ell, &s->alloc);
     rbc_mem_free(&s->alloc, c->pin_springs, sizeof(uint32_t) * c->pin_spring_cap);
     free_cb_buffers(s, c);
+    rbc_mem_free(&s->alloc, c->quads, sizeof(uint32_t) * 4 * (size_t)c->quad_count);
+    rbc_mem_free(&s->alloc, c->tris, sizeof(uint32_t) * 3 * (size_t)c->tri_cap);
+    rbc_mem_free(&s->alloc, c->att_vertex, sizeof(uint32_t) * c->att_cap);
+    rbc_mem_free(&s->alloc, c->att_collider, sizeof(uint32_t) * c->att_cap);
+    rbc_mem_free(&s->alloc, c->att_local, sizeof(float) * 3 * c->att_cap);
     rbc_topology_free(&c->topo, &s->alloc);
     rbc_mem_free(&s->alloc, c, sizeof *c);
 }
@@ -219,8 +230,19 @@ int32_t rbc_cloth_state_create(rbc_solver *s, const rbc_mesh_input *in, float da
     STATE_ARRAYS(ALLOC_ONE)
 #undef ALLOC_ONE
     if (ok && in->pin_count) ok = grow_pins(s, c, in->pin_count);
-    if (ok && s->callback) ok = alloc_cb_buffers(s, c);
+    if (ok && (s->callback || s->contact_fn)) ok = alloc_cb_buffers(s, c);
     if (ok) ok = alloc_solver_buffers(s, c, s->settings.kind);
+    if (ok && in->quad_count) {
+        /* The quads in internal indices: cloth contact's triangles and what remains
+         * after tearing are made from them. */
+        c->quads = rbc_mem_alloc(&s->alloc, rbc_mul_size((size_t)in->quad_count * 4, sizeof(uint32_t)));
+        ok = c->quads != NULL;
+        if (ok) {
+            c->quad_count = c->quad_count0 = in->quad_count;
+            for (size_t k = 0; k < 4 * (size_t)in->quad_count; ++k)
+                c->quads[k] = c->topo.to_internal[in->quads[k]];
+        }
+    }
     if (!ok) {
         rbc_cloth_state_destroy(s, c);
         return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for %zu particles", n);
@@ -262,6 +284,35 @@ int32_t rbc_cloth_state_create(rbc_solver *s, const rbc_mesh_input *in, float da
     c->e_valid = 0;
     c->e_keep_slack = 0;
     *out = c;
+    return RBC_OK;
+}
+
+int32_t rbc_cloth_state_set_contact(rbc_solver *s, rbc_cloth_state *c, float thickness,
+                                    float friction, uint32_t flags) {
+    if (flags && !s->cc) {
+        int32_t rc = rbc_clothcontact_create(&s->alloc, &s->cc);
+        if (rc != RBC_OK) return rc;
+    }
+    if (flags && !c->tris && c->quad_count) {
+        size_t count = 2 * (size_t)c->quad_count;
+        uint32_t *t = rbc_mem_alloc(&s->alloc, rbc_mul_size(count * 3, sizeof(uint32_t)));
+        if (!t) return RBC_ERR_OUT_OF_MEMORY;
+        for (size_t q = 0; q < c->quad_count; ++q) {
+            const uint32_t *v = &c->quads[4 * q];
+            uint32_t *a = &t[6 * q];
+            a[0] = v[0], a[1] = v[1], a[2] = v[2];
+            a[3] = v[0], a[4] = v[2], a[5] = v[3];
+        }
+        c->tris = t;
+        c->tri_count = c->tri_cap = (uint32_t)count;
+    } else if (!flags && c->tris) {
+        rbc_mem_free(&s->alloc, c->tris, sizeof(uint32_t) * 3 * (size_t)c->tri_cap);
+        c->tris = NULL;
+        c->tri_count = c->tri_cap = 0;
+    }
+    c->thickness = thickness;
+    c->friction = friction;
+    c->collision_flags = flags;
     return RBC_OK;
 }
 
@@ -351,6 +402,7 @@ void rbc_cloth_state_error(const rbc_cloth_state *c, double *eq7, double *max_st
         uint32_t a = t->sa[k], b = t->sb[k];
         double ex = (double)c->x[0][a] - c->x[0][b], ey = (double)c->x[1][a] - c->x[1][b],
                ez = (double)c->x[2][a] - c->x[2][b];
+        if (c->torn && t->stiff[k] == 0.0f) continue; /* broken */
         double len = sqrt(ex * ex + ey * ey + ez * ez), L = t->rest_len[k];
         e += (len - L) * (len - L);
         if (L > 0.0) {
@@ -390,6 +442,13 @@ int32_t rbc_solver_add_collider(rbc_solver *s, const rbc_collider_state *c) {
     s->colliders[s->collider_count] = *c;
     rbc_collider_state *added = &s->colliders[s->collider_count];
     memcpy(added->last_position, added->position, sizeof added->position);
+    memcpy(added->last_rotation, added->rotation, sizeof added->rotation);
+    memset(&added->geom, 0, sizeof added->geom);
+    added->geom.kind = added->shape;
+    added->geom.radius = added->radius;
+    memcpy(added->geom.half_extents, added->half_extents, sizeof added->half_extents);
+    added->geom.mesh = added->mesh;
+    rbc_shape_bounds(&added->geom, added->lo, added->hi);
     memset(added->velocity, 0, sizeof added->velocity);
     rbc_collider_update_frame(added);
     s->collider_count++;
@@ -397,23 +456,41 @@ int32_t rbc_solver_add_collider(rbc_solver *s, const rbc_collider_state *c) {
 }
 
 void rbc_solver_remove_collider(rbc_solver *s, uint32_t index) {
+    rbc_trimesh_destroy(s->colliders[index].mesh, &s->alloc);
     memmove(&s->colliders[index], &s->colliders[index + 1],
             sizeof(*s->colliders) * (s->collider_count - index - 1));
     s->collider_count--;
 }
 
-int32_t rbc_solver_set_callback(rbc_solver *s, rbc_collision_fn fn, void *user) {
-    if (fn && !s->callback) {
+/* Host-order buffers exist while either host callback is installed. */
+static int32_t cb_buffers_for(rbc_solver *s, int had, int want) {
+    if (want && !had) {
         for (uint32_t k = 0; k < s->cloth_count; ++k) {
             if (alloc_cb_buffers(s, s->cloths[k])) continue;
             for (uint32_t j = 0; j < k; ++j) free_cb_buffers(s, s->cloths[j]);
             return RBC_ERR_OUT_OF_MEMORY;
         }
-    } else if (!fn && s->callback) {
+    } else if (!want && had) {
         for (uint32_t k = 0; k < s->cloth_count; ++k) free_cb_buffers(s, s->cloths[k]);
     }
+    return RBC_OK;
+}
+
+int32_t rbc_solver_set_callback(rbc_solver *s, rbc_collision_fn fn, void *user) {
+    int had = s->callback || s->contact_fn;
+    int32_t rc = cb_buffers_for(s, had, fn || s->contact_fn);
+    if (rc != RBC_OK) return rc;
     s->callback = fn;
     s->callback_user = user;
+    return RBC_OK;
+}
+
+int32_t rbc_solver_set_contact_callback(rbc_solver *s, rbc_contact_fn fn, void *user) {
+    int had = s->callback || s->contact_fn;
+    int32_t rc = cb_buffers_for(s, had, fn || s->callback);
+    if (rc != RBC_OK) return rc;
+    s->contact_fn = fn;
+    s->contact_user = user;
     return RBC_OK;
 }
 
@@ -469,6 +546,8 @@ size_t rbc_cloth_state_bytes(const rbc_cloth_state *c) {
     if (c->direct) b += rbc_direct_bytes(c->direct);
     if (c->grid) b += c->grid->bytes;
     if (c->ell) b += c->ell->bytes;
+    b += (size_t)c->quad_count0 * 4 * sizeof(uint32_t) + (size_t)c->tri_cap * 3 * sizeof(uint32_t);
+    b += (size_t)c->att_cap * 5 * sizeof(uint32_t);
     return b;
 }
 
@@ -568,6 +647,10 @@ typedef struct step_ctx {
         char pad[48];
     } part[64];
     int clamp;            /* the energy guard scales velocities at this commit */
+    int any_contacts;     /* some collider contact exists in this substep */
+    int host_contacts;    /* the host reported contacts for this substep */
+    int cc_active;        /* some cloth takes part in cloth contact */
+    int grow;             /* a contact list must grow: detect again */
     /* Steps each thread finished in the lattice wavefront (grid.h), a cache line
      * apart. */
     volatile uint32_t progress[64 * 16];
@@ -656,46 +739,6 @@ static void phase_local(step_ctx *ctx, uint32_t tid, uint32_t nt) {
     }
 }
 
-/* Built-in colliders project the free particles out. Work is split by energy blocks
- * (not rbc_split) so that each block's collider work, sum m (dp . u) / h (the
- * impulse m dp / h times the collider's velocity u: what a moving collider gives; a
- * static one gives nothing), is summed in a fixed order. */
-static void phase_collide(step_ctx *ctx, uint32_t tid, uint32_t nt) {
-    rbc_solver *s = ctx->s;
-    const float inv_h = 1.0f / ctx->h;
-    for (uint32_t k = 0; k < s->cloth_count; ++k) {
-        rbc_cloth_state *c = s->cloths[k];
-        const uint32_t n = c->topo.n;
-        uint32_t b0, b1;
-        rbc_energy_block_range(rbc_energy_blocks_of(n), tid, nt, &b0, &b1);
-        for (uint32_t blk = b0; blk < b1; ++blk) {
-            uint32_t i0 = blk * RBC_ENERGY_BLOCK, i1 = i0 + RBC_ENERGY_BLOCK;
-            if (i1 > n) i1 = n;
-            double work = 0.0;
-            for (uint32_t ci = 0; ci < s->collider_count; ++ci) {
-                const rbc_collider_state *col = &s->colliders[ci];
-                const float *u = col->velocity;
-                int moving = u[0] != 0.0f || u[1] != 0.0f || u[2] != 0.0f;
-                for (uint32_t i = i0; i < i1; ++i) {
-                    if (c->pinned[i]) continue;
-                    float ox = c->p[0][i], oy = c->p[1][i], oz = c->p[2][i];
-                    if (col->shape == RBC_SHAPE_PLANE)
-                        rbc_k_collide_plane(&c->p[0][i], &c->p[1][i], &c->p[2][i], col->position,
-                                            col->normal, col->thickness);
-                    else
-                        rbc_k_collide_sphere(&c->p[0][i], &c->p[1][i], &c->p[2][i],
-                                             col->position, col->radius + col->thickness);
-                    if (moving)
-                        work += (double)c->topo.mass[i] * inv_h *
-                                ((double)(c->p[0][i] - ox) * u[0] + (double)(c->p[1][i] - oy) * u[1] +
-                                 (double)(c->p[2][i] - oz) * u[2]);
-                }
-            }
-            c->e_blk[(size_t)RBC_EPB * blk + RBC_E_WC] = work;
-        }
-    }
-}
-
 /* Thread 0, all others waiting at a barrier: hand host-order positions to the host's
  * collision code and take its corrections back (pins win). */
 static void run_callback(step_ctx *ctx, uint32_t sub) {
@@ -776,6 +819,7 @@ static void phase_check(step_ctx *ctx, int energy, uint32_t tid, uint32_t nt) {
             float ex = px[i] - px[j], ey = py[i] - py[j], ez = pz[i] - pz[j];
             float lim = RBC_BLOWUP_STRETCH * t->rest_len[sp];
             if (lim < floor_len) lim = floor_len;
+            if (c->torn && t->stiff[sp] == 0.0f) continue; /* broken: no bound */
             /* NaN compares false here; the particle check below names it. */
             if (ex * ex + ey * ey + ez * ez > lim * lim) {
                 ctx->bad[tid][0] = k;
@@ -885,6 +929,31 @@ static void linear_iteration(step_ctx *ctx, uint32_t k, uint32_t tid, uint32_t n
     }
 }
 
+/* Contacts join the solve: after a whole linear iteration (its barrier passed), each
+ * thread projects the collider contacts of its own particles (unary constraints: no
+ * race), then thread 0 runs one pass of cloth contact (constraints between particles
+ * that may share a color, so not inside the parallel color sweeps: FIELD-NOTES), and
+ * the next iteration relaxes the springs around them. alt: the latest iterate is the
+ * Jacobi destination buffer. */
+static void contact_pass(step_ctx *ctx, int alt, uint32_t tid) {
+    rbc_solver *s = ctx->s;
+    if (!ctx->any_contacts && !ctx->host_contacts && !ctx->cc_active) return;
+    if (ctx->any_contacts) rbc_collide_project(s, &s->contacts[tid], alt);
+    if (ctx->host_contacts || ctx->cc_active) {
+        rbc_pool_barrier(s->pool);
+        if (tid == 0 && ctx->host_contacts) rbc_collide_project(s, &s->host_contacts, alt);
+    }
+    if (ctx->cc_active) {
+        if (tid == 0) {
+            for (uint32_t k = 0; k < s->cloth_count; ++k)
+                for (int a = 0; a < 3; ++a)
+                    s->cc_bodies[k].p[a] = alt ? s->cloths[k]->alt[a] : s->cloths[k]->p[a];
+            rbc_clothcontact_project(s->cc, s->cc_bodies, s->cloth_count);
+        }
+    }
+    rbc_pool_barrier(s->pool);
+}
+
 /* The global step of one non-linear iteration: iterate until the mode says stop. */
 static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uint32_t tid,
                         uint32_t nt) {
@@ -912,7 +981,7 @@ static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uin
      * temporally blocked wavefront does the same updates with the same inputs (the
      * result is bitwise that of the loop below) but streams the mesh once instead of
      * once per iteration, in a pipeline of the threads. */
-    int wave = st->mode == RBC_ITERATE_FIXED &&
+    int wave = !ctx->any_contacts && !ctx->host_contacts && !ctx->cc_active && st->mode == RBC_ITERATE_FIXED &&
                (st->kind == RBC_SOLVER_RBGS || st->kind == RBC_SOLVER_RBGS_SOR ||
                 st->kind == RBC_SOLVER_MULTICOLOR_GS);
     for (uint32_t q = 0; wave && q < s->cloth_count; ++q) wave = s->cloths[q]->grid != NULL;
@@ -934,6 +1003,10 @@ static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uin
     for (;;) {
         double t0 = tid == 0 ? now_ms() : 0.0;
         linear_iteration(ctx, k, tid, nt);
+        contact_pass(ctx, st->kind == RBC_SOLVER_JACOBI || st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV
+                              ? !(k & 1)
+                              : 0,
+                     tid);
         k++;
         if (st->mode == RBC_ITERATE_FIXED) {
             if (k >= limit) break;
@@ -970,7 +1043,17 @@ static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uin
         rbc_pool_barrier(pool);
         if (ctx->stop) break;
     }
-    if (tid == 0) ctx->linear_done += k;
+    if (tid == 0) {
+        ctx->linear_done += k;
+        /* The last iteration's relaxation factor, for the contacts' force estimate. */
+        for (uint32_t q = 0; q < s->cloth_count; ++q) {
+            float f = 1.0f;
+            if (st->kind == RBC_SOLVER_RBGS_SOR) f = ctx->sor_omega[q < 64 ? q : 63];
+            if (chebyshev)
+                f = rbc_chebyshev_omega(k - 1, st->chebyshev_delay, ctx->cheb_rho[q < 64 ? q : 63]);
+            s->cloths[q]->relax_last = f;
+        }
+    }
     if ((st->kind == RBC_SOLVER_JACOBI || st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV) && (k & 1)) {
         /* The last iteration wrote alt: make it p. */
         if (tid == 0)
@@ -1111,6 +1194,177 @@ static void energy_apply(step_ctx *ctx, uint32_t tid, uint32_t nt) {
     }
 }
 
+/* The host's contact sink (rbc_contact_sink.add): check each contact, append it to
+ * the host list with its particle's internal index and cloth position. */
+typedef struct sink_impl {
+    step_ctx *ctx;
+    uint32_t sub;
+} sink_impl;
+
+static rbc_result RBC_CALL sink_add(rbc_contact_sink *sink, const rbc_host_contact *hc,
+                                    uint32_t count) {
+    sink_impl *im = sink->impl;
+    step_ctx *ctx = im->ctx;
+    rbc_solver *s = ctx->s;
+    rbc_contact_list *l = &s->host_contacts;
+    if (count && !hc) return RBC_ERR_INVALID_ARGUMENT;
+    for (uint32_t m = 0; m < count; ++m) {
+        const rbc_host_contact *h = &hc[m];
+        uint32_t k = 0;
+        while (k < s->cloth_count && s->cloths[k]->public_id != h->cloth) ++k;
+        float nn = h->normal[0] * h->normal[0] + h->normal[1] * h->normal[1] +
+                   h->normal[2] * h->normal[2];
+        const char *what = k == s->cloth_count                    ? "names no cloth of the world"
+                           : h->vertex >= s->cloths[k]->topo.n    ? "has a vertex out of range"
+                           : !(fabsf(nn - 1.0f) <= 1e-3f)         ? "has a normal that is not unit"
+                           : !(isfinite(h->offset) && isfinite(h->velocity[0]) &&
+                               isfinite(h->velocity[1]) && isfinite(h->velocity[2]))
+                               ? "has a non-finite offset or velocity"
+                           : !(isfinite(h->friction) && h->friction >= 0.0f)
+                               ? "has a friction that is not finite and >= 0"
+                               : NULL;
+        if (what) {
+            if (ctx->result == RBC_OK)
+                ctx->result = rbc_fail(ctx->err, ctx->errlen, RBC_ERR_CALLBACK,
+                                       "the contact callback's contact %u (cloth 0x%08x, vertex "
+                                       "%u) %s, at substep %u",
+                                       m, h->cloth, h->vertex, what, im->sub);
+            return RBC_ERR_INVALID_ARGUMENT;
+        }
+        rbc_cloth_state *c = s->cloths[k];
+        uint32_t i = c->topo.to_internal[h->vertex];
+        if (c->pinned[i]) continue; /* pins win */
+        if (l->count == l->cap) {
+            l->need = l->cap + 1;
+            if (rbc_contact_list_reserve(l, &s->alloc) != 0) {
+                if (ctx->result == RBC_OK)
+                    ctx->result = rbc_fail(ctx->err, ctx->errlen, RBC_ERR_OUT_OF_MEMORY,
+                                           "out of memory for %u host contacts", l->cap + 1);
+                return RBC_ERR_OUT_OF_MEMORY;
+            }
+        }
+        rbc_col_contact *ct = &l->c[l->count++];
+        memset(ct, 0, sizeof *ct);
+        ct->cloth = k;
+        ct->idx = i;
+        float inv = 1.0f / sqrtf(nn);
+        for (int a = 0; a < 3; ++a) {
+            ct->n[a] = h->normal[a] * inv;
+            ct->u[a] = h->velocity[a];
+        }
+        ct->d = h->offset;
+        float pen = ct->d - (ct->n[0] * c->p[0][i] + ct->n[1] * c->p[1][i] + ct->n[2] * c->p[2][i]);
+        ct->depth = pen > 0.0f ? pen : 0.0f;
+        ct->mu = h->friction;
+        ct->collider = UINT32_MAX;
+    }
+    return RBC_OK;
+}
+
+/* Thread 0: hand the prediction to the host's contact code (host order) and collect
+ * its contacts. */
+static void run_contact_callback(step_ctx *ctx, uint32_t sub) {
+    rbc_solver *s = ctx->s;
+    for (uint32_t k = 0; k < s->cloth_count; ++k) {
+        rbc_cloth_state *c = s->cloths[k];
+        const uint32_t *to_int = c->topo.to_internal;
+        for (uint32_t v = 0; v < c->topo.n; ++v) {
+            uint32_t i = to_int[v];
+            for (int a = 0; a < 3; ++a) {
+                c->cb_pos[3 * (size_t)v + a] = c->p[a][i];
+                c->cb_prev[3 * (size_t)v + a] = c->x[a][i];
+            }
+        }
+        s->cb_list[k].cloth = c->public_id;
+        s->cb_list[k].vertex_count = c->topo.n;
+        s->cb_list[k].positions = c->cb_pos;
+        s->cb_list[k].previous_positions = c->cb_prev;
+    }
+    s->host_contacts.count = 0;
+    sink_impl im = {ctx, sub};
+    rbc_contact_sink sink = {&im, sink_add};
+    int32_t r = s->contact_fn(s->contact_user, s->public_world_id, ctx->h, s->cb_list,
+                              s->cloth_count, &sink);
+    if (r != 0 && ctx->result == RBC_OK)
+        ctx->result = rbc_fail(ctx->err, ctx->errlen, RBC_ERR_CALLBACK,
+                               "the contact callback returned %d at substep %u", (int)r, sub);
+    ctx->host_contacts = s->host_contacts.count > 0;
+    s->last_host_contacts = s->host_contacts.count;
+}
+
+/* Find this substep's contacts from x and the prediction p (collide.h,
+ * clothcontact.h). Lists that overflow grow (thread 0, between barriers; a steady
+ * scene stops allocating) and detection runs again. */
+static void detect_contacts(step_ctx *ctx, uint32_t sub, uint32_t tid, uint32_t nt) {
+    rbc_solver *s = ctx->s;
+    rbc_pool *pool = s->pool;
+    float f0 = (float)sub / (float)ctx->substeps, f1 = (float)(sub + 1) / (float)ctx->substeps;
+    if (s->collider_count) {
+        for (;;) {
+            rbc_collide_detect(s, &s->contacts[tid], f0, f1, ctx->h, tid, nt);
+            rbc_pool_barrier(pool);
+            if (tid == 0) {
+                ctx->grow = 0;
+                ctx->any_contacts = 0;
+                uint32_t total = 0;
+                for (uint32_t th = 0; th < nt; ++th) {
+                    rbc_contact_list *l = &s->contacts[th];
+                    total += l->need;
+                    if (l->need <= l->cap) continue;
+                    ctx->grow = 1;
+                    if (rbc_contact_list_reserve(l, &s->alloc) != 0) {
+                        ctx->result = rbc_fail(ctx->err, ctx->errlen, RBC_ERR_OUT_OF_MEMORY,
+                                               "out of memory for %u collider contacts at "
+                                               "substep %u", l->need, sub);
+                        break;
+                    }
+                }
+                ctx->any_contacts = total > 0;
+                s->last_contacts = total;
+            }
+            rbc_pool_barrier(pool);
+            if (ctx->result != RBC_OK || !ctx->grow) break;
+        }
+    }
+    if (s->contact_fn && ctx->result == RBC_OK) {
+        if (tid == 0) run_contact_callback(ctx, sub);
+        rbc_pool_barrier(pool);
+    }
+    if (ctx->cc_active && ctx->result == RBC_OK && tid == 0) {
+        for (uint32_t k = 0; k < s->cloth_count; ++k) {
+            rbc_cloth_state *c = s->cloths[k];
+            rbc_contact_body *b = &s->cc_bodies[k];
+            memset(b, 0, sizeof *b);
+            b->n = c->topo.n;
+            for (int a = 0; a < 3; ++a) {
+                b->p[a] = c->p[a];
+                b->x[a] = c->x[a];
+            }
+            b->rest[0] = c->topo.rest_x;
+            b->rest[1] = c->topo.rest_y;
+            b->rest[2] = c->topo.rest_z;
+            b->mass = c->topo.mass;
+            b->pinned = c->pinned;
+            b->tri_count = c->collision_flags ? c->tri_count : 0;
+            b->tris = c->tris;
+            b->thickness = c->thickness;
+            b->friction = c->friction;
+            b->self = (c->collision_flags & RBC_CLOTH_COLLIDE_SELF) != 0;
+            b->others = (c->collision_flags & RBC_CLOTH_COLLIDE_CLOTHS) != 0;
+        }
+        /* As for colliders: the solve moves particles by up to about half a spring. */
+        float margin = 0.0f;
+        for (uint32_t k = 0; k < s->cloth_count; ++k)
+            if (s->cloths[k]->collision_flags && 0.5f * s->cloths[k]->mean_rest > margin)
+                margin = 0.5f * s->cloths[k]->mean_rest;
+        if (rbc_clothcontact_detect(s->cc, s->cc_bodies, s->cloth_count, margin) != RBC_OK)
+            ctx->result = rbc_fail(ctx->err, ctx->errlen, RBC_ERR_OUT_OF_MEMORY,
+                                   "out of memory for cloth contacts at substep %u", sub);
+        s->last_cloth_contacts = rbc_clothcontact_count(s->cc);
+    }
+    if (ctx->cc_active) rbc_pool_barrier(pool);
+}
+
 static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
     step_ctx *ctx = arg;
     rbc_solver *s = ctx->s;
@@ -1144,6 +1398,27 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
                 rbc_cloth_state *c = s->cloths[k];
                 if (c->pin_spring_count) c->e_step_budget += rbc_energy_pin_work(c, c->x, c->p);
             }
+        if (s->wind_drag != 0.0f || s->wind_lift != 0.0f) {
+            /* Wind on the quads (shared corners: one thread). */
+            STAGE_BEGIN();
+            if (tid == 0) rbc_wind_apply(s, ctx->h);
+            STAGE_END(integrate);
+        }
+        if (s->collider_count || ctx->cc_active || s->contact_fn) {
+            STAGE_BEGIN();
+            detect_contacts(ctx, sub, tid, nt);
+            if (ctx->result == RBC_OK)
+                /* Start the solve from the prediction moved onto the contacts, so the
+                 * first local step takes the springs' directions from a state that
+                 * respects them. (From y itself, a contact that lifts part of the
+                 * cloth during the solve would carry the rest along rigidly: the global
+                 * step keeps each spring's direction from the local step, so a particle
+                 * whose neighbours the contact lifts is lifted with them.) The inertial
+                 * target y stays as predicted. */
+                contact_pass(ctx, 0, tid);
+            STAGE_END(collide);
+            if (ctx->result != RBC_OK) return;
+        }
 
         for (uint32_t nl = 0; nl < nl_count; ++nl) {
             STAGE_BEGIN();
@@ -1166,6 +1441,7 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
                                      (const float *const *)c->y, c->dx, c->dy, c->dz, c->p);
                 }
                 rbc_pool_barrier(pool);
+                contact_pass(ctx, 0, tid);
                 if (tid == 0) ctx->linear_done += 1;
             } else {
                 global_step(ctx, sub * nl_count + nl, ctx->substeps * nl_count, tid, nt);
@@ -1174,16 +1450,34 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
         }
 
         if (s->collider_count) {
+            /* Friction, and the work the colliders did (impulse . their velocity; a
+             * static one supplies nothing). */
             STAGE_BEGIN();
-            /* The impulse of the projection times the collider's velocity is the work a
-             * moving collider does (energy.h); a static one supplies nothing. The
-             * spring energy a projection stores is not counted (the guard cannot tell it
-             * from the solve's own): collisions inside the solve will remove it. */
-            phase_collide(ctx, tid, nt);
+            rbc_collide_finish(s, &s->contacts[tid], ctx->h, tid, nt, NULL);
+            rbc_collide_post(s, (float)sub / (float)ctx->substeps,
+                             (float)(sub + 1) / (float)ctx->substeps, ctx->h, tid, nt);
             rbc_pool_barrier(pool);
             if (guard && tid == 0)
                 for (uint32_t k = 0; k < s->cloth_count; ++k)
                     s->cloths[k]->e_step_budget += rbc_energy_sum_work(s->cloths[k]);
+            STAGE_END(collide);
+        }
+        if (ctx->host_contacts) {
+            /* Host contacts: friction, and their work on the cloth they touch. */
+            if (tid == 0) {
+                rbc_contact_list *l = &s->host_contacts;
+                for (uint32_t m = 0; m < l->count; ++m) {
+                    rbc_contact_list one = {&l->c[m], 1, 1, 1};
+                    double w = 0.0;
+                    rbc_collide_finish(s, &one, ctx->h, 0, 1, &w);
+                    if (guard) s->cloths[l->c[m].cloth]->e_step_budget += w;
+                }
+            }
+            rbc_pool_barrier(pool);
+        }
+        if (ctx->cc_active) {
+            STAGE_BEGIN();
+            if (tid == 0) rbc_clothcontact_friction(s->cc, s->cc_bodies, s->cloth_count);
             STAGE_END(collide);
         }
         if (s->callback) {
@@ -1267,6 +1561,7 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     const rbc_solver_settings *st = &s->settings;
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
+        c->relax_last = 1.0f;
         prepare_weights(c, ctx.h);
         if (c->topo.ncolors > ctx.ncolors) ctx.ncolors = c->topo.ncolors;
         uint32_t ki = k < 64 ? k : 63;
@@ -1294,6 +1589,19 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
         rbc_collider_state *col = &s->colliders[k];
         for (int a = 0; a < 3; ++a) col->velocity[a] = (col->position[a] - col->last_position[a]) / dt;
     }
+    /* Cloth contact runs only while some cloth asks for it. */
+    for (uint32_t k = 0; k < s->cloth_count; ++k)
+        if (s->cloths[k]->collision_flags && s->cloths[k]->thickness > 0.0f) ctx.cc_active = 1;
+    if (ctx.cc_active && s->cc_bodies_cap < s->cloth_count) {
+        rbc_contact_body *b = rbc_mem_alloc(&s->alloc, sizeof(*b) * s->cloth_cap);
+        if (!b)
+            return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for cloth contact");
+        rbc_mem_free(&s->alloc, s->cc_bodies, sizeof(*s->cc_bodies) * s->cc_bodies_cap);
+        s->cc_bodies = b;
+        s->cc_bodies_cap = s->cloth_cap;
+    }
+    s->last_contacts = s->last_cloth_contacts = 0;
+    rbc_attachments_update(s);
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
         for (uint32_t m = 0; m < c->pin_count; ++m)
@@ -1311,8 +1619,10 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
         return ctx.result;
     }
     for (uint32_t k = 0; k < s->cloth_count; ++k) s->cloths[k]->system_valid = 1;
-    for (uint32_t k = 0; k < s->collider_count; ++k)
+    for (uint32_t k = 0; k < s->collider_count; ++k) {
         memcpy(s->colliders[k].last_position, s->colliders[k].position, 3 * sizeof(float));
+        memcpy(s->colliders[k].last_rotation, s->colliders[k].rotation, 4 * sizeof(float));
+    }
     s->energy_removed_last = 0.0;
     s->energy_clamped_last = 0;
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
@@ -1330,6 +1640,8 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
         if (c->e_scale != 1.0f) s->energy_clamped_last = 1;
     }
     if (s->energy_clamped_last) s->energy_clamped_steps++;
+    /* Tearing: springs stretched past their limit at the end of the step break. */
+    for (uint32_t k = 0; k < s->cloth_count; ++k) rbc_tear_scan(s, s->cloths[k]);
     ctx.t.step = now_ms() - start;
     s->last = ctx.t;
     s->last_substeps = ctx.substeps;

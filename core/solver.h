@@ -11,7 +11,9 @@
 
 #include "../abi/rbcloth.h"
 #include "alloc.h"
+#include "collide.h"
 #include "cpu/pool.h"
+#include "shapes.h"
 #include "topology.h"
 
 struct rbc_direct;
@@ -90,19 +92,47 @@ typedef struct rbc_cloth_state {
     double e_step_budget, e_end, e_removed, e_kept;
     float e_scale;              /* velocity scale of the clamp (1 = none) */
 
+    /* Contact (1.3): distance kept from surfaces, Coulomb coefficient, and the
+     * rbc_cloth_def collision flags (cloth contact). */
+    float thickness, friction;
+    uint32_t collision_flags;
+    /* The quads (internal indices, 4 each) and, while the cloth takes part in cloth
+     * contact, their triangles (3 each, two per quad). */
+    uint32_t quad_count;
+    uint32_t *quads;
+    uint32_t tri_count, tri_cap;
+    uint32_t *tris;
+    /* Tearing (interact.h): strain at which springs break (0 = never), springs
+     * broken so far (their stiffness is 0), and quads as created (before tears). */
+    float tear_strain;
+    /* The relaxation factor of the last linear iteration (SOR's omega, Chebyshev's
+     * omega_k, else 1): an accelerated sweep overshoots into a contact by that factor,
+     * which the contact's force estimate (collide.c) divides out. */
+    float relax_last;
+    uint32_t torn;
+    uint32_t quad_count0;
+    /* Attachments: host vertex, collider public id, point in the collider frame. */
+    uint32_t att_count, att_cap;
+    uint32_t *att_vertex, *att_collider;
+    float *att_local;
+
     size_t state_bytes;
 } rbc_cloth_state;
 
 typedef struct rbc_collider_state {
     uint32_t public_id;
     rbc_shape shape;
-    float radius, thickness;
+    float radius, thickness, friction;
+    float half_extents[3];
     float position[3], rotation[4];
     float normal[3];            /* plane normal: rotation applied to +y */
-    /* Where it was at the end of the last step; its velocity over the current step
-     * ((position - last_position) / dt) sets the work it does (energy guard). */
-    float last_position[3];
+    /* Where it was at the end of the last step: contacts are found over the motion
+     * from there to the current pose (collide.h). */
+    float last_position[3], last_rotation[4];
     float velocity[3];
+    rbc_shape_geom geom;        /* shapes.h; geom.mesh is `mesh` */
+    struct rbc_trimesh *mesh;   /* owned, RBC_SHAPE_TRIANGLE_MESH */
+    float lo[3], hi[3];         /* local bounds of the solid */
 } rbc_collider_state;
 
 typedef struct rbc_step_times {
@@ -126,6 +156,22 @@ typedef struct rbc_solver {
     uint32_t public_world_id;
     rbc_collision_cloth *cb_list; /* [cloth_cap] */
 
+    /* Collider contacts of the current substep, one list per thread (collide.h). */
+    rbc_contact_list contacts[64];
+    /* Cloth contact (clothcontact.h), while some cloth has collision flags. */
+    struct rbc_clothcontact *cc;
+    struct rbc_contact_body *cc_bodies; /* [cloth_cap] */
+    uint32_t cc_bodies_cap;
+    uint32_t last_contacts, last_cloth_contacts; /* found in the last substep */
+    /* Host contacts (rbc_contact_fn) of the current substep, projected by thread 0. */
+    rbc_contact_fn contact_fn;
+    void *contact_user;
+    rbc_contact_list host_contacts;
+    uint32_t last_host_contacts;
+    /* Wind (interact.h): velocity, drag and lift; off while both are 0. */
+    float wind[3], wind_drag, wind_lift;
+    uint64_t torn_springs;      /* over all cloths, ever (stats) */
+
     rbc_step_times last;        /* of the last successful step */
     uint32_t last_substeps, last_nonlinear, last_linear; /* done by it (totals) */
     uint64_t step_count;
@@ -145,6 +191,10 @@ void rbc_solver_fini(rbc_solver *s);
 int32_t rbc_cloth_state_create(rbc_solver *s, const rbc_mesh_input *in, float damping,
                                rbc_cloth_state **out, char *err, size_t errlen);
 void rbc_cloth_state_destroy(rbc_solver *s, rbc_cloth_state *c);
+/* Contact settings of a cloth (rbc_cloth_def 1.3): builds its triangles and the
+ * world's cloth-contact context when flags need them. On failure nothing changes. */
+int32_t rbc_cloth_state_set_contact(rbc_solver *s, rbc_cloth_state *c, float thickness,
+                                    float friction, uint32_t flags);
 /* Add to / remove from the dense list. Add may fail with RBC_ERR_OUT_OF_MEMORY. */
 int32_t rbc_solver_add_cloth(rbc_solver *s, rbc_cloth_state *c);
 void rbc_solver_remove_cloth(rbc_solver *s, rbc_cloth_state *c);
@@ -195,6 +245,8 @@ void rbc_cloth_state_energy_invalidate(rbc_cloth_state *c, int keep_slack);
 
 /* Install or remove the host collision callback (allocates host-order buffers). */
 int32_t rbc_solver_set_callback(rbc_solver *s, rbc_collision_fn fn, void *user);
+/* The same for the host contact callback (rbc_contact_fn, 1.3). */
+int32_t rbc_solver_set_contact_callback(rbc_solver *s, rbc_contact_fn fn, void *user);
 
 /* Advance by dt (> 0, validated by the caller). On error (RBC_ERR_UNSTABLE,
  * RBC_ERR_CALLBACK) every cloth is as it was before the call and err says which

@@ -59,6 +59,14 @@ static const rbc_api_v1 g_api_v1 = {
     rbc_mesh_get_springs,
     rbc_mesh_get_pins,
     rbc_cloth_create_from_mesh,
+    rbc_world_set_contact_callback,
+    rbc_world_pick,
+    rbc_cloth_attach,
+    rbc_cloth_cut,
+    rbc_cloth_get_quads,
+    rbc_cloth_get_springs,
+    rbc_world_set_wind,
+    rbc_mesh_get_triangles,
 };
 
 RBC_API const void *RBC_CALL rbc_get_api(uint32_t abi_major) {

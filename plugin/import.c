@@ -56,6 +56,8 @@ typedef struct rbc_mesh {
     uint32_t *quads;   /* [4nq] */
     uint32_t *springs; /* [2ns] */
     uint32_t *pins;    /* [np] ascending */
+    uint32_t nlt;      /* triangles left unpaired */
+    uint32_t *ltris;   /* [3nlt] (rbc_mesh_get_triangles) */
     rbc_mesh_info info;
 } rbc_mesh;
 
@@ -919,12 +921,15 @@ static rbc_result finish(build *b, rbc_mesh *out) {
     /* Springs: leftover triangles' edges that are no quad's edge, once each. */
     uint64_t *qe = malloc((4 * nq + 1) * sizeof *qe);
     uint64_t *se = malloc((3 * nt + 1) * sizeof *se);
-    if (!qe || !se) {
+    uint32_t *lt = malloc((3 * nt + 1) * sizeof *lt); /* leftover triangles */
+    if (!qe || !se || !lt) {
         free(paired);
         free(qe);
         free(se);
+        free(lt);
         return oom(b);
     }
+    size_t nlt = 0;
     for (size_t q = 0; q < nq; ++q)
         for (int k = 0; k < 4; ++k)
             qe[4 * q + k] = edge_key(b->quads.v[4 * q + k], b->quads.v[4 * q + (k + 1) % 4]);
@@ -933,6 +938,7 @@ static rbc_result finish(build *b, rbc_mesh *out) {
     for (size_t t = 0; t < nt; ++t) {
         if (paired[t]) continue;
         b->info.leftover_triangles++;
+        memcpy(&lt[3 * nlt++], &b->tris.v[3 * t], 3 * sizeof(uint32_t));
         for (int k = 0; k < 3; ++k) {
             uint64_t key = edge_key(b->tris.v[3 * t + k], b->tris.v[3 * t + (k + 1) % 3]);
             if (!bsearch(&key, qe, 4 * nq, sizeof *qe, cmp_u64)) se[nse++] = key;
@@ -946,6 +952,7 @@ static rbc_result finish(build *b, rbc_mesh *out) {
         if (ns == 0 || se[ns - 1] != se[k]) se[ns++] = se[k];
     if (nq == 0 && ns == 0) {
         free(se);
+        free(lt);
         return import_error(b, RBC_ERR_BAD_MESH,
                             "no face to simulate: %u faces in %u meshes, %u points or lines, %u "
                             "degenerate",
@@ -956,6 +963,7 @@ static rbc_result finish(build *b, rbc_mesh *out) {
     uint32_t *remap = malloc(((size_t)b->nw + 1) * sizeof *remap);
     if (!remap) {
         free(se);
+        free(lt);
         return oom(b);
     }
     memset(remap, 0xFF, (size_t)b->nw * sizeof *remap);
@@ -975,6 +983,8 @@ static rbc_result finish(build *b, rbc_mesh *out) {
     out->quads = malloc((4 * nq + 1) * sizeof(uint32_t));
     out->springs = malloc((2 * ns + 1) * sizeof(uint32_t));
     out->pins = malloc(((size_t)n + 1) * sizeof(uint32_t));
+    out->ltris = lt;
+    out->nlt = (uint32_t)nlt;
     uint8_t *red = malloc((size_t)n + 1);
     if (!out->pos || !out->quads || !out->springs || !out->pins || !red) {
         free(se);
@@ -982,6 +992,7 @@ static rbc_result finish(build *b, rbc_mesh *out) {
         free(red);
         return oom(b);
     }
+    for (size_t k = 0; k < 3 * nlt; ++k) lt[k] = remap[lt[k]];
     for (uint32_t v = 0; v < b->nw; ++v) {
         if (remap[v] == UINT32_MAX) continue;
         memcpy(out->pos + 3 * (size_t)remap[v], b->w_pos + 3 * (size_t)v, 3 * sizeof(float));
@@ -1072,6 +1083,7 @@ static void mesh_free(rbc_mesh *m) {
     free(m->pos);
     free(m->quads);
     free(m->springs);
+    free(m->ltris);
     free(m->pins);
     free(m);
 }
@@ -1337,6 +1349,27 @@ RBC_API rbc_result RBC_CALL rbc_mesh_get_quads(rbc_mesh_id id, uint32_t *quads, 
                     capacity, out_count);
 }
 
+RBC_API rbc_result RBC_CALL rbc_mesh_get_triangles(rbc_mesh_id id, uint32_t *tris,
+                                                   size_t capacity, size_t *out_count) {
+    static const char fn[] = "rbc_mesh_get_triangles";
+    rbc_mesh *m = lookup_mesh(id, fn);
+    if (!m) return RBC_ERR_STALE_HANDLE;
+    size_t need = 6 * (size_t)m->nq + 3 * (size_t)m->nlt;
+    uint32_t *all = malloc((need + 1) * sizeof *all);
+    if (!all) return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: mesh 0x%08x: out of memory", fn, id);
+    for (size_t q = 0; q < m->nq; ++q) {
+        const uint32_t *v = &m->quads[4 * q];
+        uint32_t *t = &all[6 * q];
+        t[0] = v[0], t[1] = v[1], t[2] = v[2];
+        t[3] = v[0], t[4] = v[2], t[5] = v[3];
+    }
+    memcpy(&all[6 * (size_t)m->nq], m->ltris, 3 * (size_t)m->nlt * sizeof(uint32_t));
+    rbc_result rc = copy_out(id, fn, "triangle index", all, need, sizeof(uint32_t), tris,
+                             capacity, out_count);
+    free(all);
+    return rc;
+}
+
 RBC_API rbc_result RBC_CALL rbc_mesh_get_springs(rbc_mesh_id id, uint32_t *springs,
                                                  size_t capacity, size_t *out_count) {
     static const char fn[] = "rbc_mesh_get_springs";
@@ -1366,11 +1399,13 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create_from_mesh(rbc_world_id world, rbc_m
     if (settings) {
         uint32_t size;
         memcpy(&size, settings, sizeof size);
-        if (size != sizeof def && size != RBC_CLOTH_DEF_SIZE_V1_0)
+        if (size != sizeof def && size != RBC_CLOTH_DEF_SIZE_V1_0 &&
+            size != RBC_CLOTH_DEF_SIZE_V1_1)
             return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                                  "%s: settings->struct_size is %u, which matches no released "
-                                 "version (this library knows %zu and the 1.0 size %u)",
-                                 fn, size, sizeof def, RBC_CLOTH_DEF_SIZE_V1_0);
+                                 "version (this library knows %zu and the older sizes %u, %u)",
+                                 fn, size, sizeof def, RBC_CLOTH_DEF_SIZE_V1_0,
+                                 RBC_CLOTH_DEF_SIZE_V1_1);
         memcpy(&def, settings, size);
         def.struct_size = sizeof def;
     }

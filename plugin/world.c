@@ -10,6 +10,7 @@
 
 #include "errors.h"
 #include "handles.h"
+#include "interact.h"
 #include "registry.h"
 #include "rbcloth.h"
 #include "solver.h"
@@ -61,19 +62,25 @@ static int finite3(const float *v) { return isfinite(v[0]) && isfinite(v[1]) && 
 /* Copy a def of a released size into a defaults-filled struct: the current size, or
  * the ABI 1.0 size `old_size` (0 if the struct had no other release), whose missing
  * fields keep their defaults. */
-static rbc_result read_def(void *dst, size_t dst_size, size_t old_size, const void *src,
-                           const char *fn, const char *what) {
+static rbc_result read_def2(void *dst, size_t dst_size, size_t old_size, size_t old_size2,
+                            const void *src, const char *fn, const char *what) {
     if (!src) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: %s is NULL", fn, what);
     uint32_t size;
     memcpy(&size, src, sizeof size);
-    if (size != dst_size && (old_size == 0 || size != old_size))
+    if (size != dst_size && (old_size == 0 || size != old_size) &&
+        (old_size2 == 0 || size != old_size2))
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                              "%s: %s->struct_size is %u, which matches no released version "
-                             "(this library knows %zu and the older size %zu); set it to "
-                             "sizeof(%s)",
-                             fn, what, size, dst_size, old_size, what);
+                             "(this library knows %zu and the older sizes %zu, %zu); set it "
+                             "to sizeof(%s)",
+                             fn, what, size, dst_size, old_size, old_size2, what);
     memcpy(dst, src, size);
     return RBC_OK;
+}
+
+static rbc_result read_def(void *dst, size_t dst_size, size_t old_size, const void *src,
+                           const char *fn, const char *what) {
+    return read_def2(dst, dst_size, old_size, 0, src, fn, what);
 }
 
 static rbc_result lookup_world(rbc_world_id id, const char *fn, rbc_world **out) {
@@ -115,6 +122,7 @@ static rbc_collider_def collider_def_defaults(void) {
     d.shape = RBC_SHAPE_PLANE;
     d.radius = 0.5f;
     d.rotation[3] = 1.0f;
+    d.half_extents[0] = d.half_extents[1] = d.half_extents[2] = 0.5f;
     return d;
 }
 
@@ -142,6 +150,10 @@ RBC_API rbc_result RBC_CALL rbc_world_def_init(rbc_world_def *def, uint32_t stru
 
 RBC_API rbc_result RBC_CALL rbc_cloth_def_init(rbc_cloth_def *def, uint32_t struct_size) {
     rbc_cloth_def d = cloth_def_defaults();
+    /* Three released sizes: 1.0, 1.1-1.2 and this one. */
+    if (struct_size == RBC_CLOTH_DEF_SIZE_V1_1)
+        return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_CLOTH_DEF_SIZE_V1_1,
+                                   "rbc_cloth_def_init", "rbc_cloth_def");
     return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_CLOTH_DEF_SIZE_V1_0,
                                "rbc_cloth_def_init",
                                "rbc_cloth_def");
@@ -149,8 +161,8 @@ RBC_API rbc_result RBC_CALL rbc_cloth_def_init(rbc_cloth_def *def, uint32_t stru
 
 RBC_API rbc_result RBC_CALL rbc_collider_def_init(rbc_collider_def *def, uint32_t struct_size) {
     rbc_collider_def d = collider_def_defaults();
-    return rbc_def_init_common(def, struct_size, &d, sizeof d, 0, "rbc_collider_def_init",
-                               "rbc_collider_def");
+    return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_COLLIDER_DEF_SIZE_V1_0,
+                               "rbc_collider_def_init", "rbc_collider_def");
 }
 
 static rbc_solver_def solver_def_defaults(void) {
@@ -405,16 +417,20 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
     if (rc) return rc;
     if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: stats is NULL", fn);
     if (out->struct_size != sizeof(rbc_world_stats) &&
+        out->struct_size != RBC_WORLD_STATS_SIZE_V1_2 &&
         out->struct_size != RBC_WORLD_STATS_SIZE_V1_1 &&
         out->struct_size != RBC_WORLD_STATS_SIZE_V1_0)
         return world_error(w, RBC_ERR_INVALID_ARGUMENT,
                            "%s: stats->struct_size is %u, which matches no released version "
-                           "(this library knows %zu, the 1.1 size %u and the 1.0 size %u)",
+                           "(this library knows %zu, the 1.2 size %u, the 1.1 size %u and the "
+                           "1.0 size %u)",
                            fn, out->struct_size, sizeof(rbc_world_stats),
-                           RBC_WORLD_STATS_SIZE_V1_1, RBC_WORLD_STATS_SIZE_V1_0);
+                           RBC_WORLD_STATS_SIZE_V1_2, RBC_WORLD_STATS_SIZE_V1_1,
+                           RBC_WORLD_STATS_SIZE_V1_0);
     rbc_solver *s = &w->solver;
     double res_num = 0.0, res_den = 0.0;
-    const int full = out->struct_size == sizeof(rbc_world_stats);
+    /* 1.2 and later hold the energy fields and skip_measures. */
+    const int full = out->struct_size >= RBC_WORLD_STATS_SIZE_V1_2;
     /* What costs a pass over the cloths is evaluated only if asked for. */
     const int measure = !(full && out->skip_measures);
     rbc_world_stats st;
@@ -478,6 +494,9 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
     st.other_ms = s->last.other;
     st.energy_removed = s->energy_removed_last;
     st.energy_clamped_steps = s->energy_clamped_steps;
+    st.collider_contacts = s->last_contacts + s->last_host_contacts;
+    st.cloth_contacts = s->last_cloth_contacts;
+    st.torn_springs = s->torn_springs;
     memcpy(out, &st, out->struct_size); /* only what the host's struct holds */
     return RBC_OK;
 }
@@ -506,7 +525,8 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create(rbc_world_id wid, const rbc_cloth_d
     if (!out_cloth) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: out_cloth is NULL", fn);
     *out_cloth = 0;
     rbc_cloth_def def = cloth_def_defaults();
-    if ((rc = read_def(&def, sizeof def, RBC_CLOTH_DEF_SIZE_V1_0, user_def, fn, "rbc_cloth_def"))) {
+    if ((rc = read_def2(&def, sizeof def, RBC_CLOTH_DEF_SIZE_V1_0, RBC_CLOTH_DEF_SIZE_V1_1, user_def, fn,
+                        "rbc_cloth_def"))) {
         world_log(w, RBC_LOG_ERROR, rbc_last_error());
         return rc;
     }
@@ -520,6 +540,25 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create(rbc_world_id wid, const rbc_cloth_d
         return world_error(w, RBC_ERR_INVALID_ARGUMENT,
                            "%s: cloth def: damping is %g 1/s; it must be finite and >= 0", fn,
                            (double)def.damping);
+    if (!(isfinite(def.thickness) && def.thickness >= 0.0f) ||
+        !(isfinite(def.friction) && def.friction >= 0.0f))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: cloth def: thickness %g m and friction %g must be finite and >= 0",
+                           fn, (double)def.thickness, (double)def.friction);
+    if (def.collision_flags & ~(uint32_t)(RBC_CLOTH_COLLIDE_SELF | RBC_CLOTH_COLLIDE_CLOTHS))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: cloth def: collision_flags 0x%x has bits that are not "
+                           "RBC_CLOTH_COLLIDE_* flags",
+                           fn, def.collision_flags);
+    if (!(isfinite(def.tear_strain) && def.tear_strain >= 0.0f))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: cloth def: tear_strain is %g; it must be finite and >= 0 (0 = no "
+                           "tearing)",
+                           fn, (double)def.tear_strain);
+    if (def.collision_flags && !(def.thickness > 0.0f))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: cloth def: collision_flags 0x%x need a thickness > 0 (it is %g m)",
+                           fn, def.collision_flags, (double)def.thickness);
     rbc_mesh_input in;
     memset(&in, 0, sizeof in);
     in.vertex_count = def.vertex_count;
@@ -540,6 +579,12 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create(rbc_world_id wid, const rbc_cloth_d
     rbc_cloth_state *c;
     rc = rbc_cloth_state_create(&w->solver, &in, def.damping, &c, msg, sizeof msg);
     if (rc) return world_error(w, rc, "%s: cloth def: %s", fn, msg);
+    if ((rc = rbc_cloth_state_set_contact(&w->solver, c, def.thickness, def.friction,
+                                          def.collision_flags))) {
+        rbc_cloth_state_destroy(&w->solver, c);
+        return world_error(w, rc, "%s: out of memory for cloth contact", fn);
+    }
+    c->tear_strain = def.tear_strain;
     if (rbc_reg_add(&g_cloths, c, w->id, &c->public_id) != RBC_OK) {
         rbc_cloth_state_destroy(&w->solver, c);
         return world_error(w, RBC_ERR_CAPACITY, "%s: %u cloths exist already", fn, RBC_MAX_SLOTS);
@@ -639,6 +684,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_set_pin(rbc_world_id wid, rbc_cloth_id cid
                            cid, vertex, (double)target[0], (double)target[1], (double)target[2]);
     rc = rbc_cloth_state_set_pin(&w->solver, c, vertex, target);
     if (rc) return world_error(w, rc, "%s: out of memory", fn);
+    rbc_detach_vertex(c, vertex); /* a pin of the host's own: no longer attached */
     return RBC_OK;
 }
 
@@ -674,17 +720,32 @@ RBC_API rbc_result RBC_CALL rbc_collider_create(rbc_world_id wid, const rbc_coll
     if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: out_collider is NULL", fn);
     *out = 0;
     rbc_collider_def def = collider_def_defaults();
-    if ((rc = read_def(&def, sizeof def, 0, user_def, fn, "rbc_collider_def"))) {
+    if ((rc = read_def(&def, sizeof def, RBC_COLLIDER_DEF_SIZE_V1_0, user_def, fn, "rbc_collider_def"))) {
         world_log(w, RBC_LOG_ERROR, rbc_last_error());
         return rc;
     }
-    if (def.shape != RBC_SHAPE_PLANE && def.shape != RBC_SHAPE_SPHERE)
+    if (def.shape < RBC_SHAPE_PLANE || def.shape > RBC_SHAPE_TRIANGLE_MESH)
         return world_error(w, RBC_ERR_INVALID_ARGUMENT,
                            "%s: collider def: shape %d is not an rbc_shape", fn, (int)def.shape);
-    if (def.shape == RBC_SHAPE_SPHERE && !(isfinite(def.radius) && def.radius > 0.0f))
+    if ((def.shape == RBC_SHAPE_SPHERE || def.shape == RBC_SHAPE_CAPSULE) &&
+        !(isfinite(def.radius) && def.radius > 0.0f))
         return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: collider def: sphere radius is %g m; it must be finite and > 0",
-                           fn, (double)def.radius);
+                           "%s: collider def: %s radius is %g m; it must be finite and > 0", fn,
+                           def.shape == RBC_SHAPE_SPHERE ? "sphere" : "capsule",
+                           (double)def.radius);
+    if (def.shape == RBC_SHAPE_BOX || def.shape == RBC_SHAPE_CAPSULE)
+        for (int a = def.shape == RBC_SHAPE_CAPSULE ? 1 : 0;
+             a < (def.shape == RBC_SHAPE_CAPSULE ? 2 : 3); ++a)
+            if (!(isfinite(def.half_extents[a]) && def.half_extents[a] > 0.0f))
+                return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                                   "%s: collider def: %s half_extents[%d] is %g m; it must be "
+                                   "finite and > 0",
+                                   fn, def.shape == RBC_SHAPE_BOX ? "box" : "capsule", a,
+                                   (double)def.half_extents[a]);
+    if (!(isfinite(def.friction) && def.friction >= 0.0f))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: collider def: friction is %g; it must be finite and >= 0", fn,
+                           (double)def.friction);
     if (!(isfinite(def.thickness) && def.thickness >= 0.0f))
         return world_error(w, RBC_ERR_INVALID_ARGUMENT,
                            "%s: collider def: thickness is %g m; it must be finite and >= 0", fn,
@@ -695,14 +756,26 @@ RBC_API rbc_result RBC_CALL rbc_collider_create(rbc_world_id wid, const rbc_coll
     cs.shape = def.shape;
     cs.radius = def.radius;
     cs.thickness = def.thickness;
+    cs.friction = def.friction;
+    memcpy(cs.half_extents, def.half_extents, sizeof cs.half_extents);
+    if (def.shape == RBC_SHAPE_TRIANGLE_MESH) {
+        char msg[RBC_ERROR_CAP - 64];
+        rc = rbc_trimesh_create(def.mesh_positions, def.mesh_vertex_count, def.mesh_triangles,
+                                def.mesh_triangle_count, &w->solver.alloc, &cs.mesh, msg,
+                                sizeof msg);
+        if (rc) return world_error(w, rc, "%s: collider def: triangle mesh: %s", fn, msg);
+    }
     memcpy(cs.position, def.position, sizeof cs.position);
     memcpy(cs.rotation, def.rotation, sizeof cs.rotation);
     /* The registry holds a marker; the collider itself lives in the solver's dense
      * array, found by its id. */
-    if (rbc_reg_add(&g_colliders, (void *)(uintptr_t)1, w->id, &cs.public_id) != RBC_OK)
+    if (rbc_reg_add(&g_colliders, (void *)(uintptr_t)1, w->id, &cs.public_id) != RBC_OK) {
+        rbc_trimesh_destroy(cs.mesh, &w->solver.alloc);
         return world_error(w, RBC_ERR_CAPACITY, "%s: %u colliders exist already", fn,
                            RBC_MAX_SLOTS);
+    }
     if ((rc = rbc_solver_add_collider(&w->solver, &cs))) {
+        rbc_trimesh_destroy(cs.mesh, &w->solver.alloc);
         rbc_reg_remove(&g_colliders, cs.public_id);
         return world_error(w, rc, "%s: out of memory", fn);
     }
@@ -749,6 +822,8 @@ RBC_API rbc_result RBC_CALL rbc_collider_destroy(rbc_world_id wid, rbc_collider_
     uint32_t k = 0;
     rbc_result rc = lookup_collider(wid, cid, "rbc_collider_destroy", &w, &k);
     if (rc) return rc;
+    if ((rc = rbc_attachments_drop_collider(&w->solver, cid)))
+        return world_error(w, rc, "rbc_collider_destroy: out of memory releasing attached vertices");
     rbc_solver_remove_collider(&w->solver, k);
     rbc_reg_remove(&g_colliders, cid);
     return RBC_OK;
@@ -857,5 +932,146 @@ RBC_API rbc_result RBC_CALL rbc_cloth_set_state(rbc_world_id wid, rbc_cloth_id c
                                fn, cid, v);
     }
     rbc_cloth_state_set(c, positions, previous);
+    return RBC_OK;
+}
+
+/* ------------------------------------------------------------------------- */
+/* ABI 1.3: host contacts, picking, attachments, tearing, wind                */
+/* ------------------------------------------------------------------------- */
+
+RBC_API rbc_result RBC_CALL rbc_world_set_contact_callback(rbc_world_id id, rbc_contact_fn fn_,
+                                                           void *user) {
+    static const char fn[] = "rbc_world_set_contact_callback";
+    rbc_world *w;
+    rbc_result rc = lookup_world(id, fn, &w);
+    if (rc) return rc;
+    rc = rbc_solver_set_contact_callback(&w->solver, fn_, user);
+    if (rc) return world_error(w, rc, "%s: out of memory for the callback's buffers", fn);
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_world_pick(rbc_world_id id, const float origin[3],
+                                           const float dir[3], float max_distance, float radius,
+                                           rbc_cloth_id *out_cloth, uint32_t *out_vertex,
+                                           float *out_t) {
+    static const char fn[] = "rbc_world_pick";
+    rbc_world *w;
+    rbc_result rc = lookup_world(id, fn, &w);
+    if (rc) return rc;
+    if (!origin || !dir || !out_cloth)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: origin, dir or out_cloth is NULL", fn);
+    *out_cloth = 0;
+    if (!finite3(origin) || !finite3(dir) ||
+        !(dir[0] != 0.0f || dir[1] != 0.0f || dir[2] != 0.0f))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: origin (%g, %g, %g) and dir (%g, %g, %g) must be finite and dir "
+                           "non-zero",
+                           fn, (double)origin[0], (double)origin[1], (double)origin[2],
+                           (double)dir[0], (double)dir[1], (double)dir[2]);
+    if (!(max_distance >= 0.0f) || !(radius >= 0.0f) || !isfinite(radius))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: max_distance %g and radius %g must be >= 0 (radius finite)", fn,
+                           (double)max_distance, (double)radius);
+    uint32_t k = 0, v = 0;
+    float t = 0.0f;
+    if (rbc_pick(&w->solver, origin, dir, max_distance, radius, &k, &v, &t)) {
+        *out_cloth = w->solver.cloths[k]->public_id;
+        if (out_vertex) *out_vertex = v;
+        if (out_t) *out_t = t;
+    }
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_cloth_attach(rbc_world_id wid, rbc_cloth_id cid, uint32_t vertex,
+                                             rbc_collider_id collider, const float local[3]) {
+    static const char fn[] = "rbc_cloth_attach";
+    rbc_world *w;
+    rbc_cloth_state *c;
+    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    if (rc) return rc;
+    if (vertex >= c->topo.n)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: cloth 0x%08x: vertex %u is out of range (vertex count %u)", fn,
+                           cid, vertex, c->topo.n);
+    if (local && !finite3(local))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: cloth 0x%08x: vertex %u: local point (%g, %g, %g) is not finite",
+                           fn, cid, vertex, (double)local[0], (double)local[1], (double)local[2]);
+    uint32_t k = 0;
+    if ((rc = lookup_collider(wid, collider, fn, &w, &k))) return rc;
+    rc = rbc_attach(&w->solver, c, vertex, collider, local);
+    if (rc) return world_error(w, rc, "%s: out of memory", fn);
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_cloth_cut(rbc_world_id wid, rbc_cloth_id cid,
+                                          const uint32_t *pairs, uint32_t pair_count,
+                                          uint32_t *out_cut) {
+    static const char fn[] = "rbc_cloth_cut";
+    rbc_world *w;
+    rbc_cloth_state *c;
+    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    if (rc) return rc;
+    if (out_cut) *out_cut = 0;
+    if (pair_count && !pairs)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: pairs is NULL", fn);
+    for (uint32_t m = 0; m < 2 * pair_count; ++m)
+        if (pairs[m] >= c->topo.n)
+            return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                               "%s: cloth 0x%08x: pair %u: vertex %u is out of range (vertex "
+                               "count %u); nothing was cut",
+                               fn, cid, m / 2, pairs[m], c->topo.n);
+    rc = rbc_cut_pairs(&w->solver, c, pairs, pair_count, out_cut);
+    if (rc) return world_error(w, rc, "%s: out of memory; nothing was cut", fn);
+    return RBC_OK;
+}
+
+static rbc_result copy_topology(rbc_world_id wid, rbc_cloth_id cid, const char *fn, int quads,
+                                uint32_t *dst, size_t capacity, size_t *out_count) {
+    rbc_world *w;
+    rbc_cloth_state *c;
+    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    if (rc) return rc;
+    size_t need = quads ? rbc_cloth_quads_host(c, NULL, 0) : rbc_cloth_springs_host(c, NULL, 0);
+    if (dst && capacity < need)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: cloth 0x%08x has %zu values to write; capacity is %zu", fn, cid,
+                           need, capacity);
+    if (dst) {
+        if (quads)
+            rbc_cloth_quads_host(c, dst, capacity);
+        else
+            rbc_cloth_springs_host(c, dst, capacity);
+    }
+    if (out_count) *out_count = need;
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_cloth_get_quads(rbc_world_id wid, rbc_cloth_id cid, uint32_t *quads,
+                                                size_t capacity, size_t *out_count) {
+    return copy_topology(wid, cid, "rbc_cloth_get_quads", 1, quads, capacity, out_count);
+}
+
+RBC_API rbc_result RBC_CALL rbc_cloth_get_springs(rbc_world_id wid, rbc_cloth_id cid,
+                                                  uint32_t *pairs, size_t capacity,
+                                                  size_t *out_count) {
+    return copy_topology(wid, cid, "rbc_cloth_get_springs", 0, pairs, capacity, out_count);
+}
+
+RBC_API rbc_result RBC_CALL rbc_world_set_wind(rbc_world_id id, const float velocity[3], float drag,
+                                               float lift) {
+    static const char fn[] = "rbc_world_set_wind";
+    rbc_world *w;
+    rbc_result rc = lookup_world(id, fn, &w);
+    if (rc) return rc;
+    if (!velocity || !finite3(velocity))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: velocity is NULL or not finite", fn);
+    if (!(isfinite(drag) && drag >= 0.0f) || !(isfinite(lift) && lift >= 0.0f))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: drag %g and lift %g must be finite and >= 0", fn, (double)drag,
+                           (double)lift);
+    memcpy(w->solver.wind, velocity, sizeof w->solver.wind);
+    w->solver.wind_drag = drag;
+    w->solver.wind_lift = lift;
     return RBC_OK;
 }

@@ -1,0 +1,92 @@
+/* collide.h -- contact with the built-in colliders, inside the solve.
+ *
+ * Once per substep, after the prediction y, every free particle is tested against
+ * every collider over its motion: the segment from its position at the start of the
+ * substep (in the collider's frame then) to y (in the collider's frame at the end of
+ * the substep). A segment that enters the shape gives a contact at the entry point,
+ * so a fast collider or particle cannot pass through a thin shape between two
+ * substeps (continuous detection); otherwise a particle within thickness + margin of
+ * the surface at y gives a contact at its closest surface point. A contact is a
+ * half-space n . p >= d: the tangent plane there, offset by the thickness, with the
+ * collider at its end-of-substep pose.
+ *
+ * The half-spaces join the global solve: after every linear iteration each contact's
+ * particle is projected onto its half-space (unary constraints, so they never race
+ * with the color sweeps and one pass after each whole iteration suffices), and the
+ * next iteration lets the springs relax around it. Projecting once after the solve
+ * instead (the 1.0 behaviour) left springs stretched against the collider, energy the
+ * solve had not supplied. After the solve, Coulomb friction removes the tangential
+ * motion relative to the collider's surface up to mu times the normal correction
+ * (position-based friction, Macklin et al. 2014).
+ *
+ * Contacts live in one list per thread, for the particles of the energy blocks that
+ * thread owns (energy.h), in (cloth, particle, collider) order: the projection of a
+ * particle reads and writes only that particle, so the result is the same for any
+ * thread count, and the collider work summed per block is bitwise deterministic.
+ */
+#ifndef RBC_CORE_COLLIDE_H
+#define RBC_CORE_COLLIDE_H
+#include <stddef.h>
+#include <stdint.h>
+
+#include "alloc.h"
+
+struct rbc_solver;
+struct rbc_collider_state;
+
+/* world = r * local + t (r row-major). */
+typedef struct rbc_frame {
+    float r[9];
+    float t[3];
+} rbc_frame;
+
+typedef struct rbc_col_contact {
+    uint32_t cloth;    /* index in the solver's dense cloth list */
+    uint32_t idx;      /* internal particle index */
+    float n[3];        /* unit normal, world */
+    float d;           /* the constraint n . p >= d, m */
+    float u[3];        /* velocity of the collider's surface at the contact, m/s */
+    float depth;       /* d - n . y when positive: how far the prediction went in, m */
+    float last;        /* correction of the latest projection pass, m */
+    float mu;          /* Coulomb coefficient */
+    uint32_t collider; /* index in the solver's dense collider list */
+    uint32_t pad;
+} rbc_col_contact;
+
+typedef struct rbc_contact_list {
+    rbc_col_contact *c;
+    uint32_t count, cap;
+    uint32_t need;     /* contacts found, also past cap (then the list must grow) */
+} rbc_contact_list;
+
+/* The collider's pose at fraction f of the step (0 = where it was at the end of the
+ * last step, 1 = its pose now): position interpolated linearly, rotation by nlerp. */
+void rbc_collider_frame_at(const struct rbc_collider_state *c, float f, rbc_frame *out);
+
+/* Detect the contacts of this thread's particles (its energy blocks of every cloth)
+ * against every collider; f0/f1 the substep's fractions of the step, h its length.
+ * Positions at the start are the cloths' x, the prediction is p. Writes list->need;
+ * contacts beyond list->cap are counted, not stored. */
+void rbc_collide_detect(struct rbc_solver *s, rbc_contact_list *list, float f0, float f1, float h,
+                        uint32_t tid, uint32_t nt);
+/* Project every contact of the list onto its half-space; alt = 1 projects the Jacobi
+ * destination iterate (cloth->alt) instead of p. Returns 1 if any particle moved. */
+int rbc_collide_project(struct rbc_solver *s, rbc_contact_list *list, int alt);
+/* After the solve: friction, and the work the colliders did, h the substep: into this
+ * thread's energy blocks (their collider-work slots, zeroed first) when work_out is
+ * NULL, else added to *work_out (host contacts, one thread). */
+void rbc_collide_finish(struct rbc_solver *s, rbc_contact_list *list, float h, uint32_t tid,
+                        uint32_t nt, double *work_out);
+/* The safety pass after the solve and friction: a particle whose solved motion
+ * (relative to a collider) still enters it, or ends within thickness of its surface,
+ * is projected onto the entry's tangent plane (the springs pulled it into the
+ * collider's path after detection). Its work goes to this thread's energy blocks
+ * (after rbc_collide_finish zeroed them). Costs a second culled pass over the
+ * particles; acts rarely. */
+void rbc_collide_post(struct rbc_solver *s, float f0, float f1, float h, uint32_t tid,
+                      uint32_t nt);
+/* Grow a list to hold list->need contacts. 0 on success, -1 out of memory (the list
+ * keeps its old buffer). */
+int rbc_contact_list_reserve(rbc_contact_list *list, const rbc_allocator *a);
+void rbc_contact_list_free(rbc_contact_list *list, const rbc_allocator *a);
+#endif
