@@ -883,7 +883,7 @@ static void test_collider_defs(void) {
         }
     }
     {
-        const rbc_shape bad_shape[] = {0, 3, -1, RBC_SHAPE_FORCE32};
+        const rbc_shape bad_shape[] = {0, 6, -1, RBC_SHAPE_FORCE32};
         for (size_t k = 0; k < 4; k++) {
             rbc_collider_def d = rbc_collider_def_default();
             d.shape = bad_shape[k];
@@ -1037,6 +1037,133 @@ static void foreign_case(int kind, int reverse) {
     test_snap_free(&sb);
     rbc_world_destroy(w[0]);
     rbc_world_destroy(w[1]);
+}
+
+/* ABI 1.3: the new def fields and calls refuse bad input with a message naming the
+ * field or index and change nothing. */
+static int32_t RBC_CALL bad_contacts(void *user, rbc_world_id world, float dt,
+                                     const rbc_collision_cloth *cloths, uint32_t count,
+                                     rbc_contact_sink *sink) {
+    (void)world;
+    (void)dt;
+    (void)count;
+    const int *mode = user;
+    rbc_host_contact c = {cloths[0].cloth, 0, {0, 1, 0}, -100.0f, 0.0f, {0, 0, 0}};
+    if (*mode == 0) c.vertex = cloths[0].vertex_count;     /* out of range */
+    if (*mode == 1) c.normal[1] = 2.0f;                    /* not unit */
+    if (*mode == 2) c.cloth = 0x7fffffff;                  /* no such cloth */
+    if (*mode == 3) c.offset = NAN;
+    sink->add(sink, &c, 1);
+    return 0;
+}
+
+static void test_v13(void) {
+    /* Collider shapes and fields. */
+    const float bad[] = {0.0f, -1.0f, NAN, INFINITY};
+    for (size_t k = 0; k < 4; k++) {
+        rbc_collider_def d = rbc_collider_def_default();
+        d.shape = RBC_SHAPE_CAPSULE;
+        d.radius = bad[k];
+        TRY_COLLIDER(&d, RBC_ERR_INVALID_ARGUMENT, "capsule radius");
+        CHECK(strstr(rbc_last_error(), "radius") != NULL);
+        d.radius = 0.1f;
+        d.half_extents[1] = bad[k];
+        TRY_COLLIDER(&d, RBC_ERR_INVALID_ARGUMENT, "capsule half length");
+        CHECK(strstr(rbc_last_error(), "half_extents[1]") != NULL);
+        for (int a = 0; a < 3; a++) {
+            rbc_collider_def b = rbc_collider_def_default();
+            b.shape = RBC_SHAPE_BOX;
+            b.half_extents[a] = bad[k];
+            TRY_COLLIDER(&b, RBC_ERR_INVALID_ARGUMENT, "box half extent");
+            CHECK(test_contains_number(rbc_last_error(), (unsigned long)a));
+        }
+        if (k > 0) {
+            rbc_collider_def f = rbc_collider_def_default();
+            f.friction = bad[k];
+            TRY_COLLIDER(&f, RBC_ERR_INVALID_ARGUMENT, "collider friction");
+            CHECK(strstr(rbc_last_error(), "friction") != NULL);
+        }
+    }
+    {
+        const float v[9] = {0, 0, 0, 1, 0, 0, 0, 0, 1};
+        const uint32_t t_bad[3] = {0, 1, 3};
+        rbc_collider_def d = rbc_collider_def_default();
+        d.shape = RBC_SHAPE_TRIANGLE_MESH;
+        TRY_COLLIDER(&d, RBC_ERR_INVALID_ARGUMENT, "mesh without arrays");
+        d.mesh_positions = v;
+        d.mesh_vertex_count = 3;
+        d.mesh_triangles = t_bad;
+        d.mesh_triangle_count = 1;
+        TRY_COLLIDER(&d, RBC_ERR_INVALID_ARGUMENT, "mesh index out of range");
+        CHECK(test_contains_number(rbc_last_error(), 3));
+        float vn[9] = {0, 0, 0, 1, 0, 0, 0, 0, 1};
+        const uint32_t t_ok[3] = {0, 1, 2};
+        vn[4] = NAN;
+        d.mesh_positions = vn;
+        d.mesh_triangles = t_ok;
+        TRY_COLLIDER(&d, RBC_ERR_INVALID_ARGUMENT, "mesh NaN vertex");
+        CHECK(test_contains_number(rbc_last_error(), 1));
+    }
+    /* Cloth def fields. */
+    {
+        rbc_cloth_def d = test_grid_def(&G, NULL, 0);
+        d.thickness = -0.01f;
+        TRY_CLOTH(&d, RBC_ERR_INVALID_ARGUMENT, "negative thickness");
+        d = test_grid_def(&G, NULL, 0);
+        d.friction = NAN;
+        TRY_CLOTH(&d, RBC_ERR_INVALID_ARGUMENT, "NaN friction");
+        d = test_grid_def(&G, NULL, 0);
+        d.thickness = 0.01f;
+        d.collision_flags = 4;
+        TRY_CLOTH(&d, RBC_ERR_INVALID_ARGUMENT, "unknown collision flag");
+        d = test_grid_def(&G, NULL, 0);
+        d.collision_flags = RBC_CLOTH_COLLIDE_SELF;
+        TRY_CLOTH(&d, RBC_ERR_INVALID_ARGUMENT, "self collision without thickness");
+        CHECK(strstr(rbc_last_error(), "thickness") != NULL);
+        d = test_grid_def(&G, NULL, 0);
+        d.tear_strain = -0.5f;
+        TRY_CLOTH(&d, RBC_ERR_INVALID_ARGUMENT, "negative tear_strain");
+        d.tear_strain = NAN;
+        TRY_CLOTH(&d, RBC_ERR_INVALID_ARGUMENT, "NaN tear_strain");
+        CHECK(strstr(rbc_last_error(), "tear_strain") != NULL);
+    }
+    /* Calls on the reference cloth C of world W. */
+    {
+        uint32_t pairs[4] = {0, 1, 2, G.vertex_count + 5};
+        uint32_t cut = 99;
+        EXPECT(rbc_cloth_cut(W, C, pairs, 2, &cut), RBC_ERR_INVALID_ARGUMENT);
+        CHECK(test_contains_number(rbc_last_error(), G.vertex_count + 5));
+        CHECK_EQ(cut, 0u);
+        EXPECT(rbc_cloth_cut(W, C, NULL, 1, &cut), RBC_ERR_INVALID_ARGUMENT);
+        uint32_t small[4];
+        EXPECT(rbc_cloth_get_quads(W, C, small, 4, NULL), RBC_ERR_INVALID_ARGUMENT);
+        EXPECT(rbc_cloth_get_springs(W, C, small, 4, NULL), RBC_ERR_INVALID_ARGUMENT);
+        const float o[3] = {0, 0, 0}, zero[3] = {0, 0, 0}, dn[3] = {0, NAN, 1};
+        rbc_cloth_id got = 1;
+        EXPECT(rbc_world_pick(W, o, zero, 1.0f, 0.1f, &got, NULL, NULL), RBC_ERR_INVALID_ARGUMENT);
+        EXPECT(rbc_world_pick(W, o, dn, 1.0f, 0.1f, &got, NULL, NULL), RBC_ERR_INVALID_ARGUMENT);
+        const float d1[3] = {0, 0, 1};
+        EXPECT(rbc_world_pick(W, o, d1, 1.0f, -0.1f, &got, NULL, NULL), RBC_ERR_INVALID_ARGUMENT);
+        EXPECT(rbc_world_pick(W, NULL, d1, 1.0f, 0.1f, &got, NULL, NULL), RBC_ERR_INVALID_ARGUMENT);
+        EXPECT(rbc_cloth_attach(W, C, G.vertex_count, K, NULL), RBC_ERR_INVALID_ARGUMENT);
+        CHECK(test_contains_number(rbc_last_error(), G.vertex_count));
+        const float nan3[3] = {NAN, 0, 0};
+        EXPECT(rbc_cloth_attach(W, C, 0, K, nan3), RBC_ERR_INVALID_ARGUMENT);
+        EXPECT(rbc_cloth_attach(W, C, 0, 0x12345u, NULL), RBC_ERR_STALE_HANDLE);
+        const float wv[3] = {1, 0, 0};
+        EXPECT(rbc_world_set_wind(W, nan3, 0.5f, 0.0f), RBC_ERR_INVALID_ARGUMENT);
+        EXPECT(rbc_world_set_wind(W, wv, -0.5f, 0.0f), RBC_ERR_INVALID_ARGUMENT);
+        EXPECT(rbc_world_set_wind(W, wv, 0.5f, NAN), RBC_ERR_INVALID_ARGUMENT);
+    }
+    /* A host contact that is wrong fails the step with RBC_ERR_CALLBACK naming it, and
+     * the world is as it was. */
+    for (int mode = 0; mode < 4; mode++) {
+        int m = mode;
+        CHECK_EQ(rbc_world_set_contact_callback(W, bad_contacts, &m), RBC_OK);
+        EXPECT(rbc_world_step(W, 1.0f / 60.0f), RBC_ERR_CALLBACK);
+        CHECK(strstr(rbc_last_error(), "contact callback") != NULL);
+        CHECK_EQ(rbc_world_set_contact_callback(W, NULL, NULL), RBC_OK);
+    }
 }
 
 static void test_foreign_ids(void) {
@@ -1259,6 +1386,7 @@ int main(void) {
     test_world_calls();
     test_cloth_calls();
     test_collider_defs();
+    test_v13();
     test_stale_handles();
     test_foreign_ids();
     test_writers();
