@@ -934,16 +934,21 @@ static void linear_iteration(step_ctx *ctx, uint32_t k, uint32_t tid, uint32_t n
  * race), then thread 0 runs one pass of cloth contact (constraints between particles
  * that may share a color, so not inside the parallel color sweeps: FIELD-NOTES), and
  * the next iteration relaxes the springs around them. alt: the latest iterate is the
- * Jacobi destination buffer. */
-static void contact_pass(step_ctx *ctx, int alt, uint32_t tid) {
+ * Jacobi destination buffer. cloth: run the cloth contact pass (every
+ * RBC_CC_EVERY-th iteration and the last; it reads four particles per contact at
+ * random, so a pass costs several sweeps, but every third iteration left four
+ * stacked layers 2-3 mm deeper than their 2 mm thickness and let them pass through
+ * each other sooner). */
+#define RBC_CC_EVERY 1u
+static void contact_pass(step_ctx *ctx, int alt, uint32_t tid, int cloth) {
     rbc_solver *s = ctx->s;
-    if (!ctx->any_contacts && !ctx->host_contacts && !ctx->cc_active) return;
+    if (!ctx->any_contacts && !ctx->host_contacts && !(ctx->cc_active && cloth)) return;
     if (ctx->any_contacts) rbc_collide_project(s, &s->contacts[tid], alt);
-    if (ctx->host_contacts || ctx->cc_active) {
+    if (ctx->host_contacts || (ctx->cc_active && cloth)) {
         rbc_pool_barrier(s->pool);
         if (tid == 0 && ctx->host_contacts) rbc_collide_project(s, &s->host_contacts, alt);
     }
-    if (ctx->cc_active) {
+    if (ctx->cc_active && cloth) {
         if (tid == 0) {
             for (uint32_t k = 0; k < s->cloth_count; ++k)
                 for (int a = 0; a < 3; ++a)
@@ -999,14 +1004,15 @@ static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uin
     }
     double deadline = ctx->start_ms + (double)st->budget_ms * (segment + 1) / nsegments;
     uint32_t k = 0;
+    int cloth_done = 1;
     double t_iter = 0.0;
     for (;;) {
         double t0 = tid == 0 ? now_ms() : 0.0;
         linear_iteration(ctx, k, tid, nt);
-        contact_pass(ctx, st->kind == RBC_SOLVER_JACOBI || st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV
-                              ? !(k & 1)
-                              : 0,
-                     tid);
+        const int jac = st->kind == RBC_SOLVER_JACOBI || st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV;
+        cloth_done = (k + 1) % RBC_CC_EVERY == 0 ||
+                     (st->mode == RBC_ITERATE_FIXED && k + 1 >= limit);
+        contact_pass(ctx, jac ? !(k & 1) : 0, tid, cloth_done);
         k++;
         if (st->mode == RBC_ITERATE_FIXED) {
             if (k >= limit) break;
@@ -1043,6 +1049,11 @@ static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uin
         rbc_pool_barrier(pool);
         if (ctx->stop) break;
     }
+    if (ctx->cc_active && !cloth_done) /* the last iteration gets its cloth pass */
+        contact_pass(ctx,
+                     (st->kind == RBC_SOLVER_JACOBI || st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV) &&
+                         !((k - 1) & 1),
+                     tid, 1);
     if (tid == 0) {
         ctx->linear_done += k;
         /* The last iteration's relaxation factor, for the contacts' force estimate. */
@@ -1330,6 +1341,11 @@ static void detect_contacts(step_ctx *ctx, uint32_t sub, uint32_t tid, uint32_t 
         if (tid == 0) run_contact_callback(ctx, sub);
         rbc_pool_barrier(pool);
     }
+    /* Cloth contact is found every substep, over each particle's motion from x to its
+     * prediction. (Once per step, over the motion to the prediction extrapolated to
+     * the step's end, was 8x cheaper but missed contacts where edges whip and took
+     * sides at the step's start that were wrong by its end: stacked layers passed
+     * through each other.) */
     if (ctx->cc_active && ctx->result == RBC_OK && tid == 0) {
         for (uint32_t k = 0; k < s->cloth_count; ++k) {
             rbc_cloth_state *c = s->cloths[k];
@@ -1360,6 +1376,8 @@ static void detect_contacts(step_ctx *ctx, uint32_t sub, uint32_t tid, uint32_t 
         if (rbc_clothcontact_detect(s->cc, s->cc_bodies, s->cloth_count, margin) != RBC_OK)
             ctx->result = rbc_fail(ctx->err, ctx->errlen, RBC_ERR_OUT_OF_MEMORY,
                                    "out of memory for cloth contacts at substep %u", sub);
+        for (uint32_t k = 0; k < s->cloth_count; ++k)
+            for (int a = 0; a < 3; ++a) s->cc_bodies[k].p[a] = s->cloths[k]->p[a];
         s->last_cloth_contacts = rbc_clothcontact_count(s->cc);
     }
     if (ctx->cc_active) rbc_pool_barrier(pool);
@@ -1413,9 +1431,9 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
                  * respects them. (From y itself, a contact that lifts part of the
                  * cloth during the solve would carry the rest along rigidly: the global
                  * step keeps each spring's direction from the local step, so a particle
-                 * whose neighbours the contact lifts is lifted with them.) The inertial
-                 * target y stays as predicted. */
-                contact_pass(ctx, 0, tid);
+                 * whose neighbours the contact lifts is lifted with them. The inertial
+                 * target y stays as predicted.) */
+                contact_pass(ctx, 0, tid, 1);
             STAGE_END(collide);
             if (ctx->result != RBC_OK) return;
         }
@@ -1441,7 +1459,7 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
                                      (const float *const *)c->y, c->dx, c->dy, c->dz, c->p);
                 }
                 rbc_pool_barrier(pool);
-                contact_pass(ctx, 0, tid);
+                contact_pass(ctx, 0, tid, 1);
                 if (tid == 0) ctx->linear_done += 1;
             } else {
                 global_step(ctx, sub * nl_count + nl, ctx->substeps * nl_count, tid, nt);
