@@ -59,6 +59,7 @@ struct rbc_clothcontact {
     cc_buf bgrow;               /* float [count]: thickness + margin / 2 (vertex hash) */
     cc_buf active;              /* uint8 [count]: 1 if the body collides at all */
     cc_buf vbox, tbox;          /* float [6 per object]: swept box lo[3], hi[3] */
+    cc_buf bbox;                /* float [6 per body]: its vertices' grown swept boxes */
     cc_buf vbody, tbody;        /* uint32 [object]: its body */
     cc_buf trec;                /* float [CC_TREC per triangle]: see tri_record() */
     cc_hash th, vh;             /* triangles; vertices */
@@ -108,7 +109,8 @@ void rbc_clothcontact_destroy(rbc_clothcontact *cc) {
     if (!cc) return;
     const rbc_allocator a = cc->alloc;
     cc_buf *bufs[] = {&cc->vbase, &cc->tbase, &cc->bgrow, &cc->active, &cc->vbox,
-                      &cc->tbox, &cc->vbody, &cc->tbody, &cc->trec, &cc->contacts};
+                      &cc->tbox, &cc->vbody, &cc->tbody, &cc->trec, &cc->contacts,
+                      &cc->bbox};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) buf_free(&a, bufs[k]);
     hash_free(&a, &cc->th);
     hash_free(&a, &cc->vh);
@@ -123,7 +125,7 @@ const rbc_contact *rbc_clothcontact_list(const rbc_clothcontact *cc) {
 
 size_t rbc_clothcontact_bytes(const rbc_clothcontact *cc) {
     const cc_buf *bufs[] = {&cc->vbase, &cc->tbase, &cc->bgrow, &cc->active, &cc->vbox,
-                            &cc->tbox, &cc->vbody, &cc->tbody, &cc->contacts,
+                            &cc->tbox, &cc->vbody, &cc->tbody, &cc->contacts, &cc->bbox,
                             &cc->trec, &cc->th.start, &cc->th.id, &cc->th.big,
                             &cc->vh.start, &cc->vh.id, &cc->vh.big};
     size_t b = sizeof *cc;
@@ -697,6 +699,37 @@ int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, 
             }
         }
     }
+    /* Body-level broad phase: a body without self contact whose swept box (grown by
+     * its reach) meets no other colliding body's takes no part this time (a cloth
+     * falling alone pays for its boxes, not for the hash or the queries). */
+    if (!buf_reserve(al, &cc->bbox, count, 6 * sizeof(float), 0)) goto oom;
+    float *bb = cc->bbox.ptr;
+    for (uint32_t b = 0; b < count; ++b) {
+        float *o = bb + 6 * (size_t)b;
+        o[0] = o[1] = o[2] = INFINITY;
+        o[3] = o[4] = o[5] = -INFINITY;
+        if (!active[b]) continue;
+        const float g = bodies[b].thickness + margin;
+        for (uint32_t i = 0; i < bodies[b].n; ++i) {
+            const float *v = vbox + 6 * ((size_t)vbase[b] + i);
+            for (int k = 0; k < 3; ++k) {
+                o[k] = v[k] - g < o[k] ? v[k] - g : o[k];
+                o[3 + k] = v[3 + k] + g > o[3 + k] ? v[3 + k] + g : o[3 + k];
+            }
+        }
+    }
+    for (uint32_t b = 0; b < count; ++b) {
+        if (!active[b] || bodies[b].self) continue;
+        int partner = 0;
+        for (uint32_t o = 0; o < count && !partner; ++o)
+            partner = o != b && active[o] && bodies[o].others && bodies[b].others &&
+                      boxes_overlap(bb + 6 * (size_t)b, bb + 6 * (size_t)o, 0.0f);
+        if (!partner) active[b] = 0;
+    }
+    thmax = 0.0f;
+    for (uint32_t b = 0; b < count; ++b)
+        if (active[b] && bodies[b].thickness > thmax) thmax = bodies[b].thickness;
+
     cc->tri_grow = thmax + margin;
     float cell = 2.0f * cc->tri_grow;
     if (edge_count && edge_sum / (double)edge_count > cell) cell = (float)(edge_sum / (double)edge_count);
