@@ -49,7 +49,7 @@ static const struct {
     {"cloth_on_chair", 10000, 19800, 8, 7, 2.5, NAN},
     {"four_layers_sphere", 16384, 32256, 8, 2, 4.1, 1000.0 / 35.0},
     {"funnel", 30000, 59400, 8, 3, 1000.0 / 35.0 / 8.0, 1000.0 / 35.0},
-    {"cannonballs_tearing", 4096, 8064, 8, 3, NAN, 1000.0 / 60.0},
+    {"cannonballs_tearing", 4096, 8064, 8, 4, NAN, 1000.0 / 60.0},
     {"cloth_on_sphere", 3600, 7080, 8, 2, NAN, NAN},
     {"hanging_cloth", 10000, 19800, 1, 0, NAN, NAN},
 };
