@@ -358,11 +358,17 @@ typedef struct cc_detect {
     const float *vbox, *tbox, *trec, *bgrow;
     float margin;
     int oom;
+    size_t cap;   /* most contacts taken (RBC_CC_MAX_PER_VERTEX per vertex) */
+    int over;     /* the cap was reached */
 } cc_detect;
 
 static rbc_contact *push_contact(cc_detect *d) {
     rbc_clothcontact *cc = d->cc;
     if (d->oom) return NULL; /* failed once: ask for nothing more, the list is dropped */
+    if (cc->count >= d->cap) {
+        d->over = d->oom = 1; /* stop as on a failure; reported as a tangle */
+        return NULL;
+    }
     if (!buf_reserve(&cc->alloc, &cc->contacts, (size_t)cc->count + 1, sizeof(rbc_contact),
                      sizeof(rbc_contact) * cc->count)) {
         d->oom = 1;
@@ -741,7 +747,11 @@ int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, 
         !hash_build(cc, &cc->vh, (uint32_t)nv, vbox, vbody, bgrow, 0.0f, active))
         goto oom;
 
-    cc_detect d = {cc, bodies, vbase, tbase, vbody, tbody, vbox, tbox, trec, bgrow, margin, 0};
+    uint64_t nactive = 0;
+    for (uint32_t b = 0; b < count; ++b)
+        if (active[b]) nactive += bodies[b].n;
+    cc_detect d = {cc, bodies, vbase, tbase, vbody, tbody, vbox, tbox, trec, bgrow, margin, 0,
+                   (size_t)(RBC_CC_MAX_PER_VERTEX * nactive + 4096), 0};
     const float inv = cc->inv_cell;
 
     /* Vertex-triangle: each vertex looks up the triangles around its swept box. */
@@ -841,6 +851,10 @@ int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, 
                     try_vv(&d, v, big[m]);
         }
         if (!d.oom) cc->count = sort_partners(cc->contacts.ptr, first, cc->count);
+    }
+    if (d.over) {
+        cc->count = 0;
+        return RBC_ERR_UNSTABLE;
     }
     if (d.oom) goto oom;
     return RBC_OK;

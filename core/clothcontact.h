@@ -79,6 +79,12 @@ typedef struct rbc_clothcontact rbc_clothcontact;
 int32_t rbc_clothcontact_create(const rbc_allocator *a, rbc_clothcontact **out);
 void rbc_clothcontact_destroy(rbc_clothcontact *cc);
 
+/* At most this many contacts per vertex taking part (plus 4096): a pile of cloth
+ * has about 10; far more means cloth crushed or tangled beyond what the contacts
+ * can hold (an unstable solve), whose contacts grew to millions (1.2 GB) in one
+ * scene. rbc_clothcontact_detect then returns RBC_ERR_UNSTABLE with an empty list. */
+#define RBC_CC_MAX_PER_VERTEX 64u
+
 /* Find the candidate contacts of this substep from x (start) and p (the inertial
  * prediction, before the solve). With g = thickness of the vertex's cloth + margin:
  *  - vertex-triangle (a triangle of the same body if self, of another if both have

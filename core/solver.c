@@ -1373,7 +1373,16 @@ static void detect_contacts(step_ctx *ctx, uint32_t sub, uint32_t tid, uint32_t 
         for (uint32_t k = 0; k < s->cloth_count; ++k)
             if (s->cloths[k]->collision_flags && 0.5f * s->cloths[k]->mean_rest > margin)
                 margin = 0.5f * s->cloths[k]->mean_rest;
-        if (rbc_clothcontact_detect(s->cc, s->cc_bodies, s->cloth_count, margin) != RBC_OK)
+        int32_t rc = rbc_clothcontact_detect(s->cc, s->cc_bodies, s->cloth_count, margin);
+        if (rc == RBC_ERR_UNSTABLE)
+            ctx->result = rbc_fail(ctx->err, ctx->errlen, RBC_ERR_UNSTABLE,
+                                   "cloth contact: more than %u contacts per vertex at substep %u "
+                                   "of %u: the cloths are crushed or tangled beyond what contact "
+                                   "can hold (smaller steps, more iterations, or a larger "
+                                   "thickness keep them apart); the world was restored to its "
+                                   "state before the step",
+                                   RBC_CC_MAX_PER_VERTEX, sub, ctx->substeps);
+        else if (rc != RBC_OK)
             ctx->result = rbc_fail(ctx->err, ctx->errlen, RBC_ERR_OUT_OF_MEMORY,
                                    "out of memory for cloth contacts at substep %u", sub);
         for (uint32_t k = 0; k < s->cloth_count; ++k)
