@@ -553,6 +553,36 @@ static void test_wind(void) {
     free(zero);
 }
 
+/* Two cloths crushed into one 2 cm cube with cloth contact on: far past the cap of
+ * contacts per vertex (RBC_CC_MAX_PER_VERTEX: 64; a pile has about 10). The step
+ * fails with RBC_ERR_UNSTABLE, names the cause, and leaves the state as it was,
+ * instead of growing its contact list without bound. */
+static void test_contact_cap(void) {
+    rbc_world_id w = make_world(1, 1, -9.81f);
+    rbc_cloth_id cl[2];
+    test_grid g = test_grid_make(20, 20, 0.01f, 0.0f, 0.0f, 0.0f);
+    uint32_t seed = 12345u;
+    for (uint32_t k = 0; k < 3 * g.vertex_count; ++k) {
+        seed = seed * 1664525u + 1013904223u;
+        g.positions[k] = 0.02f * (float)(seed >> 8) / 16777216.0f;
+    }
+    for (int b = 0; b < 2; ++b) {
+        rbc_cloth_def cd = test_grid_def(&g, NULL, 0);
+        cd.thickness = 0.005f;
+        cd.collision_flags = RBC_CLOTH_COLLIDE_CLOTHS;
+        CHECK_EQ(rbc_cloth_create(w, &cd, &cl[b]), RBC_OK);
+    }
+    float *before = test_read(w, cl[0], NULL);
+    CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_ERR_UNSTABLE);
+    CHECK(strstr(rbc_last_error(), "contacts per vertex") != NULL);
+    float *after = test_read(w, cl[0], NULL);
+    CHECK(before && after && memcmp(before, after, sizeof(float) * 3 * g.vertex_count) == 0);
+    free(before);
+    free(after);
+    test_grid_free(&g);
+    CHECK_EQ(rbc_world_destroy(w), RBC_OK);
+}
+
 int main(void) {
     test_drop(RBC_SHAPE_SPHERE);
     test_drop(RBC_SHAPE_BOX);
@@ -567,5 +597,6 @@ int main(void) {
     test_tear();
     test_attach();
     test_wind();
+    test_contact_cap();
     return check_report("abi_contact");
 }
