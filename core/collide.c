@@ -307,14 +307,12 @@ void rbc_collide_finish(rbc_solver *s, rbc_contact_list *list, float h, uint32_t
         int active = push > 0.0f && gap <= 1e-3f * push + 1e-7f;
         /* The contact's normal force, as the global step sees it: the last pass moved
          * the particle by `last` from its Gauss-Seidel value, against a stiffness of
-         * m/h^2 + sum s (its row of Eq. 6), so f = (m/h^2 + sum s) last (an
-         * over-relaxed sweep overshoots by its factor: divided out); or what
+         * m/h^2 + sum s (its row of Eq. 6), so f = (m/h^2 + sum s) last; or what
          * stopping the prediction needs, m/h^2 depth, if more. Over the substep a
          * collider moving at u does f h (n . u) of work on the particle (plus the
          * friction impulse's), which the energy guard adds to the budget. */
         const float wi = c->topo.mass[i] * inv_h * inv_h;
-        float relax = c->relax_last > 1.0f ? c->relax_last : 1.0f;
-        float fn_last = (wi + c->topo.ksum[i]) * ct->last / relax, fn_depth = wi * ct->depth;
+        float fn_last = (wi + c->topo.ksum[i]) * ct->last, fn_depth = wi * ct->depth;
         float fn = fn_last > fn_depth ? fn_last : fn_depth;
         const float disp = fn * h * h / c->topo.mass[i]; /* the impulse f h, as m / h * disp */
         float moved[3] = {disp * n[0], disp * n[1], disp * n[2]};

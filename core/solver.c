@@ -739,10 +739,9 @@ static void phase_local(step_ctx *ctx, uint32_t tid, uint32_t nt) {
     }
 }
 
-/* Thread 0, all others waiting at a barrier: hand host-order positions to the host's
- * collision code and take its corrections back (pins win). */
-static void run_callback(step_ctx *ctx, uint32_t sub) {
-    rbc_solver *s = ctx->s;
+/* The host callbacks' view: p (positions) and x (previous) of every cloth in host
+ * order, in the host-order buffers, listed in s->cb_list. */
+static void fill_host_buffers(rbc_solver *s) {
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
         const uint32_t *to_int = c->topo.to_internal;
@@ -758,6 +757,13 @@ static void run_callback(step_ctx *ctx, uint32_t sub) {
         s->cb_list[k].positions = c->cb_pos;
         s->cb_list[k].previous_positions = c->cb_prev;
     }
+}
+
+/* Thread 0, all others waiting at a barrier: hand host-order positions to the host's
+ * collision code and take its corrections back (pins win). */
+static void run_callback(step_ctx *ctx, uint32_t sub) {
+    rbc_solver *s = ctx->s;
+    fill_host_buffers(s);
     int32_t r = s->callback(s->callback_user, s->public_world_id, ctx->h, s->cb_list,
                             s->cloth_count);
     if (r != 0) {
@@ -1054,17 +1060,7 @@ static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uin
                      (st->kind == RBC_SOLVER_JACOBI || st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV) &&
                          !((k - 1) & 1),
                      tid, 1);
-    if (tid == 0) {
-        ctx->linear_done += k;
-        /* The last iteration's relaxation factor, for the contacts' force estimate. */
-        for (uint32_t q = 0; q < s->cloth_count; ++q) {
-            float f = 1.0f;
-            if (st->kind == RBC_SOLVER_RBGS_SOR) f = ctx->sor_omega[q < 64 ? q : 63];
-            if (chebyshev)
-                f = rbc_chebyshev_omega(k - 1, st->chebyshev_delay, ctx->cheb_rho[q < 64 ? q : 63]);
-            s->cloths[q]->relax_last = f;
-        }
-    }
+    if (tid == 0) ctx->linear_done += k;
     if ((st->kind == RBC_SOLVER_JACOBI || st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV) && (k & 1)) {
         /* The last iteration wrote alt: make it p. */
         if (tid == 0)
@@ -1276,21 +1272,7 @@ static rbc_result RBC_CALL sink_add(rbc_contact_sink *sink, const rbc_host_conta
  * its contacts. */
 static void run_contact_callback(step_ctx *ctx, uint32_t sub) {
     rbc_solver *s = ctx->s;
-    for (uint32_t k = 0; k < s->cloth_count; ++k) {
-        rbc_cloth_state *c = s->cloths[k];
-        const uint32_t *to_int = c->topo.to_internal;
-        for (uint32_t v = 0; v < c->topo.n; ++v) {
-            uint32_t i = to_int[v];
-            for (int a = 0; a < 3; ++a) {
-                c->cb_pos[3 * (size_t)v + a] = c->p[a][i];
-                c->cb_prev[3 * (size_t)v + a] = c->x[a][i];
-            }
-        }
-        s->cb_list[k].cloth = c->public_id;
-        s->cb_list[k].vertex_count = c->topo.n;
-        s->cb_list[k].positions = c->cb_pos;
-        s->cb_list[k].previous_positions = c->cb_prev;
-    }
+    fill_host_buffers(s);
     s->host_contacts.count = 0;
     sink_impl im = {ctx, sub};
     rbc_contact_sink sink = {&im, sink_add};
@@ -1588,7 +1570,6 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     const rbc_solver_settings *st = &s->settings;
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
-        c->relax_last = 1.0f;
         prepare_weights(c, ctx.h);
         if (c->topo.ncolors > ctx.ncolors) ctx.ncolors = c->topo.ncolors;
         uint32_t ki = k < 64 ? k : 63;

@@ -105,10 +105,6 @@ typedef struct rbc_cloth_state {
     /* Tearing (interact.h): strain at which springs break (0 = never), springs
      * broken so far (their stiffness is 0), and quads as created (before tears). */
     float tear_strain;
-    /* The relaxation factor of the last linear iteration (SOR's omega, Chebyshev's
-     * omega_k, else 1): an accelerated sweep overshoots into a contact by that factor,
-     * which the contact's force estimate (collide.c) divides out. */
-    float relax_last;
     uint32_t torn;
     uint32_t quad_count0;
     /* Attachments: host vertex, collider public id, point in the collider frame. */
