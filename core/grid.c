@@ -9,6 +9,14 @@
 #include "simd.h"
 #include "solver.h"
 
+/* Inlined into its callers (with constant flags where they pass them) (GCC and Clang; elsewhere an
+ * ordinary inline, the same arithmetic). */
+#if defined(__GNUC__)
+#define RBC_ALWAYS_INLINE static inline __attribute__((always_inline))
+#else
+#define RBC_ALWAYS_INLINE static inline
+#endif
+
 /* First column of color c in row j, and the number of such columns. */
 static uint32_t first_col(const rbc_grid *g, uint32_t c, uint32_t j) {
     return (c + j + g->c0) & 1u;
@@ -155,14 +163,16 @@ not_grid:
     return 0;
 }
 
-/* The interior of a row: every particle has its left and right neighbour. Clones
- * for AVX2 and AVX-512 are picked at load time (simd.h), the default is SSE2. */
+/* The interior of a row: every particle has its left and right neighbour. The row
+ * functions are inlined into the sweeps, which are cloned for AVX2 and AVX-512 and
+ * picked at load time (simd.h; the default is SSE2): one dispatch per sweep instead
+ * of three indirect calls per row of 50 particles, whose set-up was a fifth of the
+ * sweep's time at 10K. */
 
 
 /* The three coordinates in one loop: the stiffnesses, b's row and the pins are read
  * once per particle. */
-RBC_VECTOR_CLONES
-static void row_interior(uint32_t count, float *restrict px, float *restrict py,
+RBC_ALWAYS_INLINE void row_interior(uint32_t count, float *restrict px, float *restrict py,
                          float *restrict pz, const float *restrict lx, const float *restrict ly,
                          const float *restrict lz, const float *restrict rx,
                          const float *restrict ry, const float *restrict rz,
@@ -212,8 +222,7 @@ static void row_interior(uint32_t count, float *restrict px, float *restrict py,
 
 /* One coordinate of a row's interior with the uniform stiffness kuni: eight streams,
  * few enough to stay in registers (the three-coordinate loop spills on AVX2). */
-RBC_VECTOR_CLONES
-static void row_axis_uniform(uint32_t count, float *restrict p, const float *restrict l,
+RBC_ALWAYS_INLINE void row_axis_uniform(uint32_t count, float *restrict p, const float *restrict l,
                              const float *restrict r, const float *restrict d,
                              const float *restrict u, const float *restrict b,
                              const float *restrict inv, const uint8_t *restrict pin,
@@ -253,8 +262,64 @@ static inline void edge_particle(rbc_cloth_state *c, uint32_t i, uint32_t ih, fl
     px[i] = gx, py[i] = gy, pz[i] = gz;
 }
 
+/* Eight lanes of GCC's vector extension: ymm registers in the AVX2 and AVX-512
+ * clones, two xmm in the SSE2 one. Unaligned loads and stores through memcpy. The
+ * helpers are always inlined into the cloned sweeps, so no vector crosses a call. */
+typedef float rbc_v8 __attribute__((vector_size(32)));
+/* GCC warns of the vector return's ABI at the end of the translation unit, so this
+ * stays off for the rest of the file (nothing here passes a vector across a call). */
+#pragma GCC diagnostic ignored "-Wpsabi"
+RBC_ALWAYS_INLINE rbc_v8 rbc_ld8(const float *p) {
+    rbc_v8 v;
+    memcpy(&v, p, sizeof v);
+    return v;
+}
+RBC_ALWAYS_INLINE void rbc_st8(float *p, rbc_v8 v) { memcpy(p, &v, sizeof v); }
+
+/* Eight particles from m of row_axis_free. */
+RBC_ALWAYS_INLINE rbc_v8 free_update(uint32_t m, const float *p, const float *l, const float *r,
+                                     const float *d, const float *u, const float *b,
+                                     const float *inv, rbc_v8 kv, float omega) {
+    rbc_v8 s = (rbc_ld8(l + m) + rbc_ld8(r + m)) + (rbc_ld8(d + m) + rbc_ld8(u + m));
+    rbc_v8 g = (rbc_ld8(b + m) + kv * s) * rbc_ld8(inv + m);
+    if (omega == 0.0f) return g;
+    rbc_v8 o = rbc_ld8(p + m);
+    return o + omega * (g - o);
+}
+
+/* One coordinate of a whole row (edges included) with the uniform stiffness k and no
+ * pin: g = (b + k ((l + r) + (d + u))) / denominator, and p = g, or p += omega (g - p)
+ * (SOR). count >= 8. The last eight particles are computed first and stored last:
+ * the loop's last vector overlaps them when count is not a multiple of 8, and both
+ * computed the overlap from the same old values (a color's particles read only the
+ * other color, b, the denominator and their own old position), so both wrote the same.
+ * The edge particles read a wrong horizontal neighbour here; the caller redoes them. */
+RBC_ALWAYS_INLINE void row_axis_free(uint32_t count, float *restrict p, const float *l,
+                                     const float *r, const float *d, const float *u,
+                                     const float *b, const float *inv, float k, float omega) {
+    const rbc_v8 kv = {k, k, k, k, k, k, k, k};
+    const uint32_t t = count - 8;
+    const rbc_v8 tail = free_update(t, p, l, r, d, u, b, inv, kv, omega);
+    for (uint32_t m = 0; m < t; m += 8)
+        rbc_st8(p + m, free_update(m, p, l, r, d, u, b, inv, kv, omega));
+    rbc_st8(p + t, tail);
+}
+
+/* 1 if none of the n pin flags at pin is set. */
+static inline int row_free(const uint8_t *pin, uint32_t n) {
+    uint64_t any = 0;
+    uint32_t m = 0;
+    for (; m + 8 <= n; m += 8) {
+        uint64_t w;
+        memcpy(&w, pin + m, 8);
+        any |= w;
+    }
+    for (; m < n; ++m) any |= pin[m];
+    return any == 0;
+}
+
 /* One row of one color: the Gauss-Seidel update of its particles. */
-static void grid_row(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, uint32_t j,
+RBC_ALWAYS_INLINE void grid_row(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, uint32_t j,
                      float omega) {
     const uint32_t nx = g->nx, ny = g->ny, o = 1u - color;
     float *const *P = c->p;
@@ -272,6 +337,35 @@ static void grid_row(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, uint
     uint32_t hi = nx >= 2 + f ? (nx - 2 - f) / 2 + 1 : 0u;
     if (hi > cnt) hi = cnt;
     if (lo > hi) lo = hi;
+    /* The common case, a row with one stiffness and no pinned particle, in one vector
+     * loop over the whole row; then its edge particles again, from their old
+     * positions, with their one horizontal neighbour. The loop reads the left
+     * neighbour of column 0 at ro + f - 1 and the right one of column nx - 1 at
+     * ro + f + cnt - 1: in bounds unless this is the other color's first or the last
+     * row, which take the path below. */
+    if (g->k_uniform != 0.0f && cnt >= 8 && lo + (cnt - hi) <= 2 && ro + f >= 1 &&
+        ro + f + cnt <= g->row_first[1][ny] && row_free(c->pinned + s0, cnt)) {
+        const float *B[3] = {c->bx, c->by, c->bz};
+        float old[2][3];
+        uint32_t edge[2], ne = 0;
+        for (uint32_t m = 0; m < lo; ++m) edge[ne++] = m;
+        for (uint32_t m = hi; m < cnt; ++m) edge[ne++] = m;
+        for (uint32_t e = 0; e < ne; ++e)
+            for (int a = 0; a < 3; ++a) old[e][a] = P[a][s0 + edge[e]];
+        for (int a = 0; a < 3; ++a)
+            row_axis_free(cnt, P[a] + s0, P[a] + ro + f - 1, P[a] + ro + f, dn[a], up[a],
+                          B[a] + s0, c->inv_denom + s0, g->k_uniform, omega);
+        for (uint32_t e = 0; e < ne; ++e) {
+            const uint32_t m = edge[e], i = s0 + m;
+            for (int a = 0; a < 3; ++a) P[a][i] = old[e][a];
+            const int left = m < lo; /* column 0: the right neighbour, if any */
+            const int has = left ? f + 2 * m + 1 < nx : f + 2 * m >= 1;
+            edge_particle(c, i, has ? ro + f + m - (left ? 0u : 1u) : i,
+                          has ? (left ? g->kr[i] : g->kl[i]) : 0.0f, g->kd[i], g->ku[i], dn, up,
+                          m, omega);
+        }
+        return;
+    }
     for (uint32_t m = 0; m < lo; ++m) { /* column 0: the right neighbour only (if any) */
         const uint32_t i = s0 + m;
         const int has_r = f + 2 * m + 1 < nx;
@@ -300,6 +394,7 @@ static void grid_row(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, uint
     }
 }
 
+RBC_VECTOR_CLONES
 void rbc_grid_sweep(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, float omega,
                     uint32_t tid, uint32_t nt) {
     uint32_t j0, j1;
@@ -307,6 +402,7 @@ void rbc_grid_sweep(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, float
     for (uint32_t j = j0; j < j1; ++j) grid_row(g, c, color, j, omega);
 }
 
+RBC_VECTOR_CLONES
 void rbc_grid_wavefront(const rbc_grid *g, rbc_cloth_state *c, uint32_t iterations, float omega,
                         volatile uint32_t *progress, size_t stride, uint32_t tid, uint32_t nt) {
     const uint32_t ny = g->ny;
@@ -335,13 +431,6 @@ void rbc_grid_wavefront(const rbc_grid *g, rbc_cloth_state *c, uint32_t iteratio
 /* Jacobi and serial Gauss-Seidel on the lattice                             */
 /* ------------------------------------------------------------------------- */
 
-/* Inlined with constant flags into each variant below (GCC and Clang; elsewhere an
- * ordinary inline, the same arithmetic). */
-#if defined(__GNUC__)
-#define RBC_ALWAYS_INLINE static inline __attribute__((always_inline))
-#else
-#define RBC_ALWAYS_INLINE static inline
-#endif
 
 /* One coordinate of a row's interior (both horizontal neighbours exist): the Jacobi
  * update in the CSR row's order, b + s_d d + s_l l + s_r r + s_u u, each term rounded
