@@ -144,8 +144,11 @@ static void test_rhs(void) {
 }
 
 /* Whole steps: one cloth on the fast path, one identical cloth with its grid
- * removed (the CSR path). */
-static void test_steps(rbc_solver_kind kind, uint32_t threads) {
+ * removed (the CSR path). Grids of even and odd widths, rows shorter and longer than
+ * a vector of 8, and a pin in the middle of a row besides the two corners: the sweep
+ * takes its whole-row vector loop, its split path (pins, the first and last rows) and
+ * short rows. */
+static void test_steps_grid(rbc_solver_kind kind, uint32_t threads, uint32_t nx, uint32_t ny) {
     rbc_allocator al = rbc_allocator_default();
     rbc_solver s, s2;
     CHECK_EQ(rbc_solver_init(&s, &al, threads), RBC_OK);
@@ -153,10 +156,10 @@ static void test_steps(rbc_solver_kind kind, uint32_t threads) {
     rbc_solver_settings st = s.settings;
     st.kind = kind;
     st.energy_guard = RBC_ENERGY_GUARD_OFF;
-    test_mesh m = mesh_grid(64, 48, 1.0f / 63.0f);
-    uint32_t pins[2] = {0, 63};
-    rbc_cloth_state *fast = make(&s, &m, pins, 2, 0.0f);
-    rbc_cloth_state *csr = make(&s2, &m, pins, 2, 0.0f);
+    test_mesh m = mesh_grid(nx, ny, 1.0f / (float)(nx - 1));
+    uint32_t pins[3] = {0, nx - 1, nx * (ny / 2) + nx / 2};
+    rbc_cloth_state *fast = make(&s, &m, pins, 3, 0.0f);
+    rbc_cloth_state *csr = make(&s2, &m, pins, 3, 0.0f);
     CHECK_EQ(rbc_solver_set_settings(&s, &st), RBC_OK);
     CHECK_EQ(rbc_solver_set_settings(&s2, &st), RBC_OK);
     CHECK(fast->grid != NULL);
@@ -173,11 +176,11 @@ static void test_steps(rbc_solver_kind kind, uint32_t threads) {
      * roundings of |p| ~ 1 m: 3e-7 m) and of b; updates contract earlier differences
      * (rho < 1), so 5 frames of 11 iterations of 2 colors add at most
      * 5 * 11 * 2 * 5 * 2^-24 m = 3.3e-5 m. The pins must not have moved. */
-    printf("%s, %u thread(s): fast path vs CSR path, worst |dp| over 5 frames %.3g m\n",
-           kind == RBC_SOLVER_RBGS ? "rbgs" : "rbgs_sor", threads, worst);
+    printf("%s, %u thread(s), %ux%u: fast path vs CSR path, worst |dp| over 5 frames %.3g m\n",
+           kind == RBC_SOLVER_RBGS ? "rbgs" : "rbgs_sor", threads, nx, ny, worst);
     CHECK(worst <= 5.0 * 11 * 2 * 5 * ldexp(1.0, -24));
     const rbc_topology *t = &fast->topo;
-    for (int p = 0; p < 2; ++p) {
+    for (int p = 0; p < 3; ++p) {
         uint32_t i = t->to_internal[pins[p]];
         CHECK(fast->x[0][i] == t->rest_x[i] && fast->x[1][i] == t->rest_y[i] &&
               fast->x[2][i] == t->rest_z[i]);
@@ -185,6 +188,12 @@ static void test_steps(rbc_solver_kind kind, uint32_t threads) {
     mesh_free(&m);
     rbc_solver_fini(&s);
     rbc_solver_fini(&s2);
+}
+
+static void test_steps(rbc_solver_kind kind, uint32_t threads) {
+    static const uint32_t shapes[][2] = {{64, 48}, {41, 30}, {33, 17}, {17, 12}, {9, 20}};
+    for (size_t k = 0; k < sizeof shapes / sizeof shapes[0]; ++k)
+        test_steps_grid(kind, threads, shapes[k][0], shapes[k][1]);
 }
 
 /* The ELLPACK sweep (meshes without lattice structure) against the CSR rows: the same
