@@ -118,6 +118,10 @@ int bench_mesh_grid(bench_mesh *m, uint32_t nx, uint32_t ny, double spacing, int
 /// Derive springs, rest lengths and pinned flags (call after changing quads, extra
 /// springs, pins or rest positions). Returns 0, or -1 when out of memory.
 int bench_mesh_finish(bench_mesh *m);
+/// The first cloth of a loaded scene (samples/scene.h) as a bench_mesh: arrays
+/// copied, springs derived. Returns 0, or -1 when out of memory.
+struct rbc_scene;
+int bench_mesh_from_scene(const struct rbc_scene *sc, bench_mesh *m);
 void bench_mesh_free(bench_mesh *m);
 
 static inline double bench_mass(const bench_mesh *m, uint32_t i) {

@@ -115,31 +115,6 @@ static int out_of_memory(void) {
     return 1;
 }
 
-/* The default scene's cloth as a bench_mesh (copied arrays). */
-static int mesh_from_scene(const rbc_scene *sc, bench_mesh *m) {
-    const rbc_scene_cloth *c = &sc->cloths[0];
-    memset(m, 0, sizeof *m);
-    m->n = c->vertex_count;
-    m->quad_count = c->quad_count;
-    m->rest = malloc((size_t)m->n * 3 * sizeof *m->rest);
-    m->quads = malloc((size_t)m->quad_count * 4 * sizeof *m->quads);
-    m->pins = malloc((c->pin_count ? c->pin_count : 1) * sizeof *m->pins);
-    if (!m->rest || !m->quads || !m->pins)
-        return -1;
-    memcpy(m->rest, c->positions, (size_t)m->n * 3 * sizeof *m->rest);
-    memcpy(m->quads, c->quads, (size_t)m->quad_count * 4 * sizeof *m->quads);
-    memcpy(m->pins, c->pins, c->pin_count * sizeof *m->pins);
-    m->pin_count = c->pin_count;
-    m->vertex_mass = c->vertex_mass;
-    m->stiffness = c->stiffness;
-    m->damping = c->damping;
-    if (c->from_grid) {
-        m->nx = c->grid.nx;
-        m->ny = c->grid.ny;
-    }
-    return bench_mesh_finish(m);
-}
-
 static int build_scenes(acc_ctx *ctx) {
     rbc_scene sc;
     char err[RBC_SCENE_ERROR_MAX];
@@ -153,7 +128,7 @@ static int build_scenes(acc_ctx *ctx) {
     acc_scene *s = &ctx->scenes[ctx->scene_count++];
     snprintf(s->name, sizeof s->name, "stretched");
     s->title = "stretched 1.5x, shrinking (Fig. 3)";
-    if (mesh_from_scene(&sc, &s->mesh))
+    if (bench_mesh_from_scene(&sc, &s->mesh))
         rc = out_of_memory();
     s->mesh.pin_count = 0;
     s->mesh.damping = 1.0f / sc.dt;
@@ -183,7 +158,7 @@ static int build_scenes(acc_ctx *ctx) {
         s = &ctx->scenes[ctx->scene_count++];
         snprintf(s->name, sizeof s->name, "hanging");
         s->title = "hanging cloth (Fig. 4)";
-        if (mesh_from_scene(&sc, &s->mesh))
+        if (bench_mesh_from_scene(&sc, &s->mesh))
             rc = out_of_memory();
         memcpy(s->gravity, sc.world.gravity, sizeof s->gravity);
         s->dt = sc.dt;
@@ -197,7 +172,7 @@ static int build_scenes(acc_ctx *ctx) {
         s = &ctx->scenes[ctx->scene_count++];
         snprintf(s->name, sizeof s->name, "hanging_h60_khm%g", ratios[k]);
         s->title = "hanging cloth, h = 1/60 s";
-        if (mesh_from_scene(&sc, &s->mesh)) {
+        if (bench_mesh_from_scene(&sc, &s->mesh)) {
             rc = out_of_memory();
             break;
         }

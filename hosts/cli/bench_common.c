@@ -1,5 +1,6 @@
-/* bench_common.c -- helpers shared by the accuracy and stability benches (bench.h). */
+/* bench_common.c -- helpers shared by the benches (bench.h). */
 #include "bench.h"
+#include "scene.h"
 
 #include <errno.h>
 #include <math.h>
@@ -145,6 +146,30 @@ int bench_mesh_finish(bench_mesh *m) {
     for (uint32_t k = 0; k < m->pin_count; ++k)
         m->pinned[m->pins[k]] = 1;
     return 0;
+}
+
+int bench_mesh_from_scene(const rbc_scene *sc, bench_mesh *m) {
+    const rbc_scene_cloth *c = &sc->cloths[0];
+    memset(m, 0, sizeof *m);
+    m->n = c->vertex_count;
+    m->quad_count = c->quad_count;
+    m->rest = malloc((size_t)m->n * 3 * sizeof *m->rest);
+    m->quads = malloc((size_t)m->quad_count * 4 * sizeof *m->quads);
+    m->pins = malloc((c->pin_count ? c->pin_count : 1) * sizeof *m->pins);
+    if (!m->rest || !m->quads || !m->pins)
+        return -1;
+    memcpy(m->rest, c->positions, (size_t)m->n * 3 * sizeof *m->rest);
+    memcpy(m->quads, c->quads, (size_t)m->quad_count * 4 * sizeof *m->quads);
+    memcpy(m->pins, c->pins, c->pin_count * sizeof *m->pins);
+    m->pin_count = c->pin_count;
+    m->vertex_mass = c->vertex_mass;
+    m->stiffness = c->stiffness;
+    m->damping = c->damping;
+    if (c->from_grid) {
+        m->nx = c->grid.nx;
+        m->ny = c->grid.ny;
+    }
+    return bench_mesh_finish(m);
 }
 
 void bench_mesh_free(bench_mesh *m) {
