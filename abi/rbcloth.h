@@ -59,6 +59,9 @@
  *    against cloth and self contact (rbc_cloth_def.collision_flags), host contacts
  *    (rbc_world_set_contact_callback), picking, attachments, tearing and cuts
  *    (rbc_cloth_cut, rbc_cloth_get_quads), wind, and triangles of imported meshes.
+ *    1.4: the target error mode (RBC_ITERATE_TARGET: rbc_solver_def.target_strain
+ *    and max_substeps; what was chosen and reached in stats) and quality presets
+ *    (rbc_solver_def_preset, RBC_PRESET_GAME_60HZ).
  *  - The ABI version is not the library's release version (rbc_version_string).
  */
 #ifndef RBCLOTH_H
@@ -90,7 +93,7 @@ extern "C" {
 /// Major version of this ABI: incompatible changes bump it.
 #define RBC_ABI_VERSION_MAJOR 1
 /// Minor version of this ABI: appended functions or fields bump it.
-#define RBC_ABI_VERSION_MINOR 3
+#define RBC_ABI_VERSION_MINOR 4
 /// (major << 16) | minor, as returned by rbc_abi_version().
 #define RBC_ABI_VERSION ((RBC_ABI_VERSION_MAJOR << 16) | RBC_ABI_VERSION_MINOR)
 
@@ -247,6 +250,40 @@ enum {
     /// Fig. 3/4 bottom rows), at least one per non-linear iteration, at most
     /// max_linear_iterations.
     RBC_ITERATE_BUDGET = 2,
+    /// Ask for an error, not a count (1.4): the world chooses the substeps and the
+    /// linear iterations of every step to bring the RMS relative strain of every
+    /// cloth at the end of the step,
+    ///     strain_rms = sqrt( sum_s ((|p_a - p_b| - L_s) / L_s)^2 / N )
+    /// over its N springs that are not torn and have rest length L_s > 0 (Eq. 7 with
+    /// each violation relative to its rest length), to `target_strain` or below,
+    /// within a cap of `max_substeps` substeps and `max_linear_iterations` linear
+    /// iterations per non-linear iteration (a deterministic cap in counts: a step
+    /// never does more than max_substeps x nonlinear_iterations x
+    /// max_linear_iterations linear iterations in max_substeps substeps).
+    /// How it chooses:
+    ///  - Inside a global step, the strain of the iterate is checked (one pass over
+    ///    the springs, in double, in fixed blocks: bitwise the same for any thread
+    ///    count) from the iteration the previous global step needed, less one, on;
+    ///    the step stops at 0.95 target_strain (room for friction and the post-solve
+    ///    safety pass) or at max_linear_iterations.
+    ///  - Between steps, substeps: a step that missed the target, or whose global
+    ///    step needed the cap, raises them by half (at least 1) for the next step;
+    ///    after 8 steps in a row that met it without the cap, the controller tries a
+    ///    quarter fewer, and undoes that if the next step costs more (linear
+    ///    iterations + 3 per substep), doubling the 8 (up to 256) each time a
+    ///    lowering is undone, so it does not oscillate. The first step in this mode
+    ///    (after rbc_world_create, rbc_world_set_solver or rbc_world_set_iterations)
+    ///    runs max_substeps.
+    ///  - When the substeps change, previous positions are rescaled so velocities
+    ///    are kept.
+    /// What was done and reached is in rbc_world_stats (substeps, linear_iterations,
+    /// target_reached, target_met, next_substeps, target_missed_steps,
+    /// target_capped_steps). A step that misses at max_substeps (the target cannot
+    /// be met within the cap) still returns RBC_OK; it is counted in
+    /// target_capped_steps and logged as a warning at the first such step and at
+    /// every power of two after it. The world's `substeps` and `linear_iterations`
+    /// are not used in this mode.
+    RBC_ITERATE_TARGET = 3,
     RBC_ITERATE_FORCE32 = 0x7FFFFFFF
 };
 
@@ -376,16 +413,40 @@ typedef struct rbc_solver_def {
     float tolerance;
     /// Milliseconds per rbc_world_step in RBC_ITERATE_BUDGET, > 0. Default 2.
     float budget_ms;
-    /// Most linear iterations per non-linear iteration in the TOLERANCE and BUDGET
-    /// modes, 1..100000. Default 1000.
+    /// Most linear iterations per non-linear iteration in the TOLERANCE, BUDGET and
+    /// TARGET modes, 1..100000. Default 1000 (RBC_PRESET_GAME_60HZ: 8).
     uint32_t max_linear_iterations;
     /* --- 1.2 --- */
     /// An rbc_energy_guard. Default RBC_ENERGY_GUARD_CLAMP.
     rbc_energy_guard energy_guard;
+    /* --- 1.4 --- */
+    /// RBC_ITERATE_TARGET: the RMS relative strain of every cloth to reach at the
+    /// end of each step (see RBC_ITERATE_TARGET; 0.05 = springs 5 % off their rest
+    /// length, root mean square), finite and > 0. Default 0.05.
+    float target_strain;
+    /// RBC_ITERATE_TARGET: most substeps per rbc_world_step, 1..1024. Default 16.
+    uint32_t max_substeps;
 } rbc_solver_def;
 
 /// sizeof(rbc_solver_def) in ABI 1.1 (before `energy_guard`).
 #define RBC_SOLVER_DEF_SIZE_V1_1 ((uint32_t)offsetof(rbc_solver_def, energy_guard))
+/// sizeof(rbc_solver_def) in ABI 1.2 and 1.3 (before `target_strain`).
+#define RBC_SOLVER_DEF_SIZE_V1_2 ((uint32_t)offsetof(rbc_solver_def, target_strain))
+
+/// Quality presets for rbc_solver_def_preset. (1.4)
+typedef int32_t rbc_preset;
+enum {
+    /// rbc_solver_def_init's defaults: RBGS, fixed counts (the world's 1 substep x
+    /// 11 iterations, the paper's).
+    RBC_PRESET_DEFAULT = 0,
+    /// Cloth in a game at 60 Hz (rbc_world_step(world, 1/60.f)): RBGS in
+    /// RBC_ITERATE_TARGET, target_strain 0.05, max_substeps 32,
+    /// max_linear_iterations 8 (at most 256 linear iterations per step), energy
+    /// guard clamp. See README (target mode) for
+    /// what it reaches and costs on the paper's cloth.
+    RBC_PRESET_GAME_60HZ = 1,
+    RBC_PRESET_FORCE32 = 0x7FFFFFFF
+};
 
 /// How a world is made. Fill one with rbc_world_def_init (or rbc_world_def_default).
 typedef struct rbc_world_def {
@@ -665,7 +726,28 @@ typedef struct rbc_world_stats {
     uint32_t cloth_contacts;
     /// Springs broken so far (tearing and rbc_cloth_cut), over all cloths.
     uint64_t torn_springs;
+    /* --- 1.4 --- */
+    /// RMS relative strain now (RBC_ITERATE_TARGET's measure), the largest over the
+    /// cloths; a pass over every cloth (0 with skip_measures).
+    double strain_rms;
+    /// RBC_ITERATE_TARGET: the strain the last step reached (the same measure at the
+    /// end of that step, computed by the step itself: kept with skip_measures), and
+    /// 1 if it was <= target_strain, else 0. Both 0 in the other modes.
+    double target_reached;
+    uint32_t target_met;
+    /// The substeps the next step will use: the controller's choice in
+    /// RBC_ITERATE_TARGET, else the world's count. (The last step's substeps and
+    /// iterations are `substeps` and `linear_iterations` above.)
+    uint32_t next_substeps;
+    /// Steps so far in RBC_ITERATE_TARGET whose end strain exceeded the target, and
+    /// among them those run at max_substeps: the target could not be met within the
+    /// cap (each such step is also logged, at 1, 2, 4, ...).
+    uint64_t target_missed_steps;
+    uint64_t target_capped_steps;
 } rbc_world_stats;
+
+/// sizeof(rbc_world_stats) in ABI 1.3 (before `strain_rms`).
+#define RBC_WORLD_STATS_SIZE_V1_3 ((uint32_t)offsetof(rbc_world_stats, strain_rms))
 
 /// sizeof(rbc_world_stats) in ABI 1.2 (before `collider_contacts`).
 #define RBC_WORLD_STATS_SIZE_V1_2 ((uint32_t)offsetof(rbc_world_stats, collider_contacts))
@@ -795,6 +877,12 @@ RBC_API rbc_result RBC_CALL rbc_solver_def_init(rbc_solver_def *def, uint32_t st
 RBC_API rbc_result RBC_CALL rbc_world_set_solver(rbc_world_id world, const rbc_solver_def *def);
 /// Read the solver settings in use (set def->struct_size first).
 RBC_API rbc_result RBC_CALL rbc_world_get_solver(rbc_world_id world, rbc_solver_def *def);
+/// Fill a solver def with a quality preset (an rbc_preset): the defaults of
+/// rbc_solver_def_init, then the preset's fields. A 1.1-1.3 struct_size gets the
+/// fields that fit (RBC_PRESET_GAME_60HZ then needs 1.4: refused with
+/// RBC_ERR_INVALID_ARGUMENT, since its mode would run without its target). (1.4)
+RBC_API rbc_result RBC_CALL rbc_solver_def_preset(rbc_solver_def *def, uint32_t struct_size,
+                                                  rbc_preset preset);
 /// Sizes of the cloth's color classes: sizes[c] = particles of color c, for
 /// c < min(capacity, colors); *out_color_count (if not NULL) = number of colors.
 RBC_API rbc_result RBC_CALL rbc_cloth_get_colors(rbc_world_id world, rbc_cloth_id cloth,
@@ -1154,6 +1242,9 @@ typedef struct rbc_api_v1 {
                                           float drag, float lift);
     rbc_result (RBC_CALL *mesh_get_triangles)(rbc_mesh_id mesh, uint32_t *triangles,
                                               size_t capacity, size_t *out_count);
+    /* --- 1.4 --- */
+    rbc_result (RBC_CALL *solver_def_preset)(rbc_solver_def *def, uint32_t struct_size,
+                                             rbc_preset preset);
 } rbc_api_v1;
 
 /// sizeof(rbc_api_v1) in ABI 1.0 (a host built against 1.0 checks struct_size >= it).
@@ -1162,6 +1253,8 @@ typedef struct rbc_api_v1 {
 #define RBC_API_V1_SIZE_V1_1 ((uint32_t)offsetof(rbc_api_v1, mesh_import_def_init))
 /// sizeof(rbc_api_v1) in ABI 1.2 (before the 1.3 entries).
 #define RBC_API_V1_SIZE_V1_2 ((uint32_t)offsetof(rbc_api_v1, world_set_contact_callback))
+/// sizeof(rbc_api_v1) in ABI 1.3 (before the 1.4 entries).
+#define RBC_API_V1_SIZE_V1_3 ((uint32_t)offsetof(rbc_api_v1, solver_def_preset))
 
 /// The function table of ABI major `abi_major`, or NULL if this library does not
 /// implement that major. The table is static: never free it.

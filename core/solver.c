@@ -37,6 +37,7 @@
 #include "grid.h"
 #include "interact.h"
 #include "simd.h"
+#include "strain.h"
 #include "global.h"
 #include "kernels/pd_kernels.h"
 
@@ -66,6 +67,9 @@ int32_t rbc_solver_init(rbc_solver *s, const rbc_allocator *a, uint32_t nthreads
     s->settings.budget_ms = 2.0f;
     s->settings.max_linear_iterations = 1000;
     s->settings.energy_guard = RBC_ENERGY_GUARD_CLAMP;
+    s->settings.target_strain = 0.05f;
+    s->settings.max_substeps = 16;
+    rbc_solver_target_reset(s);
     if (rbc_pool_create(&s->pool, nthreads, a) != 0) return RBC_ERR_OUT_OF_MEMORY;
     return RBC_OK;
 }
@@ -94,7 +98,8 @@ void rbc_solver_fini(rbc_solver *s) {
     X(dx, float, 2 * (size_t)ns) X(dy, float, 2 * (size_t)ns) X(dz, float, 2 * (size_t)ns) \
     X(bx, float, n) X(by, float, n) X(bz, float, n)                                      \
     X(w, float, n) X(inv_denom, float, n) X(pinned, uint8_t, n)                          \
-    X(e_blk, double, rbc_energy_block_doubles((uint32_t)n, (uint32_t)ns))
+    X(e_blk, double, rbc_energy_block_doubles((uint32_t)n, (uint32_t)ns))               \
+    X(strain_blk, double, rbc_strain_block_doubles((uint32_t)ns))
 
 static void free_pins(rbc_solver *s, rbc_cloth_state *c) {
     rbc_mem_free(&s->alloc, c->pin_idx, sizeof(uint32_t) * c->pin_cap);
@@ -281,6 +286,7 @@ int32_t rbc_cloth_state_create(rbc_solver *s, const rbc_mesh_input *in, float da
         return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for %zu particles", n);
     }
     c->h_cached = 0.0f;
+    c->h_last = 0.0f;
     c->e_valid = 0;
     c->e_keep_slack = 0;
     *out = c;
@@ -506,7 +512,17 @@ int32_t rbc_solver_set_settings(rbc_solver *s, const rbc_solver_settings *st) {
         for (uint32_t k = 0; k < s->cloth_count; ++k) /* unguarded steps: start afresh */
             rbc_cloth_state_energy_invalidate(s->cloths[k], 0);
     s->settings = *st;
+    rbc_solver_target_reset(s); /* the controller starts again from the world's counts */
     return RBC_OK;
+}
+
+void rbc_solver_target_reset(rbc_solver *s) {
+    s->tgt_substeps = 0;
+    s->tgt_iters = 0;
+    s->tgt_calm = 0;
+    s->tgt_hold = RBC_TARGET_HOLD;
+    s->tgt_lowered_at = 0;
+    s->tgt_probe = 0;
 }
 
 void rbc_cloth_state_get(const rbc_cloth_state *c, float *pos, float *prev) {
@@ -532,6 +548,7 @@ void rbc_cloth_state_set(rbc_cloth_state *c, const float *pos, const float *prev
         }
     }
     c->system_valid = 0;
+    c->h_last = 0.0f; /* prev is the host's: its velocity is over the next h */
     rbc_cloth_state_energy_invalidate(c, 0); /* a new state: a new budget */
 }
 
@@ -654,6 +671,12 @@ typedef struct step_ctx {
     /* Steps each thread finished in the lattice wavefront (grid.h), a cache line
      * apart. */
     volatile uint32_t progress[64 * 16];
+    /* RBC_ITERATE_TARGET: the linear iterations of the global steps before the
+     * step's last (the count the last one of the previous step needed), what the
+     * last one needed (thread 0 writes it), and whether it stopped at
+     * max_linear_iterations above the target. */
+    uint32_t tgt_iters, tgt_iters_next;
+    int hit_cap;
     float cheb_rho[64];   /* per cloth (first 64): the Chebyshev rho in use */
     float sor_omega[64];  /* per cloth: the SOR omega in use */
     rbc_step_times t;
@@ -987,44 +1010,90 @@ static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uin
     /* Residual check over all colors but the last one a Gauss-Seidel sweep just
      * solved exactly (its rows have zero residual up to rounding). */
     int gs_family = st->kind != RBC_SOLVER_JACOBI && st->kind != RBC_SOLVER_JACOBI_CHEBYSHEV;
-    uint32_t limit = st->mode == RBC_ITERATE_FIXED ? s->linear_iterations : st->max_linear_iterations;
+    /* RBC_ITERATE_TARGET: every global step of a step but its last runs the count
+     * the last one of the previous step needed (a fixed count, so the wavefront
+     * below serves it); the last one checks the strain from a quarter below that count on,
+     * every iteration, up to max_linear_iterations. Checking where the step ends is
+     * what decides; a check costs several lattice sweeps, so only ~2 per step. */
+    const int tgt = st->mode == RBC_ITERATE_TARGET;
+    const int tgt_check = tgt && segment + 1 == nsegments;
+    const int fixed = st->mode == RBC_ITERATE_FIXED || (tgt && !tgt_check);
+    uint32_t limit = st->mode == RBC_ITERATE_FIXED ? s->linear_iterations
+                     : fixed                      ? ctx->tgt_iters
+                                                  : st->max_linear_iterations;
+    /* The first check a quarter (at least one) below last step's count: the count
+     * comes down quickly when the cloth settles, and a step that needs the full
+     * count pays a check or two more. */
+    uint32_t first = 0;
+    if (tgt_check) {
+        uint32_t n = ctx->tgt_iters, less = n / 4 > 1 ? n / 4 : 1;
+        first = n > less ? n - less : 1;
+    }
     /* Fixed counts of plain or over-relaxed red-black sweeps on lattices: the
      * temporally blocked wavefront does the same updates with the same inputs (the
      * result is bitwise that of the loop below) but streams the mesh once instead of
      * once per iteration, in a pipeline of the threads. */
-    int wave = !ctx->any_contacts && !ctx->host_contacts && !ctx->cc_active && st->mode == RBC_ITERATE_FIXED &&
-               (st->kind == RBC_SOLVER_RBGS || st->kind == RBC_SOLVER_RBGS_SOR ||
-                st->kind == RBC_SOLVER_MULTICOLOR_GS);
-    for (uint32_t q = 0; wave && q < s->cloth_count; ++q) wave = s->cloths[q]->grid != NULL;
-    if (wave) {
+    int wave_ok = !ctx->any_contacts && !ctx->host_contacts && !ctx->cc_active &&
+                  (st->kind == RBC_SOLVER_RBGS || st->kind == RBC_SOLVER_RBGS_SOR ||
+                   st->kind == RBC_SOLVER_MULTICOLOR_GS);
+    for (uint32_t q = 0; wave_ok && q < s->cloth_count; ++q) wave_ok = s->cloths[q]->grid != NULL;
+    const int wave = wave_ok && fixed;
+    /* The target's checked global step: the iterations before its first check too. */
+    const uint32_t pre = tgt_check && wave_ok ? first - 1 : 0;
+    if (wave || pre) {
+        const uint32_t count = wave ? limit : pre;
         for (uint32_t q = 0; q < s->cloth_count; ++q) {
             rbc_cloth_state *c = s->cloths[q];
             float omega = st->kind == RBC_SOLVER_RBGS_SOR ? ctx->sor_omega[q < 64 ? q : 63] : 0.0f;
             ctx->progress[16 * tid] = 0;
             rbc_pool_barrier(pool);
-            rbc_grid_wavefront(c->grid, c, limit, omega, ctx->progress, 16, tid, nt);
+            rbc_grid_wavefront(c->grid, c, count, omega, ctx->progress, 16, tid, nt);
             rbc_pool_barrier(pool);
         }
-        if (tid == 0) ctx->linear_done += limit;
-        return;
+        if (wave) {
+            if (tid == 0) ctx->linear_done += limit;
+            return;
+        }
     }
     double deadline = ctx->start_ms + (double)st->budget_ms * (segment + 1) / nsegments;
-    uint32_t k = 0;
+    uint32_t k = pre;
     int cloth_done = 1;
     double t_iter = 0.0;
     for (;;) {
         double t0 = tid == 0 ? now_ms() : 0.0;
         linear_iteration(ctx, k, tid, nt);
         const int jac = st->kind == RBC_SOLVER_JACOBI || st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV;
-        cloth_done = (k + 1) % RBC_CC_EVERY == 0 ||
-                     (st->mode == RBC_ITERATE_FIXED && k + 1 >= limit);
+        cloth_done = (k + 1) % RBC_CC_EVERY == 0 || (fixed && k + 1 >= limit);
         contact_pass(ctx, jac ? !(k & 1) : 0, tid, cloth_done);
         k++;
-        if (st->mode == RBC_ITERATE_FIXED) {
+        if (fixed) {
             if (k >= limit) break;
             continue;
         }
-        if (st->mode == RBC_ITERATE_TOLERANCE) {
+        if (st->mode == RBC_ITERATE_TARGET) {
+            /* Check the strain of the latest iterate (in float: strain.h) and stop
+             * below the target (with room for what friction and the safety pass
+             * change after the solve), or at the cap. */
+            if (k < first && k < limit) continue;
+            for (uint32_t q = 0; q < s->cloth_count; ++q) {
+                rbc_cloth_state *c = s->cloths[q];
+                rbc_strain_blocks_fast(c, jac && (k & 1) ? c->alt : c->p, tid, nt);
+            }
+            rbc_pool_barrier(pool);
+            if (tid == 0) {
+                double worst = 0.0;
+                for (uint32_t q = 0; q < s->cloth_count; ++q) {
+                    double r = rbc_strain_sum(s->cloths[q]);
+                    if (r > worst) worst = r;
+                }
+                int met = worst <= RBC_TARGET_INNER * (double)st->target_strain;
+                ctx->stop = met || k >= limit;
+                if (ctx->stop) {
+                    if (!met) ctx->hit_cap = 1;
+                    ctx->tgt_iters_next = k;
+                }
+            }
+        } else if (st->mode == RBC_ITERATE_TOLERANCE) {
             double r2 = 0.0, b2 = 0.0;
             for (uint32_t q = 0; q < s->cloth_count; ++q) {
                 const rbc_cloth_state *c = s->cloths[q];
@@ -1549,13 +1618,80 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
 #undef STAGE_END
 }
 
+/* The final strain of every cloth (RBC_ITERATE_TARGET), block sums on all threads. */
+static void strain_spmd(void *arg, uint32_t tid, uint32_t nt) {
+    rbc_solver *s = arg;
+    for (uint32_t k = 0; k < s->cloth_count; ++k) rbc_strain_blocks(s->cloths[k], s->cloths[k]->x, tid, nt);
+}
+
+/* The target mode's controller, after a successful step of `used` substeps that
+ * reached `reached` (the largest RMS relative strain of any cloth) at `cost` units.
+ * Substeps are the lever (the linear iterations adapt inside each global step):
+ *  - a miss, or a global step that needed max_linear_iterations, raises them by half
+ *    (at least one) up to max_substeps;
+ *  - after tgt_hold steps in a row that met the target without the cap, a probe
+ *    lowers them by a quarter (at least one); if the next step costs more units
+ *    than the step before the probe, the probe is undone and tgt_hold doubles (up
+ *    to 256), so a lowering that does not pay is tried ever less often.
+ * Counts only: the choice is deterministic and independent of the thread count. */
+static void target_decide(rbc_solver *s, uint32_t used, int hit_cap, double reached,
+                          uint64_t cost) {
+    const uint32_t smax = s->settings.max_substeps;
+    const int met = reached <= (double)s->settings.target_strain;
+    s->tgt_reached = reached;
+    s->tgt_met = met;
+    s->tgt_capped = !met && used >= smax;
+    if (!met) s->tgt_missed_steps++;
+    if (s->tgt_capped) s->tgt_capped_steps++;
+    uint32_t next = used;
+    if ((!met || hit_cap) && used < smax) {
+        next = used + (used / 2 > 1 ? used / 2 : 1);
+        if (next > smax) next = smax;
+        if (s->tgt_probe || (s->tgt_lowered_at && s->step_count - s->tgt_lowered_at <= s->tgt_hold))
+            s->tgt_hold = s->tgt_hold < 128 ? 2 * s->tgt_hold : 256;
+        s->tgt_probe = 0;
+        s->tgt_calm = 0;
+    } else if (s->tgt_probe) {
+        if (cost > s->tgt_prev_cost) {
+            next = s->tgt_prev_substeps; /* the fewer substeps cost more: back */
+            s->tgt_hold = s->tgt_hold < 128 ? 2 * s->tgt_hold : 256;
+        }
+        s->tgt_probe = 0;
+        s->tgt_calm = 0;
+    } else if (met && !hit_cap && used > 1) {
+        if (++s->tgt_calm >= s->tgt_hold) {
+            s->tgt_prev_substeps = used;
+            s->tgt_prev_cost = cost;
+            s->tgt_probe = 1;
+            s->tgt_lowered_at = s->step_count;
+            next = used - (used / 4 > 1 ? used / 4 : 1);
+            s->tgt_calm = 0;
+        }
+    } else {
+        s->tgt_calm = 0;
+    }
+    s->tgt_substeps = next;
+}
+
 int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     double start = now_ms();
     step_ctx ctx;
     memset(&ctx, 0, sizeof ctx);
     ctx.s = s;
+    const int target = s->settings.mode == RBC_ITERATE_TARGET;
     ctx.substeps = s->substeps;
-    ctx.h = dt / (float)s->substeps;
+    if (target) {
+        /* The controller's choice; the first step of the mode starts at the cap (the
+         * most accurate) and the controller lowers it while that pays. */
+        ctx.substeps = s->tgt_substeps ? s->tgt_substeps : s->settings.max_substeps;
+        if (ctx.substeps > s->settings.max_substeps) ctx.substeps = s->settings.max_substeps;
+        /* Start from the world's linear iterations, within the cap. */
+        ctx.tgt_iters = s->tgt_iters ? s->tgt_iters : s->linear_iterations;
+        if (ctx.tgt_iters > s->settings.max_linear_iterations)
+            ctx.tgt_iters = s->settings.max_linear_iterations;
+        ctx.tgt_iters_next = ctx.tgt_iters; /* the direct solver keeps it */
+    }
+    ctx.h = dt / (float)ctx.substeps;
     ctx.result = RBC_OK;
     ctx.err = err;
     ctx.errlen = errlen;
@@ -1617,8 +1753,23 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     }
     /* With one substep nothing is committed before the check, so the state before the
      * step is intact on failure; with several, earlier substeps are, so keep a copy. */
-    int need_snapshot = ctx.substeps > 1;
+    int rescale = 0;
+    for (uint32_t k = 0; target && k < s->cloth_count; ++k)
+        rescale |= s->cloths[k]->h_last > 0.0f && s->cloths[k]->h_last != ctx.h;
+    int need_snapshot = ctx.substeps > 1 || rescale;
     if (need_snapshot) snapshot(s, 0);
+    if (rescale) {
+        /* The target mode changed the substeps: keep each velocity (x - q) / h by
+         * rescaling q to the new h (Verlet reads the velocity from x - q). */
+        for (uint32_t k = 0; k < s->cloth_count; ++k) {
+            rbc_cloth_state *c = s->cloths[k];
+            if (!(c->h_last > 0.0f) || c->h_last == ctx.h) continue;
+            const float f = ctx.h / c->h_last;
+            for (int a = 0; a < 3; ++a)
+                for (uint32_t i = 0; i < c->topo.n; ++i)
+                    c->q[a][i] = c->x[a][i] - (c->x[a][i] - c->q[a][i]) * f;
+        }
+    }
 
     rbc_pool_run(s->pool, step_spmd, &ctx);
 
@@ -1626,7 +1777,10 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
         if (need_snapshot) snapshot(s, 1);
         return ctx.result;
     }
-    for (uint32_t k = 0; k < s->cloth_count; ++k) s->cloths[k]->system_valid = 1;
+    for (uint32_t k = 0; k < s->cloth_count; ++k) {
+        s->cloths[k]->system_valid = 1;
+        s->cloths[k]->h_last = ctx.h;
+    }
     for (uint32_t k = 0; k < s->collider_count; ++k) {
         memcpy(s->colliders[k].last_position, s->colliders[k].position, 3 * sizeof(float));
         memcpy(s->colliders[k].last_rotation, s->colliders[k].rotation, 4 * sizeof(float));
@@ -1650,11 +1804,32 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     if (s->energy_clamped_last) s->energy_clamped_steps++;
     /* Tearing: springs stretched past their limit at the end of the step break. */
     for (uint32_t k = 0; k < s->cloth_count; ++k) rbc_tear_scan(s, s->cloths[k]);
+    double reached = 0.0;
+    if (target) {
+        /* What the step reached, at the positions the host reads (after tearing). */
+        double t0 = now_ms();
+        rbc_pool_run(s->pool, strain_spmd, s);
+        for (uint32_t k = 0; k < s->cloth_count; ++k) {
+            double r = rbc_strain_sum(s->cloths[k]);
+            if (r > reached) reached = r;
+        }
+        ctx.t.other += now_ms() - t0;
+    }
     ctx.t.step = now_ms() - start;
     s->last = ctx.t;
     s->last_substeps = ctx.substeps;
     s->last_nonlinear = ctx.substeps * s->nonlinear_iterations;
     s->last_linear = ctx.linear_done;
     s->step_count++;
+    if (target) {
+        s->tgt_iters = ctx.tgt_iters_next;
+        target_decide(s, ctx.substeps, ctx.hit_cap, reached,
+                      ctx.linear_done + (uint64_t)RBC_TARGET_SUBSTEP_COST * ctx.substeps *
+                                            s->nonlinear_iterations);
+    } else {
+        s->tgt_reached = 0.0;
+        s->tgt_met = 0;
+        s->tgt_capped = 0;
+    }
     return RBC_OK;
 }

@@ -31,6 +31,10 @@ typedef struct rbc_solver_settings {
     float budget_ms;
     uint32_t max_linear_iterations;
     rbc_energy_guard energy_guard;
+    /* RBC_ITERATE_TARGET (1.4): the RMS relative strain to reach (strain.h) and the
+     * most substeps per step; max_linear_iterations caps each global step. */
+    float target_strain;
+    uint32_t max_substeps;
 } rbc_solver_settings;
 
 /* One cloth: immutable topology plus the state that a step changes. */
@@ -86,6 +90,11 @@ typedef struct rbc_cloth_state {
     float e_h;
     int e_valid, e_keep_slack;
     double *e_blk;              /* [rbc_energy_block_doubles] per-block partial sums */
+    double *strain_blk;         /* [rbc_strain_block_doubles] (strain.h) */
+    /* Substep length of the last committed substep (0: none since creation or
+     * set_state). The target mode keeps velocities when it changes the substeps:
+     * q is rescaled so (x - q) / h stays the same. */
+    float h_last;
     uint32_t *pin_springs;      /* springs with a pinned end (pin work) */
     uint32_t pin_spring_count, pin_spring_cap;
     /* During a step: its budget, the energy at its end, and the guard's action. */
@@ -177,6 +186,22 @@ typedef struct rbc_solver {
     double energy_removed_last;
     int energy_clamped_last;    /* 1 if the last step was clamped */
     char energy_note[320];      /* what the guard did in the last step, for the log */
+
+    /* The target error mode's controller (RBC_ITERATE_TARGET, 1.4). tgt_substeps: the
+     * substeps of the next step (0 = start at max_substeps); tgt_iters: the linear
+     * iterations its global steps run before the last (the count the last one of
+     * the previous step needed; 0 = the world's count, within the cap); tgt_calm: steps in a row met with a
+     * margin; tgt_hold: how many such steps lower the substeps (doubled each time a
+     * lowering had to be undone); tgt_lowered_at: step_count of the last lowering. */
+    uint32_t tgt_substeps, tgt_iters, tgt_calm, tgt_hold;
+    uint64_t tgt_lowered_at;
+    /* A lowering on probation: the substeps and cost (units above) before it; the
+     * next step undoes it if it cost more. */
+    uint32_t tgt_probe, tgt_prev_substeps;
+    uint64_t tgt_prev_cost;
+    double tgt_reached;         /* RMS relative strain at the end of the last step */
+    int tgt_met, tgt_capped;    /* the last step met the target; missed it at the cap */
+    uint64_t tgt_missed_steps, tgt_capped_steps;
 } rbc_solver;
 
 /* Solver life cycle. nthreads >= 1. */
@@ -212,6 +237,16 @@ void rbc_collider_update_frame(rbc_collider_state *c);
 /* Select the global solver (allocates the buffers it needs; on failure nothing
  * changes). */
 int32_t rbc_solver_set_settings(rbc_solver *s, const rbc_solver_settings *st);
+/* The target mode's controller starts again (from the world's substeps). */
+#define RBC_TARGET_HOLD 8u
+/* A global step stops at this fraction of the target: room for what friction and
+ * the post-solve safety pass change after it. */
+#define RBC_TARGET_INNER 0.95
+/* Cost units of a substep besides its linear iterations (integrate, local step and
+ * right-hand side, a strain check), in linear iterations: the stage times of a 10K
+ * RBGS frame (README) give 0.045 ms against 0.021 ms per iteration, plus a check. */
+#define RBC_TARGET_SUBSTEP_COST 3u
+void rbc_solver_target_reset(rbc_solver *s);
 /* Positions and previous positions in host order; either may be NULL. */
 void rbc_cloth_state_get(const rbc_cloth_state *c, float *pos, float *prev);
 /* Replace them (prev NULL = pos); pinned particles stay on their pins. */

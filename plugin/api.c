@@ -67,6 +67,7 @@ static const rbc_api_v1 g_api_v1 = {
     rbc_cloth_get_springs,
     rbc_world_set_wind,
     rbc_mesh_get_triangles,
+    rbc_solver_def_preset,
 };
 
 RBC_API const void *RBC_CALL rbc_get_api(uint32_t abi_major) {

@@ -14,6 +14,7 @@
 #include "registry.h"
 #include "rbcloth.h"
 #include "solver.h"
+#include "strain.h"
 
 #define RBC_MAX_WORLDS 1024u
 #define RBC_MAX_THREADS 64u
@@ -178,13 +179,54 @@ static rbc_solver_def solver_def_defaults(void) {
     d.budget_ms = 2.0f;
     d.max_linear_iterations = 1000;
     d.energy_guard = RBC_ENERGY_GUARD_CLAMP;
+    d.target_strain = 0.05f;
+    d.max_substeps = 16;
     return d;
+}
+
+/* Three released sizes: 1.1, 1.2-1.3 and this one. */
+static rbc_result solver_def_fill(rbc_solver_def *def, uint32_t struct_size,
+                                  const rbc_solver_def *d, const char *fn) {
+    if (struct_size == RBC_SOLVER_DEF_SIZE_V1_2)
+        return rbc_def_init_common(def, struct_size, d, sizeof *d, RBC_SOLVER_DEF_SIZE_V1_2, fn,
+                                   "rbc_solver_def");
+    return rbc_def_init_common(def, struct_size, d, sizeof *d, RBC_SOLVER_DEF_SIZE_V1_1, fn,
+                               "rbc_solver_def");
 }
 
 RBC_API rbc_result RBC_CALL rbc_solver_def_init(rbc_solver_def *def, uint32_t struct_size) {
     rbc_solver_def d = solver_def_defaults();
-    return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_SOLVER_DEF_SIZE_V1_1,
-                               "rbc_solver_def_init", "rbc_solver_def");
+    return solver_def_fill(def, struct_size, &d, "rbc_solver_def_init");
+}
+
+RBC_API rbc_result RBC_CALL rbc_solver_def_preset(rbc_solver_def *def, uint32_t struct_size,
+                                                  rbc_preset preset) {
+    static const char fn[] = "rbc_solver_def_preset";
+    rbc_solver_def d = solver_def_defaults();
+    switch (preset) {
+    case RBC_PRESET_DEFAULT:
+        break;
+    case RBC_PRESET_GAME_60HZ:
+        /* Measured on the paper's 100 x 100 cloth at dt = 1/60 s (README, target
+         * mode): the figures there are this preset's. */
+        if (struct_size != sizeof d && def)
+            return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                                 "%s: RBC_PRESET_GAME_60HZ needs the ABI 1.4 rbc_solver_def "
+                                 "(struct_size %zu, got %u): its target_strain and "
+                                 "max_substeps do not fit",
+                                 fn, sizeof d, struct_size);
+        d.solver = RBC_SOLVER_RBGS;
+        d.mode = RBC_ITERATE_TARGET;
+        d.target_strain = 0.05f;
+        d.max_substeps = 32;
+        d.max_linear_iterations = 8;
+        d.energy_guard = RBC_ENERGY_GUARD_CLAMP;
+        break;
+    default:
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: preset %d is not an rbc_preset", fn,
+                             (int)preset);
+    }
+    return solver_def_fill(def, struct_size, &d, fn);
 }
 
 static const char *solver_name(rbc_solver_kind k) {
@@ -211,7 +253,7 @@ static rbc_result solver_settings_from(rbc_world *w, const char *fn, const rbc_s
     if (d->chebyshev_delay > 100000)
         return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: chebyshev_delay is %u; at most 100000",
                            fn, d->chebyshev_delay);
-    if (d->mode < RBC_ITERATE_FIXED || d->mode > RBC_ITERATE_BUDGET)
+    if (d->mode < RBC_ITERATE_FIXED || d->mode > RBC_ITERATE_TARGET)
         return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: mode %d is not an rbc_iteration_mode",
                            fn, (int)d->mode);
     if (!(isfinite(d->tolerance) && d->tolerance > 0.0f))
@@ -230,8 +272,18 @@ static rbc_result solver_settings_from(rbc_world *w, const char *fn, const rbc_s
         return world_error(w, RBC_ERR_INVALID_ARGUMENT,
                            "%s: energy_guard %d is not an rbc_energy_guard", fn,
                            (int)d->energy_guard);
+    if (!(isfinite(d->target_strain) && d->target_strain > 0.0f))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: target_strain is %g; it must be finite and > 0 (an RMS "
+                           "relative strain, 0.05 = 5 %%)",
+                           fn, (double)d->target_strain);
+    if (d->max_substeps < 1 || d->max_substeps > 1024)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: max_substeps is %u; range 1..1024",
+                           fn, d->max_substeps);
     out->kind = d->solver;
     out->energy_guard = d->energy_guard;
+    out->target_strain = d->target_strain;
+    out->max_substeps = d->max_substeps;
     out->omega = d->omega;
     out->rho = d->rho;
     out->chebyshev_delay = d->chebyshev_delay;
@@ -297,8 +349,8 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     rbc_solver_def sdef = solver_def_defaults();
     rbc_solver_settings settings;
     if (def.solver &&
-        (rc = read_def(&sdef, sizeof sdef, RBC_SOLVER_DEF_SIZE_V1_1, def.solver, fn,
-                        "rbc_world_def.solver")))
+        (rc = read_def2(&sdef, sizeof sdef, RBC_SOLVER_DEF_SIZE_V1_1, RBC_SOLVER_DEF_SIZE_V1_2,
+                        def.solver, fn, "rbc_world_def.solver")))
         return rc;
     if ((rc = solver_settings_from(NULL, fn, &sdef, &settings))) return rc;
 
@@ -379,6 +431,21 @@ RBC_API rbc_result RBC_CALL rbc_world_step(rbc_world_id id, float dt) {
                  w->solver.energy_note, solver_name(w->solver.settings.kind));
         world_log(w, RBC_LOG_WARNING, note);
     }
+    uint64_t capped = w->solver.tgt_capped_steps;
+    if (w->solver.tgt_capped && (capped & (capped - 1)) == 0) {
+        const rbc_solver *s = &w->solver;
+        char note[400];
+        snprintf(note, sizeof note,
+                 "world 0x%08x step %llu (%llu missed at the cap so far): the target "
+                 "strain %g was not met within the cap: the step reached an RMS relative "
+                 "strain of %.4g with max_substeps %u x %u non-linear x at most %u linear "
+                 "iterations (%u done); raise max_substeps or max_linear_iterations, or ask "
+                 "for a larger target_strain",
+                 w->id, (unsigned long long)s->step_count, (unsigned long long)capped,
+                 (double)s->settings.target_strain, s->tgt_reached, s->settings.max_substeps,
+                 s->nonlinear_iterations, s->settings.max_linear_iterations, s->last_linear);
+        world_log(w, RBC_LOG_WARNING, note);
+    }
     return RBC_OK;
 }
 
@@ -392,6 +459,7 @@ RBC_API rbc_result RBC_CALL rbc_world_set_iterations(rbc_world_id id, uint32_t s
     w->solver.substeps = substeps;
     w->solver.nonlinear_iterations = nonlinear;
     w->solver.linear_iterations = linear;
+    rbc_solver_target_reset(&w->solver);
     return RBC_OK;
 }
 
@@ -417,15 +485,17 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
     if (rc) return rc;
     if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: stats is NULL", fn);
     if (out->struct_size != sizeof(rbc_world_stats) &&
+        out->struct_size != RBC_WORLD_STATS_SIZE_V1_3 &&
         out->struct_size != RBC_WORLD_STATS_SIZE_V1_2 &&
         out->struct_size != RBC_WORLD_STATS_SIZE_V1_1 &&
         out->struct_size != RBC_WORLD_STATS_SIZE_V1_0)
         return world_error(w, RBC_ERR_INVALID_ARGUMENT,
                            "%s: stats->struct_size is %u, which matches no released version "
-                           "(this library knows %zu, the 1.2 size %u, the 1.1 size %u and the "
-                           "1.0 size %u)",
+                           "(this library knows %zu, the 1.3 size %u, the 1.2 size %u, the 1.1 "
+                           "size %u and the 1.0 size %u)",
                            fn, out->struct_size, sizeof(rbc_world_stats),
-                           RBC_WORLD_STATS_SIZE_V1_2, RBC_WORLD_STATS_SIZE_V1_1,
+                           RBC_WORLD_STATS_SIZE_V1_3, RBC_WORLD_STATS_SIZE_V1_2,
+                           RBC_WORLD_STATS_SIZE_V1_1,
                            RBC_WORLD_STATS_SIZE_V1_0);
     rbc_solver *s = &w->solver;
     double res_num = 0.0, res_den = 0.0;
@@ -452,6 +522,10 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
             rbc_cloth_state_error(c, &e, &strain);
             st.error_eq7 += e;
             if (strain > st.max_strain) st.max_strain = strain;
+            if (out->struct_size >= sizeof(rbc_world_stats)) {
+                double rms = rbc_strain_rms(s->cloths[k], s->cloths[k]->x);
+                if (rms > st.strain_rms) st.strain_rms = rms;
+            }
         }
         if (full) {
             double ke = 0.0, pe = 0.0, e_budget;
@@ -497,6 +571,14 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
     st.collider_contacts = s->last_contacts + s->last_host_contacts;
     st.cloth_contacts = s->last_cloth_contacts;
     st.torn_springs = s->torn_springs;
+    const int target = s->settings.mode == RBC_ITERATE_TARGET;
+    st.target_reached = s->tgt_reached;
+    st.target_met = (uint32_t)s->tgt_met;
+    st.next_substeps = !target            ? s->substeps
+                       : s->tgt_substeps ? s->tgt_substeps
+                                         : s->settings.max_substeps;
+    st.target_missed_steps = s->tgt_missed_steps;
+    st.target_capped_steps = s->tgt_capped_steps;
     memcpy(out, &st, out->struct_size); /* only what the host's struct holds */
     return RBC_OK;
 }
@@ -839,8 +921,8 @@ RBC_API rbc_result RBC_CALL rbc_world_set_solver(rbc_world_id id, const rbc_solv
     rbc_result rc = lookup_world(id, fn, &w);
     if (rc) return rc;
     rbc_solver_def def = solver_def_defaults();
-    if ((rc = read_def(&def, sizeof def, RBC_SOLVER_DEF_SIZE_V1_1, user_def, fn,
-                       "rbc_solver_def"))) {
+    if ((rc = read_def2(&def, sizeof def, RBC_SOLVER_DEF_SIZE_V1_1, RBC_SOLVER_DEF_SIZE_V1_2,
+                        user_def, fn, "rbc_solver_def"))) {
         world_log(w, RBC_LOG_ERROR, rbc_last_error());
         return rc;
     }
@@ -857,11 +939,13 @@ RBC_API rbc_result RBC_CALL rbc_world_get_solver(rbc_world_id id, rbc_solver_def
     rbc_result rc = lookup_world(id, fn, &w);
     if (rc) return rc;
     if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: def is NULL", fn);
-    if (out->struct_size != sizeof(rbc_solver_def) && out->struct_size != RBC_SOLVER_DEF_SIZE_V1_1)
+    if (out->struct_size != sizeof(rbc_solver_def) && out->struct_size != RBC_SOLVER_DEF_SIZE_V1_2 &&
+        out->struct_size != RBC_SOLVER_DEF_SIZE_V1_1)
         return world_error(w, RBC_ERR_INVALID_ARGUMENT,
                            "%s: def->struct_size is %u, which matches no released version "
-                           "(this library knows %zu and the 1.1 size %u)",
-                           fn, out->struct_size, sizeof(rbc_solver_def), RBC_SOLVER_DEF_SIZE_V1_1);
+                           "(this library knows %zu, the 1.2 size %u and the 1.1 size %u)",
+                           fn, out->struct_size, sizeof(rbc_solver_def), RBC_SOLVER_DEF_SIZE_V1_2,
+                           RBC_SOLVER_DEF_SIZE_V1_1);
     const rbc_solver_settings *st = &w->solver.settings;
     rbc_solver_def d = solver_def_defaults();
     d.solver = st->kind;
@@ -873,6 +957,8 @@ RBC_API rbc_result RBC_CALL rbc_world_get_solver(rbc_world_id id, rbc_solver_def
     d.budget_ms = st->budget_ms;
     d.max_linear_iterations = st->max_linear_iterations;
     d.energy_guard = st->energy_guard;
+    d.target_strain = st->target_strain;
+    d.max_substeps = st->max_substeps;
     d.struct_size = out->struct_size;
     memcpy(out, &d, out->struct_size); /* only what the host's struct holds */
     return RBC_OK;

@@ -383,7 +383,7 @@ static const rbc_backend backend_values[] = {RBC_BACKEND_AUTO, RBC_BACKEND_CPU,
 const char *const rbc_scene_solver_names[] = {"rbgs",     "jacobi",          "jacobi_chebyshev",
                                               "gauss_seidel", "rbgs_sor",    "rbgs_chebyshev",
                                               "multicolor_gs", "direct",     NULL};
-const char *const rbc_scene_mode_names[] = {"fixed", "tolerance", "budget", NULL};
+const char *const rbc_scene_mode_names[] = {"fixed", "tolerance", "budget", "target", NULL};
 /* Indexed by rbc_energy_guard. */
 const char *const rbc_scene_energy_guard_names[] = {"off", "clamp", "fail", NULL};
 
@@ -391,7 +391,7 @@ static int parse_solver(parser *p, const cJSON *obj, const char *key, rbc_solver
     static const char *const keys[] = {"kind",      "omega",     "rho",
                                        "chebyshev_delay", "mode", "tolerance",
                                        "budget_ms", "max_linear_iterations", "energy_guard",
-                                       NULL};
+                                       "target_strain", "max_substeps", NULL};
     const cJSON *item;
     char k[KEY_MAX];
     int choice;
@@ -433,6 +433,12 @@ static int parse_solver(parser *p, const cJSON *obj, const char *key, rbc_solver
     if ((item = cJSON_GetObjectItemCaseSensitive(obj, "max_linear_iterations")) &&
         (key_join(k, key, "max_linear_iterations"),
          read_u32(p, item, k, 1, 100000, &d->max_linear_iterations)))
+        return -1;
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "target_strain")) &&
+        (key_join(k, key, "target_strain"), read_float(p, item, k, RANGE_POSITIVE, &d->target_strain)))
+        return -1;
+    if ((item = cJSON_GetObjectItemCaseSensitive(obj, "max_substeps")) &&
+        (key_join(k, key, "max_substeps"), read_u32(p, item, k, 1, 1024, &d->max_substeps)))
         return -1;
     return 0;
 }
@@ -1079,6 +1085,8 @@ static int parse_root(parser *p, const cJSON *root, rbc_scene *s) {
     s->world.solver.budget_ms = 2.0f;
     s->world.solver.max_linear_iterations = 1000;
     s->world.solver.energy_guard = RBC_ENERGY_GUARD_CLAMP;
+    s->world.solver.target_strain = 0.05f;
+    s->world.solver.max_substeps = 16;
     if (world && parse_world(p, world, &s->world))
         return -1;
 

@@ -103,7 +103,7 @@ static void test_bad_solver_defs(void) {
     bad[1].what = "omega 2", bad[1].d.omega = 2.0f;
     bad[2].what = "omega NaN", bad[2].d.omega = NAN;
     bad[3].what = "rho 1", bad[3].d.rho = 1.0f;
-    bad[4].what = "unknown mode", bad[4].d.mode = 3;
+    bad[4].what = "unknown mode", bad[4].d.mode = RBC_ITERATE_TARGET + 1; /* 3 is a mode since 1.4 */
     bad[5].what = "tolerance 0", bad[5].d.tolerance = 0.0f;
     bad[6].what = "budget -1", bad[6].d.budget_ms = -1.0f;
     bad[7].what = "max 0", bad[7].d.max_linear_iterations = 0;
