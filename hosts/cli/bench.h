@@ -1,4 +1,5 @@
-/* bench.h -- what `rbcloth bench accuracy`, `stability`, `perf` and `scenes` share:
+/* bench.h -- what `rbcloth bench accuracy`, `stability`, `perf`, `scenes` and `peers`
+ * share:
  * the solver list, a host-side copy of a cloth's mesh (to evaluate Eq. 7, spring
  * energy and the Projective Dynamics objective without trusting the library's
  * stats), world creation through the function table, CSV and gnuplot helpers.
@@ -51,6 +52,13 @@ int cli_bench_perf(const cli_plugin *plugin, const cli_bench_options *options);
 /// reference) with 1 and N threads, collisions included, beside the paper's figures
 /// (ABI 1.3). Returns 0, or 1 after a message on stderr.
 int cli_bench_scenes(const cli_plugin *plugin, const cli_bench_options *options);
+
+/// `rbcloth bench peers`: rbcloth's configurations (solver, substeps, non-linear and
+/// linear iterations, SOR omega, Chebyshev rho, energy guard) on the peer scene of
+/// FIELD-NOTES, their Pareto front of ms per frame against Eq. 7 at the last frame,
+/// beside the peers' published figures (issue 7). One thread unless --threads says
+/// otherwise. Returns 0, or 1 after a message on stderr.
+int cli_bench_peers(const cli_plugin *plugin, const cli_bench_options *options);
 
 /* ------------------------------------------------------------------------- */
 /* Solvers                                                                   */

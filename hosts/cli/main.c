@@ -71,6 +71,12 @@ static const char usage_text[] =
     "                              beside the paper's GTX 970 figures: scenes.csv,\n"
     "                              scenes.md, scenes.png (scenes from $RBC_SCENES_DIR,\n"
     "                              else ./samples/scenes, else the source tree's)\n"
+    "  bench peers [OPTIONS]       rbcloth on the peer scene of FIELD-NOTES (the default\n"
+    "                              scene, 500 frames, 1 thread): solver x substeps x\n"
+    "                              non-linear x linear iterations (SOR omega, Chebyshev\n"
+    "                              rho, energy guard), the Pareto front of ms per frame\n"
+    "                              against Eq. 7 beside the peers' figures: peers.csv,\n"
+    "                              peers.md, peers.png (a few minutes; --quick: seconds)\n"
     "  info                        print the plugin's path, ABI version and version\n"
     "\n"
     "Options of run:\n"
@@ -96,9 +102,11 @@ static const char usage_text[] =
     "  --out DIR         output directory, created if missing (default: out/bench)\n"
     "  --frames N        frames per run (accuracy: default 240; stability: 200;\n"
     "                    perf: 200 up to 10K particles, fewer above, 20 at 1M;\n"
-    "                    scenes: the scene's, measured after 2 warm-up frames)\n"
+    "                    scenes: the scene's, measured after 2 warm-up frames;\n"
+    "                    peers: 500, --quick 60)\n"
     "  --threads N       worker threads of every world; 0 = one per core (perf,\n"
-    "                    scenes: measure 1 thread and N threads, default N = 2)\n"
+    "                    scenes: measure 1 thread and N threads, default N = 2;\n"
+    "                    peers: default 1)\n"
     "  --quick           fewer frames, budgets and cases (a smoke run, for tests;\n"
     "                    perf: only cloths up to 10K particles)\n"
     "\n"
@@ -413,7 +421,8 @@ static int command_bench(int argc, char **argv) {
         }
     }
     if (argc < 1)
-        return usage_error("%s", "bench needs 'accuracy', 'stability', 'perf' or 'scenes'");
+        return usage_error("%s",
+                           "bench needs 'accuracy', 'stability', 'perf', 'scenes' or 'peers'");
     typedef int (*bench_fn)(const cli_plugin *, const cli_bench_options *);
     static const struct {
         const char *name;
@@ -421,14 +430,16 @@ static int command_bench(int argc, char **argv) {
     } benches[] = {{"accuracy", cli_bench_accuracy},
                    {"stability", cli_bench_stability},
                    {"perf", cli_bench_perf},
-                   {"scenes", cli_bench_scenes}};
+                   {"scenes", cli_bench_scenes},
+                   {"peers", cli_bench_peers}};
     const char *which = argv[0];
     bench_fn run = NULL;
     for (size_t k = 0; k < sizeof benches / sizeof benches[0]; ++k)
         if (strcmp(which, benches[k].name) == 0)
             run = benches[k].run;
     if (!run)
-        return usage_error("unknown bench '%s' (accuracy, stability, perf or scenes)", which);
+        return usage_error("unknown bench '%s' (accuracy, stability, perf, scenes or peers)",
+                           which);
     int rc = parse_bench_args(argc - 1, argv + 1, &options);
     if (rc != EXIT_OK)
         return rc;

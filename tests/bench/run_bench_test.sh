@@ -10,6 +10,8 @@ shift 3
 rm -rf "$out"
 if [ "$kind" = accuracy ]; then
   output=$("$cli" bench accuracy --quick --frames 12 --out "$out" 2>&1)
+elif [ "$kind" = peers ]; then
+  output=$("$cli" bench peers --quick --out "$out" 2>&1)
 else
   output=$("$cli" bench stability --quick --out "$out" 2>&1)
 fi
