@@ -1341,6 +1341,71 @@ static void test_writers(void) {
 
 /* ------------------------------------------------------------------------- */
 
+/* ABI 1.4: the target error mode's fields and the presets. Each bad value is refused
+ * by rbc_world_set_solver (the settings in use stay as they were) and by
+ * rbc_world_create, with a message naming the field. */
+static void test_v14(void) {
+    rbc_solver_def before;
+    before.struct_size = sizeof before;
+    CHECK_EQ(rbc_world_get_solver(W, &before), RBC_OK);
+    const float bad_target[] = {0.0f, -0.05f, NAN, INFINITY, -INFINITY};
+    for (size_t k = 0; k < sizeof bad_target / sizeof bad_target[0]; k++) {
+        rbc_solver_def d = rbc_solver_def_default();
+        d.mode = RBC_ITERATE_TARGET;
+        d.target_strain = bad_target[k];
+        EXPECT(rbc_world_set_solver(W, &d), RBC_ERR_INVALID_ARGUMENT);
+        CHECK(strstr(rbc_last_error(), "target_strain") != NULL);
+        rbc_world_def wd = rbc_world_def_default();
+        wd.solver = &d;
+        TRY_WORLD(&wd, RBC_ERR_INVALID_ARGUMENT, "world with a bad target_strain");
+        CHECK(strstr(rbc_last_error(), "target_strain") != NULL);
+    }
+    const uint32_t bad_cap[] = {0, 1025, 0xFFFFFFFFu};
+    for (size_t k = 0; k < sizeof bad_cap / sizeof bad_cap[0]; k++) {
+        rbc_solver_def d = rbc_solver_def_default();
+        d.mode = RBC_ITERATE_TARGET;
+        d.max_substeps = bad_cap[k];
+        EXPECT(rbc_world_set_solver(W, &d), RBC_ERR_INVALID_ARGUMENT);
+        CHECK(strstr(rbc_last_error(), "max_substeps") != NULL);
+        rbc_world_def wd = rbc_world_def_default();
+        wd.solver = &d;
+        TRY_WORLD(&wd, RBC_ERR_INVALID_ARGUMENT, "world with a bad max_substeps");
+        CHECK(strstr(rbc_last_error(), "max_substeps") != NULL);
+    }
+    {   /* the other cap of the mode: max_linear_iterations 0 */
+        rbc_solver_def d = rbc_solver_def_default();
+        d.mode = RBC_ITERATE_TARGET;
+        d.max_linear_iterations = 0;
+        EXPECT(rbc_world_set_solver(W, &d), RBC_ERR_INVALID_ARGUMENT);
+        CHECK(strstr(rbc_last_error(), "max_linear_iterations") != NULL);
+        d = rbc_solver_def_default();
+        d.mode = RBC_ITERATE_TARGET + 1;
+        EXPECT(rbc_world_set_solver(W, &d), RBC_ERR_INVALID_ARGUMENT);
+        CHECK(strstr(rbc_last_error(), "mode") != NULL);
+    }
+    rbc_solver_def after;
+    after.struct_size = sizeof after;
+    CHECK_EQ(rbc_world_get_solver(W, &after), RBC_OK);
+    CHECK(memcmp(&before, &after, sizeof before) == 0);
+
+    /* Presets: an unknown one, a NULL def, a size that is no release, and the game
+     * preset into a 1.3 def (its fields would not fit): nothing is written. */
+    rbc_solver_def d;
+    memset(&d, 0xAB, sizeof d);
+    EXPECT(rbc_solver_def_preset(&d, sizeof d, (rbc_preset)2), RBC_ERR_INVALID_ARGUMENT);
+    CHECK(strstr(rbc_last_error(), "preset") != NULL);
+    EXPECT(rbc_solver_def_preset(&d, sizeof d, (rbc_preset)-1), RBC_ERR_INVALID_ARGUMENT);
+    EXPECT(rbc_solver_def_preset(NULL, sizeof d, RBC_PRESET_GAME_60HZ), RBC_ERR_INVALID_ARGUMENT);
+    EXPECT(rbc_solver_def_preset(&d, 12, RBC_PRESET_GAME_60HZ), RBC_ERR_INVALID_ARGUMENT);
+    EXPECT(rbc_solver_def_preset(&d, RBC_SOLVER_DEF_SIZE_V1_2, RBC_PRESET_GAME_60HZ),
+           RBC_ERR_INVALID_ARGUMENT);
+    CHECK(strstr(rbc_last_error(), "1.4") != NULL);
+    const unsigned char *b = (const unsigned char *)&d;
+    int untouched = 1;
+    for (size_t k = 0; k < sizeof d; k++) untouched &= b[k] == 0xAB;
+    CHECK(untouched);
+}
+
 int main(void) {
     /* Before any error on this thread: "" (header: "" if none yet). */
     CHECK(rbc_last_error() != NULL && strcmp(rbc_last_error(), "") == 0);
@@ -1387,6 +1452,7 @@ int main(void) {
     test_cloth_calls();
     test_collider_defs();
     test_v13();
+    test_v14();
     test_stale_handles();
     test_foreign_ids();
     test_writers();
