@@ -1,8 +1,11 @@
-/* ell.h -- the Gauss-Seidel sweep for meshes without lattice structure, in ELLPACK
- * layout: per color, slot j of the color's m-th particle at [j * count + m] (neighbour
- * index and stiffness), padded to the color's largest degree with stiffness 0. A
- * chunk of particles accumulates slot by slot, so the neighbour loads become vector
- * gathers (AVX2/AVX-512 clones, simd.h) instead of a scalar walk of CSR rows.
+/* ell.h -- the Gauss-Seidel sweep for meshes without lattice structure, in sliced
+ * ELLPACK layout (SELL-C): each color is cut into chunks of RBC_ELL_CHUNK consecutive
+ * particles; slot j of a chunk's m-th particle sits at [offset + j * len + m]
+ * (neighbour index and stiffness), padded to the chunk's own largest degree with
+ * stiffness 0. A chunk accumulates slot by slot, so the neighbour loads become vector
+ * gathers (AVX2/AVX-512 clones, simd.h) instead of a scalar walk of CSR rows, and a
+ * chunk of degree-4 particles does 4 slots, not the color's largest degree
+ * (topology.c groups a scattered mesh's particles by degree within small windows).
  */
 #ifndef RBC_CORE_ELL_H
 #define RBC_CORE_ELL_H
@@ -14,10 +17,13 @@
 
 struct rbc_cloth_state;
 
+enum { RBC_ELL_CHUNK = 64 }; /* 8 vectors of AVX2: a degree group of a window fills few chunks only partly */
+
 typedef struct rbc_ell {
-    uint32_t ncolors;
-    uint32_t width[RBC_MAX_COLORS];  /* largest degree in the color */
-    size_t offset[RBC_MAX_COLORS];   /* start of the color's slots in nbr / k */
+    uint32_t ncolors, nchunks;
+    uint32_t chunk_start[RBC_MAX_COLORS + 1]; /* first chunk of each color */
+    uint32_t *width;                 /* [nchunks] the chunk's largest degree */
+    size_t *offset;                  /* [nchunks + 1] start of the chunk's slots */
     uint32_t *nbr;                   /* internal neighbour index (padding: a particle of
                                         another color, never written by the sweep) */
     float *k;                        /* stiffness (padding: 0) */
@@ -28,6 +34,10 @@ typedef struct rbc_ell {
  * 0 (*out NULL); -1 out of memory. Needs at least two colors. */
 int rbc_ell_build(const rbc_topology *t, const rbc_allocator *a, rbc_ell **out);
 void rbc_ell_free(rbc_ell *e, const rbc_allocator *a);
+
+/* The stiffness slot that mirrors internal particle i's j-th CSR slot (tearing sets
+ * it to 0). */
+float *rbc_ell_slot_k(rbc_ell *e, const rbc_topology *t, uint32_t i, uint32_t j);
 
 /* One color of a Gauss-Seidel iteration from b (rbc_global_rhs), this thread's
  * share: p_i = g_i (omega == 0) or p_i += omega (g_i - p_i); pinned particles stay. */

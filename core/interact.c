@@ -14,11 +14,7 @@
 
 /* Zero the stiffness of the ELL slot that mirrors CSR slot s of particle i. */
 static void ell_zero(rbc_ell *e, const rbc_topology *t, uint32_t i, uint32_t s) {
-    uint32_t c = 0;
-    while (c + 1 < t->ncolors && i >= t->color_start[c + 1]) ++c;
-    uint32_t c0 = t->color_start[c], cnt = t->color_start[c + 1] - c0;
-    uint32_t j = s - t->adj_start[i], m = i - c0;
-    e->k[e->offset[c] + (size_t)j * cnt + m] = 0.0f;
+    *rbc_ell_slot_k(e, t, i, s - t->adj_start[i]) = 0.0f;
 }
 
 /* Zero the lattice stiffness from i toward j (its left/right/down/up neighbour). */

@@ -385,6 +385,33 @@ static void morton_order(uint32_t n, const float *P, uint64_t *order) {
     qsort(order, n, sizeof *order, cmp_u64);
 }
 
+/* Within each window of RBC_DEGREE_WINDOW consecutive particles of a color (in Morton
+ * order: a patch of the surface), particles of equal degree are put together, lower
+ * degrees first, Morton order otherwise kept (stable). The sliced ELLPACK sweep
+ * (ell.c) then pads each chunk only to its own largest degree: an irregular mesh of
+ * valences 3 to 8 does about its mean degree of slots per particle instead of 8. The
+ * window keeps a chunk's neighbours within a patch (locality). scratch: at least
+ * RBC_DEGREE_WINDOW entries. */
+enum { RBC_DEGREE_WINDOW = 1024 };
+
+static void group_by_degree(rbc_topology *t, const uint32_t *hadj_start, uint64_t *scratch) {
+    for (uint32_t c = 0; c < t->ncolors; ++c)
+        for (uint32_t w = t->color_start[c]; w < t->color_start[c + 1]; w += RBC_DEGREE_WINDOW) {
+            uint32_t end = t->color_start[c + 1] - w < RBC_DEGREE_WINDOW
+                               ? t->color_start[c + 1]
+                               : w + RBC_DEGREE_WINDOW;
+            for (uint32_t i = w; i < end; ++i) {
+                uint32_t v = t->to_host[i];
+                uint64_t deg = hadj_start[v + 1] - hadj_start[v];
+                scratch[i - w] = (deg << 32) | (i - w);
+            }
+            qsort(scratch, end - w, sizeof *scratch, cmp_u64);
+            uint32_t tmp[RBC_DEGREE_WINDOW];
+            for (uint32_t r = 0; r < end - w; ++r) tmp[r] = t->to_host[w + (uint32_t)scratch[r]];
+            memcpy(t->to_host + w, tmp, sizeof(uint32_t) * (end - w));
+        }
+}
+
 int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc_topology *out,
                            char *err, size_t errlen) {
     memset(out, 0, sizeof *out);
@@ -522,7 +549,6 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
                         bad, deg, RBC_MAX_COLORS, RBC_MAX_COLORS);
         }
     }
-    memset(t->adj_start, 0, ((size_t)n + 1) * 4); /* the internal CSR is built in 8 */
 
     /* 6. Color-contiguous order: color 0 first, then 1, ..., each in host order when
      * that order is already local (a grid's rows stay together, and grid.c's lattice
@@ -538,16 +564,20 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
         next[c] = t->color_start[c];
     }
     uint64_t *order = NULL;
-    if (host_order_scattered(n, hadj_start, hadj)) {
+    const int scattered = host_order_scattered(n, hadj_start, hadj);
+    if (scattered) {
         order = rbc_mem_alloc(a, rbc_mul_size(n, sizeof *order));
         if (!order) goto oom_topo;
         morton_order(n, P, order);
     }
     for (uint32_t r = 0; r < n; ++r) {
         uint32_t v = order ? (uint32_t)order[r] : r;
-        uint32_t i = next[s.color[v]]++;
+        t->to_host[next[s.color[v]]++] = v;
+    }
+    if (order) group_by_degree(t, hadj_start, order);
+    for (uint32_t i = 0; i < n; ++i) {
+        uint32_t v = t->to_host[i];
         t->to_internal[v] = i;
-        t->to_host[i] = v;
         t->rest_x[i] = P[3 * (size_t)v];
         t->rest_y[i] = P[3 * (size_t)v + 1];
         t->rest_z[i] = P[3 * (size_t)v + 2];
@@ -579,10 +609,17 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
     }
     for (uint32_t k = 0; k < in->pin_count; ++k) t->pinned_at_rest[t->to_internal[in->pins[k]]] = 1;
 
-    /* 8. Springs (sorted by host (lower, upper) vertex) with their own stiffness, and
-     * the internal CSR adjacency with one slot per spring end. */
+    /* The host adjacency has served (coloring, the order above): the internal CSR is
+     * built in its place. */
+    memset(t->adj_start, 0, ((size_t)n + 1) * 4);
+
+    /* 8. Springs (sorted by host (lower, upper) vertex; for a scattered host order,
+     * by the internal index of the lower host vertex, so that the local step walks
+     * the particles in memory order instead of at random) with their own stiffness,
+     * and the internal CSR adjacency with one slot per spring end. */
     uint32_t k = 0;
-    for (uint32_t hi = 0; hi < n; ++hi)
+    for (uint32_t r = 0; r < n; ++r) {
+        const uint32_t hi = scattered ? t->to_host[r] : r;
         for (uint32_t e = s.bstart[hi]; e < s.bstart[hi + 1]; ++e, ++k) {
             uint32_t hj = (uint32_t)(s.entries[e] >> 32);
             uint32_t i = t->to_internal[hi], j = t->to_internal[hj];
@@ -599,6 +636,7 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
             t->adj_start[i + 1]++;
             t->adj_start[j + 1]++;
         }
+    }
     for (uint32_t i = 0; i < n; ++i) t->adj_start[i + 1] += t->adj_start[i];
     memcpy(s.fill, t->adj_start, (size_t)n * 4);
     for (k = 0; k < ns; ++k) {

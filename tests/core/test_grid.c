@@ -237,6 +237,109 @@ static void test_ell(void) {
     mesh_free(&m);
 }
 
+/* A mesh whose host order is scattered (an irregular mesh with its vertices
+ * shuffled) is placed in memory for the sweeps (topology.c, ell.c):
+ *  - spatially: Morton order within each color, so the mean distance between a
+ *    spring's two ends (their ranks within their colors) is within the library's
+ *    own test for a scattered order (4 sqrt(n) + 16) plus what the grouping below
+ *    may move each end (less than 1024 ranks), where the shuffled input is not;
+ *  - by degree within windows of 1024 particles of a color (non-decreasing), so
+ *    the sliced ELLPACK chunks pad little: its slot count equals the sum over chunks
+ *    of the chunk's largest degree times its length, recomputed here;
+ *  - springs in the memory order of their lower host vertex (the local step walks
+ *    the particles in order);
+ *  - and the ELL sweep still equals the CSR rows bitwise over whole steps. */
+static uint32_t color_of(const rbc_topology *t, uint32_t i) {
+    uint32_t c = 0;
+    while (c + 1 < t->ncolors && i >= t->color_start[c + 1]) ++c;
+    return c;
+}
+
+static void test_scattered_order(void) {
+    rbc_allocator al = rbc_allocator_default();
+    test_mesh g = mesh_split_triangles(64);
+    uint32_t *perm = malloc(sizeof(uint32_t) * g.nv);
+    for (uint32_t v = 0; v < g.nv; ++v) perm[v] = v;
+    uint32_t seed = 11;
+    for (uint32_t v = g.nv - 1; v > 0; --v) {
+        seed = seed * 1664525u + 1013904223u;
+        uint32_t r = (seed >> 8) % (v + 1), tmp = perm[v];
+        perm[v] = perm[r];
+        perm[r] = tmp;
+    }
+    test_mesh m = {g.nv, g.nq, malloc(sizeof(float) * 3 * g.nv), malloc(sizeof(uint32_t) * 4 * g.nq)};
+    for (uint32_t v = 0; v < g.nv; ++v)
+        for (int c = 0; c < 3; ++c) m.pos[3 * perm[v] + c] = g.pos[3 * v + c];
+    for (uint32_t f = 0; f < g.nq * 4; ++f) m.quads[f] = perm[g.quads[f]];
+    rbc_solver s, s2;
+    CHECK_EQ(rbc_solver_init(&s, &al, 1), RBC_OK);
+    CHECK_EQ(rbc_solver_init(&s2, &al, 1), RBC_OK);
+    rbc_solver_settings st = s.settings;
+    st.energy_guard = RBC_ENERGY_GUARD_OFF;
+    CHECK_EQ(rbc_solver_set_settings(&s, &st), RBC_OK);
+    CHECK_EQ(rbc_solver_set_settings(&s2, &st), RBC_OK);
+    uint32_t pins[2] = {0, 1};
+    rbc_cloth_state *c = make(&s, &m, pins, 2, 0.0f);
+    rbc_cloth_state *csr = make(&s2, &m, pins, 2, 0.0f);
+    const rbc_topology *t = &c->topo;
+    CHECK(c->grid == NULL && c->ell != NULL);
+    double host = 0.0, mem = 0.0;
+    for (uint32_t k = 0; k < t->ns; ++k) {
+        uint32_t a = t->to_host[t->sa[k]], b = t->to_host[t->sb[k]];
+        host += a > b ? a - b : b - a;
+        /* Its two ends are of different colors: compare their ranks in their colors. */
+        double ra = t->sa[k] - t->color_start[color_of(t, t->sa[k])];
+        double rb = t->sb[k] - t->color_start[color_of(t, t->sb[k])];
+        mem += fabs(ra - rb);
+    }
+    host /= t->ns;
+    mem /= t->ns;
+    const double limit = 4.0 * sqrt((double)t->n) + 16.0 + 2.0 * 1024;
+    printf("scattered mesh, %u particles: mean spring span %.0f in host order, %.1f in memory "
+           "(limit %.0f)\n", t->n, host, mem, limit);
+    CHECK(host > limit); /* the input really is scattered */
+    CHECK(mem <= limit);
+    uint32_t unsorted = 0;
+    for (uint32_t col = 0; col < t->ncolors; ++col)
+        for (uint32_t i = t->color_start[col]; i + 1 < t->color_start[col + 1]; ++i) {
+            if ((i + 1 - t->color_start[col]) % 1024 == 0) continue; /* a new window */
+            unsorted += t->adj_start[i + 1] - t->adj_start[i] > t->adj_start[i + 2] - t->adj_start[i + 1];
+        }
+    CHECK_EQ(unsorted, 0);
+    uint32_t order_breaks = 0, prev = 0;
+    for (uint32_t k = 0; k < t->ns; ++k) {
+        uint32_t lo = t->to_host[t->sa[k]] < t->to_host[t->sb[k]] ? t->sa[k] : t->sb[k];
+        order_breaks += k > 0 && lo < prev;
+        prev = lo;
+    }
+    CHECK_EQ(order_breaks, 0);
+    size_t slots = 0;
+    for (uint32_t col = 0; col < t->ncolors; ++col)
+        for (uint32_t f = t->color_start[col]; f < t->color_start[col + 1]; f += RBC_ELL_CHUNK) {
+            uint32_t end = f + RBC_ELL_CHUNK < t->color_start[col + 1] ? f + RBC_ELL_CHUNK
+                                                                       : t->color_start[col + 1];
+            uint32_t w = 0;
+            for (uint32_t i = f; i < end; ++i)
+                if (t->adj_start[i + 1] - t->adj_start[i] > w) w = t->adj_start[i + 1] - t->adj_start[i];
+            slots += (size_t)w * (end - f);
+        }
+    printf("scattered mesh: %zu ELL slots for %u spring ends\n", c->ell->slots, 2 * t->ns);
+    CHECK_EQ(c->ell->slots, slots);
+    rbc_ell_free(csr->ell, &al);
+    csr->ell = NULL;
+    char err[256];
+    for (int f = 0; f < 5; ++f) {
+        CHECK_EQ(rbc_solver_step(&s, 0.002f, err, sizeof err), RBC_OK);
+        CHECK_EQ(rbc_solver_step(&s2, 0.002f, err, sizeof err), RBC_OK);
+    }
+    CHECK(max_diff(c, csr) == 0.0);
+    rbc_solver_fini(&s);
+    rbc_solver_fini(&s2);
+    free(perm);
+    mesh_free(&g);
+    mesh_free(&m);
+}
+
 /* The temporally blocked wavefront does exactly the updates of K plain red-then-black
  * iterations with the same inputs: bitwise the same positions, plain and SOR, on a
  * grid with odd and even row lengths. */
@@ -522,6 +625,7 @@ int main(void) {
     test_steps(RBC_SOLVER_RBGS_SOR, 2);
     test_threads();
     test_ell();
+    test_scattered_order();
     test_wavefront();
     test_lattice_solvers();
     test_negative_zero();
