@@ -406,22 +406,24 @@ RBC_VECTOR_CLONES
 void rbc_grid_wavefront(const rbc_grid *g, rbc_cloth_state *c, uint32_t iterations, float omega,
                         volatile uint32_t *progress, size_t stride, uint32_t tid, uint32_t nt) {
     const uint32_t ny = g->ny;
-    uint32_t it0, it1;
-    rbc_split(iterations, tid, nt, &it0, &it1);
+    /* Sweep u (iteration u / 2, color u % 2) updates row w - u at step w. Threads
+     * split the 2 * iterations sweeps, not the iterations: 11 iterations give two
+     * threads 11 sweeps each instead of 6 and 5 iterations. */
+    uint32_t u0, u1;
+    rbc_split(2 * iterations, tid, nt, &u0, &u1);
     const uint32_t steps = ny + 2 * iterations; /* last: black row ny-1 of the last one */
     volatile uint32_t *mine = progress + stride * tid;
     volatile uint32_t *before = tid ? progress + stride * (tid - 1) : NULL;
     for (uint32_t w = 0; w < steps; ++w) {
-        /* Iteration it0 at step w reads rows of iteration it0 - 1 that the previous
-         * thread writes at steps <= w. */
+        /* Sweep u0 at step w reads rows of sweep u0 - 1 that the previous thread
+         * writes at steps <= w. */
         if (before) {
             uint32_t spins = 0;
             while (__atomic_load_n(before, __ATOMIC_ACQUIRE) <= w) rbc_pool_spin(&spins);
         }
-        for (uint32_t it = it0; it < it1; ++it) {
-            int64_t r = (int64_t)w - 2 * (int64_t)it; /* red row; then black row r - 1 */
-            if (r >= 0 && r < (int64_t)ny) grid_row(g, c, 0, (uint32_t)r, omega);
-            if (r - 1 >= 0 && r - 1 < (int64_t)ny) grid_row(g, c, 1, (uint32_t)(r - 1), omega);
+        for (uint32_t u = u0; u < u1; ++u) {
+            int64_t r = (int64_t)w - (int64_t)u;
+            if (r >= 0 && r < (int64_t)ny) grid_row(g, c, u & 1u, (uint32_t)r, omega);
         }
         __atomic_store_n(mine, w + 1, __ATOMIC_RELEASE);
     }

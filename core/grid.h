@@ -82,9 +82,9 @@ void rbc_grid_gs_serial(const rbc_grid *g, struct rbc_cloth_state *c);
  * it updates red row w - 2 it, then black row w - 2 it - 1, so a band of 2 iterations
  * + 2 rows is all that must stay in cache, and every row update sees exactly the
  * inputs of plain red-then-black iterations (the result is bitwise theirs). Threads
- * form a pipeline over the iterations (thread t does its rbc_split share); thread t
- * starts step w once thread t - 1 has finished it (progress[stride * t] counts the
- * steps a thread finished; zero them and barrier before). Color 0 must be "red": the
+ * form a pipeline over the 2 * iterations color sweeps (thread t does its rbc_split
+ * share); thread t starts step w once thread t - 1 has finished it (progress[stride *
+ * t] counts the steps a thread finished; zero them and barrier before). Color 0 must be "red": the
  * lattice's two colors play symmetric roles, so either works. */
 void rbc_grid_wavefront(const rbc_grid *g, struct rbc_cloth_state *c, uint32_t iterations,
                         float omega, volatile uint32_t *progress, size_t stride, uint32_t tid,
