@@ -384,6 +384,8 @@ const char *const rbc_scene_solver_names[] = {"rbgs",     "jacobi",          "ja
                                               "gauss_seidel", "rbgs_sor",    "rbgs_chebyshev",
                                               "multicolor_gs", "direct",     NULL};
 const char *const rbc_scene_mode_names[] = {"fixed", "tolerance", "budget", "target", NULL};
+/* Indexed by rbc_preset (ABI 1.4). */
+const char *const rbc_scene_preset_names[] = {"default", "game_60hz", NULL};
 /* Indexed by rbc_energy_guard. */
 const char *const rbc_scene_energy_guard_names[] = {"off", "clamp", "fail", NULL};
 

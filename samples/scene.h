@@ -193,6 +193,9 @@ int rbc_scene_load_file(const char *path, rbc_scene *out, char *err, size_t err_
 /// rbc_solver_kind / rbc_iteration_mode, NULL-terminated.
 extern const char *const rbc_scene_solver_names[];
 extern const char *const rbc_scene_mode_names[];
+/// "default", "game_60hz": rbc_preset values by index (rbc_solver_def_preset, the
+/// CLI's --preset), NULL-terminated.
+extern const char *const rbc_scene_preset_names[];
 /// "off", "clamp", "fail": rbc_energy_guard values by index, NULL-terminated.
 extern const char *const rbc_scene_energy_guard_names[];
 

@@ -89,7 +89,14 @@ static const char usage_text[] =
     "  --solver NAME     global solver: rbgs (default), jacobi, jacobi_chebyshev,\n"
     "                    gauss_seidel, rbgs_sor, rbgs_chebyshev, multicolor_gs, direct\n"
     "  --mode NAME       when linear iterations stop: fixed (the count), tolerance\n"
-    "                    (relative residual), budget (milliseconds per frame)\n"
+    "                    (relative residual), budget (milliseconds per frame), target\n"
+    "                    (substeps and iterations chosen per frame to reach a strain)\n"
+    "  --target-strain X RMS relative strain for --mode target (default 0.05)\n"
+    "  --max-substeps N  most substeps per frame in --mode target (1..1024, default 16)\n"
+    "  --max-iterations N  most linear iterations per non-linear iteration in the\n"
+    "                    tolerance, budget and target modes (default 1000)\n"
+    "  --preset NAME     solver preset applied before the options: default, game_60hz\n"
+    "                    (target mode, strain 0.05, 32 substeps x 8 iterations at most)\n"
     "  --tolerance X     relative residual for --mode tolerance (default 1e-3)\n"
     "  --budget-ms X     milliseconds per frame for --mode budget (default 2)\n"
     "  --omega X         SOR factor for rbgs_sor, in (0, 2); 0 = optimal (default)\n"
@@ -186,19 +193,22 @@ static int parse_run_args(int argc, char **argv, cli_run_options *o) {
         {"--substeps", 1, 1024, &o->substeps},
         {"--iterations", 1, 4096, &o->iterations},
         {"--nonlinear", 1, 1024, &o->nonlinear},
+        {"--max-substeps", 1, 1024, &o->max_substeps},
+        {"--max-iterations", 1, 100000, &o->max_linear},
     };
     struct {
         const char *name;
         double *target;
     } reals[] = {{"--tolerance", &o->tolerance}, {"--budget-ms", &o->budget_ms},
-                 {"--omega", &o->omega}};
+                 {"--omega", &o->omega}, {"--target-strain", &o->target_strain}};
     struct {
         const char *name;
         const char *const *choices;
         const char **target;
     } names[] = {{"--solver", rbc_scene_solver_names, &o->solver},
                  {"--mode", rbc_scene_mode_names, &o->mode},
-                 {"--energy-guard", rbc_scene_energy_guard_names, &o->energy_guard}};
+                 {"--energy-guard", rbc_scene_energy_guard_names, &o->energy_guard},
+                 {"--preset", rbc_scene_preset_names, &o->preset}};
     for (int i = 0; i < argc; ++i) {
         const char *arg = argv[i];
         if (strcmp(arg, "--quiet") == 0 || strcmp(arg, "-q") == 0) {
@@ -280,6 +290,10 @@ static int command_run(int argc, char **argv) {
         .tolerance = -1.0,
         .budget_ms = -1.0,
         .omega = -1.0,
+        .preset = NULL,
+        .target_strain = -1.0,
+        .max_substeps = -1,
+        .max_linear = -1,
         .quiet = 0,
     };
     for (int i = 0; i < argc; ++i) {

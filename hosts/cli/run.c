@@ -124,6 +124,13 @@ typedef struct run_state {
     rbc_world_stats stats;
     uint32_t frames_done;
     double wall_seconds;
+    /// --mode target, over the frames: what the controller chose (substeps and
+    /// linear iterations per frame) and what the frames reached.
+    struct {
+        uint32_t met, substeps_min, substeps_max, linear_max;
+        uint64_t substeps_sum, linear_sum;
+        double reached_max;
+    } target;
 } run_state;
 
 static void run_state_free(run_state *s) {
@@ -171,6 +178,12 @@ static int load_scene(run_state *s) {
     if (o->nonlinear >= 0)
         s->scene.world.nonlinear_iterations = (uint32_t)o->nonlinear;
     rbc_solver_def *sd = &s->scene.world.solver;
+    for (int k = 0; o->preset && rbc_scene_preset_names[k]; ++k)
+        if (strcmp(o->preset, rbc_scene_preset_names[k]) == 0) {
+            rbc_result r = s->api->solver_def_preset(sd, sizeof *sd, (rbc_preset)k);
+            if (r != RBC_OK)
+                return report_api(s->api, r);
+        }
     for (int k = 0; o->solver && rbc_scene_solver_names[k]; ++k)
         if (strcmp(o->solver, rbc_scene_solver_names[k]) == 0) sd->solver = (rbc_solver_kind)k;
     for (int k = 0; o->mode && rbc_scene_mode_names[k]; ++k)
@@ -181,6 +194,9 @@ static int load_scene(run_state *s) {
     if (o->tolerance >= 0.0) sd->tolerance = (float)o->tolerance;
     if (o->budget_ms >= 0.0) sd->budget_ms = (float)o->budget_ms;
     if (o->omega >= 0.0) sd->omega = (float)o->omega;
+    if (o->target_strain >= 0.0) sd->target_strain = (float)o->target_strain;
+    if (o->max_substeps >= 0) sd->max_substeps = (uint32_t)o->max_substeps;
+    if (o->max_linear >= 0) sd->max_linear_iterations = (uint32_t)o->max_linear;
     return 0;
 }
 
@@ -350,6 +366,19 @@ static int simulate(run_state *s) {
         if (r != RBC_OK)
             return report_api(api, r);
         cli_timings_add(&s->timings, &s->stats);
+        if (s->stats.iteration_mode == RBC_ITERATE_TARGET) {
+            const rbc_world_stats *st = &s->stats;
+            if (frame == 0 || st->substeps < s->target.substeps_min)
+                s->target.substeps_min = st->substeps;
+            if (st->substeps > s->target.substeps_max) s->target.substeps_max = st->substeps;
+            if (st->linear_iterations > s->target.linear_max)
+                s->target.linear_max = st->linear_iterations;
+            s->target.substeps_sum += st->substeps;
+            s->target.linear_sum += st->linear_iterations;
+            s->target.met += st->target_met;
+            if (st->target_reached > s->target.reached_max)
+                s->target.reached_max = st->target_reached;
+        }
 
         for (uint32_t i = 0; i < s->scene.cloth_count; ++i) {
             size_t written = 0;
@@ -458,6 +487,24 @@ static cJSON *build_summary(const run_state *s, json_builder *b) {
     cJSON_AddStringToObject(root, "solver", rbc_scene_solver_names[sc->world.solver.solver]);
     cJSON_AddStringToObject(root, "iteration_mode", rbc_scene_mode_names[sc->world.solver.mode]);
     jnum(b, root, "colliders", st->collider_count);
+    if (sc->world.solver.mode == RBC_ITERATE_TARGET && s->frames_done) {
+        /* What the target mode chose and reached, over the frames. */
+        const rbc_solver_def *sd = &sc->world.solver;
+        cJSON *t = jcheck(b, cJSON_AddObjectToObject(root, "target"));
+        jnum(b, t, "target_strain", float_as_decimal(sd->target_strain));
+        jnum(b, t, "max_substeps", sd->max_substeps);
+        jnum(b, t, "max_linear_iterations", sd->max_linear_iterations);
+        jnum(b, t, "frames_met", s->target.met);
+        jnum(b, t, "frames_missed", (double)st->target_missed_steps);
+        jnum(b, t, "frames_missed_at_cap", (double)st->target_capped_steps);
+        jnum(b, t, "substeps_min", s->target.substeps_min);
+        jnum(b, t, "substeps_max", s->target.substeps_max);
+        jnum(b, t, "substeps_mean", (double)s->target.substeps_sum / s->frames_done);
+        jnum(b, t, "linear_iterations_mean", (double)s->target.linear_sum / s->frames_done);
+        jnum(b, t, "linear_iterations_max", s->target.linear_max);
+        jnum(b, t, "reached_last", st->target_reached);
+        jnum(b, t, "reached_max", s->target.reached_max);
+    }
 
     cJSON *cloths = jcheck(b, cJSON_AddArrayToObject(root, "cloths"));
     for (uint32_t i = 0; cloths && i < sc->cloth_count; ++i) {
@@ -496,6 +543,7 @@ static cJSON *build_summary(const run_state *s, json_builder *b) {
     cJSON *final = jcheck(b, cJSON_AddObjectToObject(root, "final"));
     jnum(b, final, "error_eq7", st->error_eq7);
     jnum(b, final, "max_strain", st->max_strain);
+    jnum(b, final, "strain_rms", st->strain_rms);
     jnum(b, final, "kinetic_energy", st->kinetic_energy);
     jnum(b, final, "potential_energy", st->potential_energy);
     jnum(b, final, "energy_budget", st->energy_budget);
@@ -546,13 +594,28 @@ static void print_table(const run_state *s) {
            rbc_scene_mode_names[sc->world.solver.mode], st->substeps,
            st->substeps ? st->nonlinear_iterations / st->substeps : 0,
            st->nonlinear_iterations ? st->linear_iterations / st->nonlinear_iterations : 0);
+    if (sc->world.solver.mode == RBC_ITERATE_TARGET && s->frames_done) {
+        const rbc_solver_def *sd = &sc->world.solver;
+        printf("  target RMS strain %g within %u substeps x %u iterations: met in %u of %u "
+               "frames (%llu missed, %llu at the cap); reached %.4g last, %.4g at worst\n",
+               (double)sd->target_strain, sd->max_substeps, sd->max_linear_iterations,
+               s->target.met, s->frames_done, (unsigned long long)st->target_missed_steps,
+               (unsigned long long)st->target_capped_steps, st->target_reached,
+               s->target.reached_max);
+        printf("  chosen: substeps %u..%u (mean %.2f), linear iterations per frame %.1f mean, "
+               "%u at most\n",
+               s->target.substeps_min, s->target.substeps_max,
+               (double)s->target.substeps_sum / s->frames_done,
+               (double)s->target.linear_sum / s->frames_done, s->target.linear_max);
+    }
     printf("  %-10s %12s %12s\n", "stage", "median ms", "mean ms");
     for (int stage = 0; stage < CLI_STAGE_COUNT; ++stage) {
         double median, mean;
         cli_timings_summary(&s->timings, (cli_stage)stage, &median, &mean);
         printf("  %-10s %12.4f %12.4f\n", cli_stage_names[stage], median, mean);
     }
-    printf("  Eq. 7 error %.6e m^2, max strain %.4e\n", st->error_eq7, st->max_strain);
+    printf("  Eq. 7 error %.6e m^2, max strain %.4e, RMS strain %.4e\n", st->error_eq7,
+           st->max_strain, st->strain_rms);
     printf("  energy: kinetic %.6g J, potential %.6g J (kinetic + gravity budget %.6g J); "
            "steps clamped by the energy guard: %llu\n",
            st->kinetic_energy, st->potential_energy, st->energy_budget,

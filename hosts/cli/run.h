@@ -25,6 +25,13 @@ typedef struct cli_run_options {
     const char *energy_guard;
     /// Mode parameters and SOR omega; < 0 = keep the scene's.
     double tolerance, budget_ms, omega;
+    /// A quality preset by name ("default", "game_60hz": rbc_solver_def_preset),
+    /// applied to the scene's solver before the options above; NULL = none.
+    const char *preset;
+    /// --mode target: the RMS relative strain to reach (< 0 = the scene's), and the
+    /// caps max_substeps and max_linear_iterations (-1 = the scene's).
+    double target_strain;
+    long max_substeps, max_linear;
     /// No progress bar and no table on stdout.
     int quiet;
 } cli_run_options;
