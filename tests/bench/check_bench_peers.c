@@ -18,7 +18,8 @@
  * at most 2^-24 L of the double length), which moves each violation v_k by at most d_k
  * and its square by (2|v| + d) d; plus the same 1e-11 for sums and digits. A CSV
  * whose E came from another frame or configuration than its positions differs by
- * orders of magnitude more.
+ * orders of magnitude more. The last frame's E lies within the tail columns (the
+ * least and largest E over the last tenth of the frames).
  *
  * The Pareto flags are recomputed from the CSV (a row is on the front iff it held
  * and no other row is at least as fast and as accurate and better in one), and
@@ -36,14 +37,14 @@ enum { MAX_COLS = 32, MAX_ROWS = 4096, GRID = 100 };
 
 static const char header[] =
     "id,phase,solver,substeps,nonlinear,linear,omega_set,rho_set,energy_guard,threads,frames,"
-    "ms_per_frame,integrate_ms,local_ms,global_ms,other_ms,eq7,eq7_host,max_strain,omega,rho,"
-    "guard_clamps,unstable,diverged,pareto,meets_target";
+    "ms_per_frame,integrate_ms,local_ms,global_ms,other_ms,eq7,eq7_host,max_strain,eq7_tail_min,"
+    "eq7_tail_max,omega,rho,guard_clamps,unstable,diverged,pareto,meets_target";
 
 /* Column indices in the header above. */
 enum { C_ID, C_PHASE, C_SOLVER, C_SUBSTEPS, C_NONLINEAR, C_LINEAR, C_OMEGA_SET, C_RHO_SET,
        C_GUARD, C_THREADS, C_FRAMES, C_MS, C_INTEGRATE, C_LOCAL, C_GLOBAL, C_OTHER, C_EQ7,
-       C_EQ7_HOST, C_STRAIN, C_OMEGA, C_RHO, C_CLAMPS, C_UNSTABLE, C_DIVERGED, C_PARETO,
-       C_MEETS, C_COUNT };
+       C_EQ7_HOST, C_STRAIN, C_TAIL_MIN, C_TAIL_MAX, C_OMEGA, C_RHO, C_CLAMPS, C_UNSTABLE,
+       C_DIVERGED, C_PARETO, C_MEETS, C_COUNT };
 
 typedef struct row {
     double v[C_COUNT];
@@ -160,6 +161,8 @@ int main(int argc, char **argv) {
             CHECK(isfinite(e) && e > 0.0);
             CHECK_NEAR(r->v[C_EQ7_HOST], e, 1e-11 * e);
             CHECK_NEAR(r->v[C_EQ7], e, bound + 1e-11 * e);
+            /* The last frame is inside the tail window (6 significant digits). */
+            CHECK(r->v[C_TAIL_MIN] <= e * (1.0 + 1e-5) && r->v[C_TAIL_MAX] >= e * (1.0 - 1e-5));
             free(p);
         }
         free(bytes);
