@@ -261,28 +261,32 @@ enum {
     /// never does more than max_substeps x nonlinear_iterations x
     /// max_linear_iterations linear iterations in max_substeps substeps).
     /// How it chooses:
-    ///  - Inside a global step, the strain of the iterate is checked (one pass over
-    ///    the springs, in double, in fixed blocks: bitwise the same for any thread
-    ///    count) from the iteration the previous global step needed, less one, on;
-    ///    the step stops at 0.95 target_strain (room for friction and the post-solve
-    ///    safety pass) or at max_linear_iterations.
-    ///  - Between steps, substeps: a step that missed the target, or whose global
-    ///    step needed the cap, raises them by half (at least 1) for the next step;
-    ///    after 8 steps in a row that met it without the cap, the controller tries a
-    ///    quarter fewer, and undoes that if the next step costs more (linear
-    ///    iterations + 3 per substep), doubling the 8 (up to 256) each time a
-    ///    lowering is undone, so it does not oscillate. The first step in this mode
-    ///    (after rbc_world_create, rbc_world_set_solver or rbc_world_set_iterations)
-    ///    runs max_substeps.
+    ///  - In the last global step of each step the strain of the iterate is checked
+    ///    after every linear iteration (one pass over the springs, in float with
+    ///    double sums, in fixed blocks: bitwise the same for any thread count), from
+    ///    a quarter below the count that step needed last time on; it stops at 0.8
+    ///    target_strain (room for the earlier substeps, friction and the post-solve
+    ///    safety pass) or at max_linear_iterations. The earlier global steps run
+    ///    that last count, unchecked (so the lattice fast path serves them); the
+    ///    first step starts from the world's linear_iterations, within the cap.
+    ///  - Between steps, substeps: a step that missed the target, or whose last
+    ///    global step reached the cap above 0.95 target_strain, raises them by half
+    ///    (at least 1) for the next step; after 8 steps in a row that met it without
+    ///    that, the controller tries a quarter fewer, and undoes that if the next
+    ///    step costs more (linear iterations + 3 per substep), doubling the 8 (up to
+    ///    256) each time a lowering is undone, so it does not oscillate. The first
+    ///    step in this mode (after rbc_world_create, rbc_world_set_solver or
+    ///    rbc_world_set_iterations) runs max_substeps; the world's `substeps` is not
+    ///    used.
     ///  - When the substeps change, previous positions are rescaled so velocities
-    ///    are kept.
-    /// What was done and reached is in rbc_world_stats (substeps, linear_iterations,
-    /// target_reached, target_met, next_substeps, target_missed_steps,
-    /// target_capped_steps). A step that misses at max_substeps (the target cannot
-    /// be met within the cap) still returns RBC_OK; it is counted in
-    /// target_capped_steps and logged as a warning at the first such step and at
-    /// every power of two after it. The world's `substeps` and `linear_iterations`
-    /// are not used in this mode.
+    ///    are kept. (RBC_SOLVER_DIRECT refactors at every change of substeps.)
+    /// Whether a step met the target is decided on its final positions, in double
+    /// (stats.target_reached). What was done and reached is in rbc_world_stats
+    /// (substeps, linear_iterations, target_reached, target_met, next_substeps,
+    /// target_missed_steps, target_capped_steps). A step that misses at
+    /// max_substeps (the target cannot be met within the cap) still returns
+    /// RBC_OK; it is counted in target_capped_steps and logged as a warning at the
+    /// first such step and at every power of two after it.
     RBC_ITERATE_TARGET = 3,
     RBC_ITERATE_FORCE32 = 0x7FFFFFFF
 };

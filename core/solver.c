@@ -744,15 +744,18 @@ static void place_pins(step_ctx *ctx, uint32_t sub, uint32_t tid, uint32_t nt) {
 
 /* Whether a cloth's local step runs fused with the right-hand side on the lattice
  * (grid.h): not for the direct solver, which reads the per-spring d arrays. */
-static int grid_local(const rbc_solver *s, const rbc_cloth_state *c) {
-    return c->grid && s->settings.kind != RBC_SOLVER_DIRECT;
+/* The lattice and ELLPACK paths fuse the local step into the right-hand side pass
+ * (rbc_grid_rhs, rbc_ell_rhs), without the per-slot d arrays; the direct solver reads
+ * those arrays. */
+static int fused_local(const rbc_solver *s, const rbc_cloth_state *c) {
+    return (c->grid || c->ell) && s->settings.kind != RBC_SOLVER_DIRECT;
 }
 
 static void phase_local(step_ctx *ctx, uint32_t tid, uint32_t nt) {
     rbc_solver *s = ctx->s;
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
-        if (grid_local(s, c)) continue;
+        if (fused_local(s, c)) continue;
         const rbc_topology *t = &c->topo;
         uint32_t b, e;
         rbc_split(t->ns, tid, nt, &b, &e);
@@ -1072,8 +1075,10 @@ static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uin
         }
         if (st->mode == RBC_ITERATE_TARGET) {
             /* Check the strain of the latest iterate (in float: strain.h) and stop
-             * below the target (with room for what friction and the safety pass
-             * change after the solve), or at the cap. */
+             * at RBC_TARGET_AIM of the target (room for the substeps before this
+             * one, which ran last step's count unchecked, and for what friction and
+             * the safety pass change after the solve), or at the cap; the cap with
+             * the strain above RBC_TARGET_INNER of the target asks for substeps. */
             if (k < first && k < limit) continue;
             for (uint32_t q = 0; q < s->cloth_count; ++q) {
                 rbc_cloth_state *c = s->cloths[q];
@@ -1086,10 +1091,11 @@ static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uin
                     double r = rbc_strain_sum(s->cloths[q]);
                     if (r > worst) worst = r;
                 }
-                int met = worst <= RBC_TARGET_INNER * (double)st->target_strain;
+                const double target = (double)st->target_strain;
+                int met = worst <= RBC_TARGET_AIM * target;
                 ctx->stop = met || k >= limit;
                 if (ctx->stop) {
-                    if (!met) ctx->hit_cap = 1;
+                    if (worst > RBC_TARGET_INNER * target) ctx->hit_cap = 1;
                     ctx->tgt_iters_next = k;
                 }
             }
@@ -1504,8 +1510,10 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
             rbc_pool_barrier(pool); /* every spring's d before the sums over them */
             for (uint32_t q = 0; q < s->cloth_count; ++q) {
                 rbc_cloth_state *c = s->cloths[q];
-                if (grid_local(s, c))
+                if (fused_local(s, c) && c->grid)
                     rbc_grid_rhs(c->grid, c, tid, nt);
+                else if (fused_local(s, c))
+                    rbc_ell_rhs(c->ell, c, tid, nt);
                 else
                     rbc_global_rhs(c, tid, nt);
             }

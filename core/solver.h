@@ -239,8 +239,12 @@ void rbc_collider_update_frame(rbc_collider_state *c);
 int32_t rbc_solver_set_settings(rbc_solver *s, const rbc_solver_settings *st);
 /* The target mode's controller starts again (from the world's substeps). */
 #define RBC_TARGET_HOLD 8u
-/* A global step stops at this fraction of the target: room for what friction and
- * the post-solve safety pass change after it. */
+/* The checked global step stops at RBC_TARGET_AIM of the target; if it reaches the
+ * cap above RBC_TARGET_INNER of it, the next step gets more substeps. On the paper's
+ * cloth at 1/60 s (preset caps) aiming at 0.95 met 228 of 240 frames at 1.82 ms per
+ * frame, at 0.8 235 at 1.88 ms; the 0.95 cap test keeps a cloth whose physical
+ * stretch lies between the two from asking for substeps that cannot help. */
+#define RBC_TARGET_AIM 0.8
 #define RBC_TARGET_INNER 0.95
 /* Cost units of a substep besides its linear iterations (integrate, local step and
  * right-hand side, a strain check), in linear iterations: the stage times of a 10K
