@@ -744,18 +744,15 @@ static void place_pins(step_ctx *ctx, uint32_t sub, uint32_t tid, uint32_t nt) {
 
 /* Whether a cloth's local step runs fused with the right-hand side on the lattice
  * (grid.h): not for the direct solver, which reads the per-spring d arrays. */
-/* The lattice and ELLPACK paths fuse the local step into the right-hand side pass
- * (rbc_grid_rhs, rbc_ell_rhs), without the per-slot d arrays; the direct solver reads
- * those arrays. */
-static int fused_local(const rbc_solver *s, const rbc_cloth_state *c) {
-    return (c->grid || c->ell) && s->settings.kind != RBC_SOLVER_DIRECT;
+static int grid_local(const rbc_solver *s, const rbc_cloth_state *c) {
+    return c->grid && s->settings.kind != RBC_SOLVER_DIRECT;
 }
 
 static void phase_local(step_ctx *ctx, uint32_t tid, uint32_t nt) {
     rbc_solver *s = ctx->s;
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
-        if (fused_local(s, c)) continue;
+        if (grid_local(s, c)) continue;
         const rbc_topology *t = &c->topo;
         uint32_t b, e;
         rbc_split(t->ns, tid, nt, &b, &e);
@@ -1510,10 +1507,8 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
             rbc_pool_barrier(pool); /* every spring's d before the sums over them */
             for (uint32_t q = 0; q < s->cloth_count; ++q) {
                 rbc_cloth_state *c = s->cloths[q];
-                if (fused_local(s, c) && c->grid)
+                if (grid_local(s, c))
                     rbc_grid_rhs(c->grid, c, tid, nt);
-                else if (fused_local(s, c))
-                    rbc_ell_rhs(c->ell, c, tid, nt);
                 else
                     rbc_global_rhs(c, tid, nt);
             }
