@@ -288,6 +288,8 @@ static int run_config(peers_ctx *ctx, const peer_config *c, peer_row *out) {
             out->rho_used = st.spectral_radius;
         }
     }
+    if (out->frames_done < ctx->frames)
+        out->eq7_tail_min = out->eq7_tail_max = NAN; /* the run stopped: no tail */
     double *med[] = {&out->ms, &out->integrate_ms, &out->local_ms, &out->global_ms, &out->other_ms};
     for (int k = 0; k < 5; ++k)
         *med[k] = bench_median(ctx->samples[k], out->frames_done);
