@@ -276,32 +276,47 @@ RBC_ALWAYS_INLINE rbc_v8 rbc_ld8(const float *p) {
 }
 RBC_ALWAYS_INLINE void rbc_st8(float *p, rbc_v8 v) { memcpy(p, &v, sizeof v); }
 
-/* Eight particles from m of row_axis_free. */
+typedef int32_t rbc_m8 __attribute__((vector_size(32)));
+
+/* Eight particles from m of row_axis_free; keep_l and keep_r: all ones, or zero in
+ * the lane of an edge particle, whose missing horizontal neighbour then reads +0. */
 RBC_ALWAYS_INLINE rbc_v8 free_update(uint32_t m, const float *p, const float *l, const float *r,
                                      const float *d, const float *u, const float *b,
-                                     const float *inv, rbc_v8 kv, float omega) {
-    rbc_v8 s = (rbc_ld8(l + m) + rbc_ld8(r + m)) + (rbc_ld8(d + m) + rbc_ld8(u + m));
+                                     const float *inv, rbc_v8 kv, float omega, rbc_m8 keep_l,
+                                     rbc_m8 keep_r) {
+    rbc_v8 lv = (rbc_v8)((rbc_m8)rbc_ld8(l + m) & keep_l);
+    rbc_v8 rv = (rbc_v8)((rbc_m8)rbc_ld8(r + m) & keep_r);
+    rbc_v8 s = (lv + rv) + (rbc_ld8(d + m) + rbc_ld8(u + m));
     rbc_v8 g = (rbc_ld8(b + m) + kv * s) * rbc_ld8(inv + m);
     if (omega == 0.0f) return g;
     rbc_v8 o = rbc_ld8(p + m);
     return o + omega * (g - o);
 }
 
-/* One coordinate of a whole row (edges included) with the uniform stiffness k and no
+/* One coordinate of a whole row, edges included, with the uniform stiffness k and no
  * pin: g = (b + k ((l + r) + (d + u))) / denominator, and p = g, or p += omega (g - p)
- * (SOR). count >= 8. The last eight particles are computed first and stored last:
- * the loop's last vector overlaps them when count is not a multiple of 8, and both
- * computed the overlap from the same old values (a color's particles read only the
- * other color, b, the denominator and their own old position), so both wrote the same.
- * The edge particles read a wrong horizontal neighbour here; the caller redoes them. */
+ * (SOR). count >= 8. An edge particle (column 0 when left_edge, at m = 0; column
+ * nx - 1 when right_edge, at m = count - 1) reads its missing neighbour as 0 (it was
+ * read from the next row or the one before and masked away), so the same formula
+ * gives its Eq. 6 with one horizontal spring. The last eight particles are computed
+ * first and stored last: the loop's last vector overlaps them when count is not a
+ * multiple of 8, and both computed the overlap from the same old values (a color's
+ * particles read only the other color, b, the denominator and their own old
+ * position), so both wrote the same. */
 RBC_ALWAYS_INLINE void row_axis_free(uint32_t count, float *restrict p, const float *l,
                                      const float *r, const float *d, const float *u,
-                                     const float *b, const float *inv, float k, float omega) {
+                                     const float *b, const float *inv, float k, float omega,
+                                     int left_edge, int right_edge) {
     const rbc_v8 kv = {k, k, k, k, k, k, k, k};
+    const rbc_m8 all = {-1, -1, -1, -1, -1, -1, -1, -1};
+    rbc_m8 first = all, last = all;
+    first[0] = left_edge ? 0 : -1;
+    last[7] = right_edge ? 0 : -1;
     const uint32_t t = count - 8;
-    const rbc_v8 tail = free_update(t, p, l, r, d, u, b, inv, kv, omega);
-    for (uint32_t m = 0; m < t; m += 8)
-        rbc_st8(p + m, free_update(m, p, l, r, d, u, b, inv, kv, omega));
+    const rbc_v8 tail = free_update(t, p, l, r, d, u, b, inv, kv, omega, t ? all : first, last);
+    if (t) rbc_st8(p, free_update(0, p, l, r, d, u, b, inv, kv, omega, first, all));
+    for (uint32_t m = 8; m < t; m += 8)
+        rbc_st8(p + m, free_update(m, p, l, r, d, u, b, inv, kv, omega, all, all));
     rbc_st8(p + t, tail);
 }
 
@@ -338,32 +353,16 @@ RBC_ALWAYS_INLINE void grid_row(const rbc_grid *g, rbc_cloth_state *c, uint32_t 
     if (hi > cnt) hi = cnt;
     if (lo > hi) lo = hi;
     /* The common case, a row with one stiffness and no pinned particle, in one vector
-     * loop over the whole row; then its edge particles again, from their old
-     * positions, with their one horizontal neighbour. The loop reads the left
+     * loop over the whole row, its edge particles included. The loop reads the left
      * neighbour of column 0 at ro + f - 1 and the right one of column nx - 1 at
-     * ro + f + cnt - 1: in bounds unless this is the other color's first or the last
-     * row, which take the path below. */
+     * ro + f + cnt - 1 (then masks them): in bounds unless this is the other color's
+     * first or the last row, which take the path below. */
     if (g->k_uniform != 0.0f && cnt >= 8 && lo + (cnt - hi) <= 2 && ro + f >= 1 &&
         ro + f + cnt <= g->row_first[1][ny] && row_free(c->pinned + s0, cnt)) {
         const float *B[3] = {c->bx, c->by, c->bz};
-        float old[2][3];
-        uint32_t edge[2], ne = 0;
-        for (uint32_t m = 0; m < lo; ++m) edge[ne++] = m;
-        for (uint32_t m = hi; m < cnt; ++m) edge[ne++] = m;
-        for (uint32_t e = 0; e < ne; ++e)
-            for (int a = 0; a < 3; ++a) old[e][a] = P[a][s0 + edge[e]];
         for (int a = 0; a < 3; ++a)
             row_axis_free(cnt, P[a] + s0, P[a] + ro + f - 1, P[a] + ro + f, dn[a], up[a],
-                          B[a] + s0, c->inv_denom + s0, g->k_uniform, omega);
-        for (uint32_t e = 0; e < ne; ++e) {
-            const uint32_t m = edge[e], i = s0 + m;
-            for (int a = 0; a < 3; ++a) P[a][i] = old[e][a];
-            const int left = m < lo; /* column 0: the right neighbour, if any */
-            const int has = left ? f + 2 * m + 1 < nx : f + 2 * m >= 1;
-            edge_particle(c, i, has ? ro + f + m - (left ? 0u : 1u) : i,
-                          has ? (left ? g->kr[i] : g->kl[i]) : 0.0f, g->kd[i], g->ku[i], dn, up,
-                          m, omega);
-        }
+                          B[a] + s0, c->inv_denom + s0, g->k_uniform, omega, lo == 1, hi < cnt);
         return;
     }
     for (uint32_t m = 0; m < lo; ++m) { /* column 0: the right neighbour only (if any) */
