@@ -274,14 +274,9 @@ static void test_hanging(void) {
     test_grid_free(&g);
 }
 
-static void test_sphere(void) {
-    /* samples/scenes/cloth_on_sphere.json: 60 x 60, 1.2 m, dropped from 1 m onto a
-     * 0.35 m sphere on the ground, damping 0.5, thickness 5 mm on both colliders. */
-    const float sp = 1.2f / 59.0f;
-    test_grid g = test_grid_make(60, 60, sp, -0.6f, 1.0f, -0.6f);
-    rbc_solver_def sd = game_preset();
-    rbc_world_id w = make_world(&sd, 1, NULL);
-    rbc_cloth_def cd = test_grid_def(&g, NULL, 0);
+/* The sphere drop of test_sphere: a 60 x 60 cloth over a sphere and the ground. */
+static rbc_cloth_id sphere_scene(rbc_world_id w, const test_grid *g) {
+    rbc_cloth_def cd = test_grid_def(g, NULL, 0);
     cd.damping = 0.5f;
     rbc_cloth_id c = 0;
     CHECK_EQ(rbc_cloth_create(w, &cd, &c), RBC_OK);
@@ -294,6 +289,17 @@ static void test_sphere(void) {
     rbc_collider_id k1 = 0, k2 = 0;
     CHECK_EQ(rbc_collider_create(w, &sphere, &k1), RBC_OK);
     CHECK_EQ(rbc_collider_create(w, &plane, &k2), RBC_OK);
+    return c;
+}
+
+static void test_sphere(void) {
+    /* samples/scenes/cloth_on_sphere.json: 60 x 60, 1.2 m, dropped from 1 m onto a
+     * 0.35 m sphere on the ground, damping 0.5, thickness 5 mm on both colliders. */
+    const float sp = 1.2f / 59.0f;
+    test_grid g = test_grid_make(60, 60, sp, -0.6f, 1.0f, -0.6f);
+    rbc_solver_def sd = game_preset();
+    rbc_world_id w = make_world(&sd, 1, NULL);
+    rbc_cloth_id c = sphere_scene(w, &g);
     run_checked(w, c, g.positions, &sd, 120, "cloth on sphere");
     rbc_world_stats st = test_stats(w);
     CHECK(st.collider_contacts > 0); /* it did land */
@@ -337,32 +343,42 @@ static void test_impossible(void) {
     test_grid_free(&g);
 }
 
+/* 1 and 2 threads: the same choices and bitwise the same positions, on the hanging
+ * cloth (the lattice wavefront between the checks) and on the sphere drop (contacts
+ * in the solve). */
 static void test_threads(void) {
-    test_grid g = test_grid_make(100, 100, 1.0f / 99.0f, 0.0f, 0.0f, 0.0f);
-    const uint32_t pins[2] = {0, 99};
-    rbc_solver_def sd = game_preset();
-    float *pos[2];
-    uint32_t choices[2][60][2];
-    for (int t = 0; t < 2; t++) {
-        rbc_world_id w = make_world(&sd, (uint32_t)t + 1, NULL);
-        rbc_cloth_def cd = test_grid_def(&g, pins, 2);
-        rbc_cloth_id c = 0;
-        CHECK_EQ(rbc_cloth_create(w, &cd, &c), RBC_OK);
-        for (int f = 0; f < 60; f++) {
-            CHECK_EQ(rbc_world_step(w, DT60), RBC_OK);
-            rbc_world_stats st = test_stats(w);
-            choices[t][f][0] = st.substeps;
-            choices[t][f][1] = st.linear_iterations;
+    for (int scene = 0; scene < 2; scene++) {
+        test_grid g = scene == 0 ? test_grid_make(100, 100, 1.0f / 99.0f, 0.0f, 0.0f, 0.0f)
+                                 : test_grid_make(60, 60, 1.2f / 59.0f, -0.6f, 1.0f, -0.6f);
+        const uint32_t pins[2] = {0, 99};
+        rbc_solver_def sd = game_preset();
+        float *pos[2];
+        uint32_t choices[2][60][2];
+        for (int t = 0; t < 2; t++) {
+            rbc_world_id w = make_world(&sd, (uint32_t)t + 1, NULL);
+            rbc_cloth_id c = 0;
+            if (scene == 0) {
+                rbc_cloth_def cd = test_grid_def(&g, pins, 2);
+                CHECK_EQ(rbc_cloth_create(w, &cd, &c), RBC_OK);
+            } else {
+                c = sphere_scene(w, &g);
+            }
+            for (int f = 0; f < 60; f++) {
+                CHECK_EQ(rbc_world_step(w, DT60), RBC_OK);
+                rbc_world_stats st = test_stats(w);
+                choices[t][f][0] = st.substeps;
+                choices[t][f][1] = st.linear_iterations;
+            }
+            CHECK_EQ(test_stats(w).thread_count, (uint32_t)t + 1);
+            pos[t] = test_read(w, c, NULL);
+            CHECK_EQ(rbc_world_destroy(w), RBC_OK);
         }
-        CHECK_EQ(test_stats(w).thread_count, (uint32_t)t + 1);
-        pos[t] = test_read(w, c, NULL);
-        CHECK_EQ(rbc_world_destroy(w), RBC_OK);
+        CHECK(memcmp(choices[0], choices[1], sizeof choices[0]) == 0);
+        CHECK(pos[0] && pos[1] && memcmp(pos[0], pos[1], sizeof(float) * 3 * g.vertex_count) == 0);
+        free(pos[0]);
+        free(pos[1]);
+        test_grid_free(&g);
     }
-    CHECK(memcmp(choices[0], choices[1], sizeof choices[0]) == 0);
-    CHECK(pos[0] && pos[1] && memcmp(pos[0], pos[1], sizeof(float) * 3 * g.vertex_count) == 0);
-    free(pos[0]);
-    free(pos[1]);
-    test_grid_free(&g);
 }
 
 static void test_velocity_kept(void) {
