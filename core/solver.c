@@ -264,11 +264,9 @@ int32_t rbc_cloth_state_create(rbc_solver *s, const rbc_mesh_input *in, float da
     memcpy(c->q[0], t->rest_x, n * sizeof(float)); /* at rest: zero initial velocity */
     memcpy(c->q[1], t->rest_y, n * sizeof(float));
     memcpy(c->q[2], t->rest_z, n * sizeof(float));
-    /* d_ij starts at the rest configuration's (used only before the first local step). */
-    for (uint32_t k = 0; k < t->ns; ++k) {
-        rbc_k_local(k, t->sa, t->sb, t->rest_len, t->ux, t->uy, t->uz, t->he_a, t->he_b, c->x[0],
-                    c->x[1], c->x[2], c->dx, c->dy, c->dz);
-    }
+    /* d_ij is not set here: every reader (the right-hand side, the direct solve) runs
+     * after the local step of the same non-linear iteration has written it, and the
+     * lattice path never uses it. Left untouched, its pages are never faulted in. */
     for (uint32_t k = 0; k < in->pin_count; ++k) {
         uint32_t i = t->to_internal[in->pins[k]];
         if (c->pinned[i]) continue; /* a vertex listed twice is one pin */
