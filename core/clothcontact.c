@@ -20,12 +20,16 @@
  *     the rest exclusion, and closest points for distance at x, the plane crossing
  *     and distance at p. The vertex's contacts are sorted by partner, so the list
  *     does not depend on the cell size, the table size or the order of a bucket.
+ *  5. edge-edge: each border edge looks up the triangle hash with its own swept box
+ *     and tests the edges of the triangles found (once each: a sorted set per
+ *     border edge).
  * A box over more than CC_BIG_CELLS cells (a vertex moving many cells in one
  * substep, a non-finite position) is not hashed: it is tested against everything.
  */
 #include "clothcontact.h"
 
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "../abi/rbcloth.h"
@@ -65,7 +69,19 @@ struct rbc_clothcontact {
     cc_hash th, vh;             /* triangles; vertices */
     cc_buf contacts;            /* rbc_contact */
     uint32_t count;
+    /* Border edges (in one triangle only) of every body, kept while the bodies'
+     * triangles stay the same (checked by pointer, count and vertex count). */
+    cc_buf ebase;               /* uint32 [count + 1]: first border edge of a body */
+    cc_buf bedge;               /* uint32 [2 per border edge]: its ends, local indices */
+    cc_buf ekey;                /* cc_ekey [count]: what the border edges were found from */
+    cc_buf escratch;            /* uint64 [3 per triangle of one body]: sort keys */
+    uint32_t ekey_count;
 };
+
+typedef struct cc_ekey {
+    const uint32_t *tris;
+    uint32_t tri_count, n;
+} cc_ekey;
 
 static int buf_reserve(const rbc_allocator *a, cc_buf *b, size_t count, size_t elem,
                        size_t keep_bytes) {
@@ -110,7 +126,7 @@ void rbc_clothcontact_destroy(rbc_clothcontact *cc) {
     const rbc_allocator a = cc->alloc;
     cc_buf *bufs[] = {&cc->vbase, &cc->tbase, &cc->bgrow, &cc->active, &cc->vbox,
                       &cc->tbox, &cc->vbody, &cc->tbody, &cc->trec, &cc->contacts,
-                      &cc->bbox};
+                      &cc->bbox, &cc->ebase, &cc->bedge, &cc->ekey, &cc->escratch};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) buf_free(&a, bufs[k]);
     hash_free(&a, &cc->th);
     hash_free(&a, &cc->vh);
@@ -127,7 +143,8 @@ size_t rbc_clothcontact_bytes(const rbc_clothcontact *cc) {
     const cc_buf *bufs[] = {&cc->vbase, &cc->tbase, &cc->bgrow, &cc->active, &cc->vbox,
                             &cc->tbox, &cc->vbody, &cc->tbody, &cc->contacts, &cc->bbox,
                             &cc->trec, &cc->th.start, &cc->th.id, &cc->th.big,
-                            &cc->vh.start, &cc->vh.id, &cc->vh.big};
+                            &cc->vh.start, &cc->vh.id, &cc->vh.big, &cc->ebase, &cc->bedge,
+                            &cc->ekey, &cc->escratch};
     size_t b = sizeof *cc;
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) b += bufs[k]->bytes;
     return b;
@@ -619,6 +636,279 @@ static uint32_t sort_partners(rbc_contact *c, uint32_t from, uint32_t to) {
     return end;
 }
 
+/* ---- edge-edge: border edges --------------------------------------------------- */
+
+static int cmp_u64(const void *a, const void *b) {
+    const uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* The border edges of every body (an edge of exactly one triangle), found again only
+ * when some body's triangles changed (tearing, a new cloth). 0 = out of memory. */
+static int border_edges(rbc_clothcontact *cc, const rbc_contact_body *bodies, uint32_t count) {
+    const rbc_allocator *a = &cc->alloc;
+    int same = cc->ekey_count == count && cc->ekey.ptr && cc->ebase.ptr;
+    for (uint32_t b = 0; b < count && same; ++b) {
+        const cc_ekey *k = (const cc_ekey *)cc->ekey.ptr + b;
+        same = k->tris == bodies[b].tris && k->tri_count == bodies[b].tri_count &&
+               k->n == bodies[b].n;
+    }
+    if (same) return 1;
+    cc->ekey_count = 0;
+    if (!buf_reserve(a, &cc->ekey, count, sizeof(cc_ekey), 0) ||
+        !buf_reserve(a, &cc->ebase, (size_t)count + 1, sizeof(uint32_t), 0))
+        return 0;
+    uint32_t total = 0;
+    for (uint32_t b = 0; b < count; ++b) {
+        const rbc_contact_body *B = &bodies[b];
+        ((uint32_t *)cc->ebase.ptr)[b] = total;
+        if (!B->tri_count) continue;
+        const size_t m = 3 * (size_t)B->tri_count;
+        if (!buf_reserve(a, &cc->escratch, m, sizeof(uint64_t), 0)) return 0;
+        uint64_t *key = cc->escratch.ptr;
+        for (uint32_t t = 0; t < B->tri_count; ++t)
+            for (int e = 0; e < 3; ++e) {
+                uint32_t u = B->tris[3 * (size_t)t + e], v = B->tris[3 * (size_t)t + (e + 1) % 3];
+                key[3 * (size_t)t + e] = u < v ? (uint64_t)u << 32 | v : (uint64_t)v << 32 | u;
+            }
+        qsort(key, m, sizeof(uint64_t), cmp_u64);
+        for (size_t i = 0; i < m;) {
+            size_t j = i + 1;
+            while (j < m && key[j] == key[i]) ++j;
+            if (j - i == 1) {
+                if (!buf_reserve(a, &cc->bedge, 2 * ((size_t)total + 1), sizeof(uint32_t),
+                                 sizeof(uint32_t) * 2 * (size_t)total))
+                    return 0;
+                uint32_t *be = cc->bedge.ptr;
+                be[2 * (size_t)total] = (uint32_t)(key[i] >> 32);
+                be[2 * (size_t)total + 1] = (uint32_t)key[i];
+                total++;
+            }
+            i = j;
+        }
+    }
+    ((uint32_t *)cc->ebase.ptr)[count] = total;
+    for (uint32_t b = 0; b < count; ++b) {
+        cc_ekey *k = (cc_ekey *)cc->ekey.ptr + b;
+        k->tris = bodies[b].tris;
+        k->tri_count = bodies[b].tri_count;
+        k->n = bodies[b].n;
+    }
+    cc->ekey_count = count;
+    return 1;
+}
+
+/* Closest points of segments p1 q1 and p2 q2: parameters s, t in [0, 1] (Ericson,
+ * Real-Time Collision Detection, 5.1.9; parallel segments get s = 0 or the clamped
+ * projection). */
+static void closest_seg_seg(const float p1[3], const float q1[3], const float p2[3],
+                            const float q2[3], float *s_out, float *t_out) {
+    float d1[3], d2[3], r[3];
+    sub3(d1, q1, p1);
+    sub3(d2, q2, p2);
+    sub3(r, p1, p2);
+    const float a = dot3(d1, d1), e = dot3(d2, d2), f = dot3(d2, r);
+    float s = 0.0f, t = 0.0f;
+    if (!(a > 0.0f) && !(e > 0.0f)) {
+        s = t = 0.0f;
+    } else if (!(a > 0.0f)) {
+        t = f / e;
+        t = t < 0.0f ? 0.0f : t > 1.0f ? 1.0f : t;
+    } else {
+        const float c = dot3(d1, r);
+        if (!(e > 0.0f)) {
+            s = -c / a;
+            s = s < 0.0f ? 0.0f : s > 1.0f ? 1.0f : s;
+        } else {
+            const float b = dot3(d1, d2), den = a * e - b * b;
+            if (den > 1e-6f * a * e) {
+                s = (b * f - c * e) / den;
+                s = s < 0.0f ? 0.0f : s > 1.0f ? 1.0f : s;
+            }
+            t = (b * s + f) / e;
+            if (t < 0.0f) {
+                t = 0.0f;
+                s = -c / a;
+                s = s < 0.0f ? 0.0f : s > 1.0f ? 1.0f : s;
+            } else if (t > 1.0f) {
+                t = 1.0f;
+                s = (b - c) / a;
+                s = s < 0.0f ? 0.0f : s > 1.0f ? 1.0f : s;
+            }
+        }
+    }
+    *s_out = s;
+    *t_out = t;
+}
+
+/* r = (point s of a0 a1) - (point t of b0 b1). */
+static inline void seg_diff(float r[3], const float a0[3], const float a1[3], float s,
+                            const float b0[3], const float b1[3], float t) {
+    for (int k = 0; k < 3; ++k)
+        r[k] = a0[k] + s * (a1[k] - a0[k]) - (b0[k] + t * (b1[k] - b0[k]));
+}
+
+/* Edge u0 u1 of body A (an edge of a triangle of it) against border edge v0 v1 of body
+ * B: a contact if they are within g at x or at p (their closest points over the
+ * substep's motion are within reach of one of the ends, the motion being at most
+ * about a margin), not sharing a vertex and, within one body, >= 2 * thickness apart
+ * at rest. */
+static void try_ee(cc_detect *d, uint32_t ba, uint32_t u0, uint32_t u1, uint32_t bb, uint32_t v0,
+                   uint32_t v1) {
+    const rbc_contact_body *A = &d->bodies[ba], *B = &d->bodies[bb];
+    if (ba == bb) {
+        if (u0 == v0 || u0 == v1 || u1 == v0 || u1 == v1) return;
+        if (A->rest[0]) {
+            float R[4][3], s, t, r[3];
+            load3(R[0], A->rest, u0);
+            load3(R[1], A->rest, u1);
+            load3(R[2], A->rest, v0);
+            load3(R[3], A->rest, v1);
+            closest_seg_seg(R[0], R[1], R[2], R[3], &s, &t);
+            seg_diff(r, R[0], R[1], s, R[2], R[3], t);
+            const float lim = 2.0f * A->thickness;
+            if (dot3(r, r) < lim * lim) return;
+        }
+    }
+    const float th = A->thickness > B->thickness ? A->thickness : B->thickness;
+    const float g = th + d->margin;
+    float X[4][3], P[4][3], s, t, r[3], rp[3];
+    load3(X[0], A->x, u0);
+    load3(X[1], A->x, u1);
+    load3(X[2], B->x, v0);
+    load3(X[3], B->x, v1);
+    load3(P[0], CONST3(A->p), u0);
+    load3(P[1], CONST3(A->p), u1);
+    load3(P[2], CONST3(B->p), v0);
+    load3(P[3], CONST3(B->p), v1);
+    closest_seg_seg(X[0], X[1], X[2], X[3], &s, &t);
+    seg_diff(r, X[0], X[1], s, X[2], X[3], t);
+    const float r2 = dot3(r, r);
+    float sp, tp;
+    closest_seg_seg(P[0], P[1], P[2], P[3], &sp, &tp);
+    seg_diff(rp, P[0], P[1], sp, P[2], P[3], tp);
+    if (!(r2 < g * g) && !(dot3(rp, rp) < g * g)) return;
+    if (!(r2 > 1e-12f)) return; /* touching at x: no direction to keep */
+    rbc_contact *c = push_contact(d);
+    if (!c) return;
+    c->kind = RBC_CONTACT_EE;
+    c->body_a = ba, c->a = u0, c->a2 = u1;
+    c->body_b = bb, c->b = v0, c->b2 = v1;
+    c->side = 1.0f;
+    c->w[0] = s, c->w[1] = t;
+    const float l = sqrtf(r2);
+    for (int k = 0; k < 3; ++k) c->n0[k] = r[k] / l;
+}
+
+/* Index of edge (u0 < u1) of body b among the border edges, or -1 (each body's border
+ * edges are in ascending key order). */
+static int64_t border_index(const rbc_clothcontact *cc, uint32_t b, uint32_t u0, uint32_t u1) {
+    const uint32_t *ebase = cc->ebase.ptr, *be = cc->bedge.ptr;
+    uint32_t lo = ebase[b], hi = ebase[b + 1];
+    const uint64_t key = (uint64_t)u0 << 32 | u1;
+    while (lo < hi) {
+        const uint32_t mid = lo + (hi - lo) / 2;
+        const uint64_t k = (uint64_t)be[2 * (size_t)mid] << 32 | be[2 * (size_t)mid + 1];
+        if (k == key) return mid;
+        if (k < key) lo = mid + 1;
+        else hi = mid;
+    }
+    return -1;
+}
+
+typedef struct cc_ecand {
+    uint32_t body, u0, u1;
+} cc_ecand;
+
+static int cmp_ecand(const void *a, const void *b) {
+    const cc_ecand *x = a, *y = b;
+    if (x->body != y->body) return x->body < y->body ? -1 : 1;
+    if (x->u0 != y->u0) return x->u0 < y->u0 ? -1 : 1;
+    return x->u1 < y->u1 ? -1 : x->u1 > y->u1;
+}
+
+/* Edge-edge contacts: every border edge looks up the triangles around its swept box
+ * (the triangle hash) and tests their edges, each once (a small sorted set per border
+ * edge: in body, then index order, so the list is deterministic). */
+static void detect_ee(cc_detect *d, const uint8_t *active, uint32_t count, uint32_t nt) {
+    rbc_clothcontact *cc = d->cc;
+    const uint32_t *ebase = cc->ebase.ptr, *be = cc->bedge.ptr;
+    const float inv = cc->inv_cell;
+    enum { CAND_MAX = 192 };
+    cc_ecand cand[CAND_MAX];
+    for (uint32_t bb = 0; bb < count && !d->oom; ++bb) {
+        if (!active[bb]) continue;
+        const rbc_contact_body *B = &d->bodies[bb];
+        const float g = B->thickness + d->margin;
+        for (uint32_t e = ebase[bb]; e < ebase[bb + 1] && !d->oom; ++e) {
+            const uint32_t v0 = be[2 * (size_t)e], v1 = be[2 * (size_t)e + 1];
+            float lo[3], hi[3];
+            for (int k = 0; k < 3; ++k) {
+                float a0 = B->x[k][v0], a1 = B->x[k][v1], p0 = B->p[k][v0], p1 = B->p[k][v1];
+                lo[k] = min2(min2(a0, a1), min2(p0, p1)) - g;
+                hi[k] = max2(max2(a0, a1), max2(p0, p1)) + g;
+            }
+            const float box[6] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]};
+            uint32_t nc = 0;
+            int full = 0;
+            cc_range r;
+            box_range(lo, hi, inv, &r);
+            const cc_hash *h = &cc->th;
+            const uint32_t *start = h->start.ptr, *id = h->id.ptr;
+            /* Candidate triangles: from the hash (or all, for a huge box). */
+            const uint64_t cells = range_cells(&r);
+            for (uint32_t pass = 0; pass < 2; ++pass) {
+                /* pass 0: hashed cells; pass 1: the big list (or everything). */
+                uint32_t m_end = pass ? (cells > CC_BIG_CELLS ? nt : h->big_count) : 0;
+                int32_t c[3];
+                if (!pass && cells <= CC_BIG_CELLS) {
+                    for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
+                        for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
+                            for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
+                                const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
+                                for (uint32_t q = start[bk]; q < start[bk + 1]; ++q) {
+                                    const uint32_t t = id[q], bt = d->tbody[t];
+                                    if (!bodies_pair(&d->bodies[bt], B, bt == bb)) continue;
+                                    if (!boxes_overlap(box, d->tbox + 6 * (size_t)t, 0.0f)) continue;
+                                    const uint32_t *tri = d->bodies[bt].tris + 3 * (size_t)(t - d->tbase[bt]);
+                                    for (int k = 0; k < 3; ++k) {
+                                        uint32_t a = tri[k], b2 = tri[(k + 1) % 3];
+                                        if (nc < CAND_MAX)
+                                            cand[nc++] = (cc_ecand){bt, a < b2 ? a : b2, a < b2 ? b2 : a};
+                                        else
+                                            full = 1;
+                                    }
+                                }
+                            }
+                }
+                for (uint32_t m = 0; m < m_end; ++m) {
+                    const uint32_t t = cells > CC_BIG_CELLS ? m : ((const uint32_t *)h->big.ptr)[m];
+                    const uint32_t bt = d->tbody[t];
+                    if (!active[bt] || !bodies_pair(&d->bodies[bt], B, bt == bb)) continue;
+                    if (!boxes_overlap(box, d->tbox + 6 * (size_t)t, 0.0f)) continue;
+                    const uint32_t *tri = d->bodies[bt].tris + 3 * (size_t)(t - d->tbase[bt]);
+                    for (int k = 0; k < 3; ++k) {
+                        uint32_t a = tri[k], b2 = tri[(k + 1) % 3];
+                        if (nc < CAND_MAX)
+                            cand[nc++] = (cc_ecand){bt, a < b2 ? a : b2, a < b2 ? b2 : a};
+                        else
+                            full = 1;
+                    }
+                }
+            }
+            (void)full; /* near more than CAND_MAX / 3 triangles: the first found (in hash order) */
+            qsort(cand, nc, sizeof cand[0], cmp_ecand);
+            for (uint32_t k = 0; k < nc && !d->oom; ++k) {
+                if (k && cmp_ecand(&cand[k], &cand[k - 1]) == 0) continue;
+                /* Not the border edge itself; two border edges once (from the later). */
+                const int64_t o = border_index(cc, cand[k].body, cand[k].u0, cand[k].u1);
+                if (o >= 0 && (uint64_t)o >= e) continue;
+                try_ee(d, cand[k].body, cand[k].u0, cand[k].u1, bb, v0, v1);
+            }
+        }
+    }
+}
+
 int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count,
                                 float margin) {
     const rbc_allocator *al = &cc->alloc;
@@ -852,6 +1142,11 @@ int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, 
         }
         if (!d.oom) cc->count = sort_partners(cc->contacts.ptr, first, cc->count);
     }
+    /* Edge against border edge. */
+    if (!d.oom) {
+        if (!border_edges(cc, bodies, count)) goto oom;
+        detect_ee(&d, active, count, (uint32_t)nt);
+    }
     if (d.over) {
         cc->count = 0;
         return RBC_ERR_UNSTABLE;
@@ -889,6 +1184,7 @@ static inline void apply(const rbc_contact_body *A, uint32_t i, float ima,
  * dir of the vertex against the triangle point (weights w). */
 typedef struct cc_eval {
     float viol, dir[3], w[3], im[3], ima;
+    float ee_s, ima2;           /* EE: the edge's parameter, its second end's inverse mass */
     const uint32_t *tri;        /* the triangle's corners, or one[] (the other vertex) */
     uint32_t one[3];
 } cc_eval;
@@ -941,6 +1237,41 @@ static int evaluate(const rbc_contact *c, const rbc_contact_body *bodies, cc_eva
         }
         e->tri = tri;
         for (int k = 0; k < 3; ++k) e->im[k] = inv_mass(B, tri[k]);
+    } else if (c->kind == RBC_CONTACT_EE) {
+        float a0[3], a1[3], b0[3], b1[3], r[3], s, t;
+        load3(a0, CONST3(A->p), c->a);
+        load3(a1, CONST3(A->p), c->a2);
+        load3(b0, CONST3(B->p), c->b);
+        load3(b1, CONST3(B->p), c->b2);
+        closest_seg_seg(a0, a1, b0, b1, &s, &t);
+        seg_diff(r, a0, a1, s, b0, b1, t);
+        const float target = A->thickness > B->thickness ? A->thickness : B->thickness;
+        const float r2 = dot3(r, r), along = dot3(r, c->n0);
+        if (along >= 0.0f && r2 > 0.0f) {
+            if (r2 >= target * target) return 0;
+            const float l = sqrtf(r2);
+            e->viol = target - l;
+            for (int k = 0; k < 3; ++k) e->dir[k] = r[k] / l;
+        } else {
+            /* Crossed over (the edge went around the border): back along the start
+             * direction. */
+            if (along >= target) return 0;
+            e->viol = target - along;
+            for (int k = 0; k < 3; ++k) e->dir[k] = c->n0[k];
+        }
+        /* The edge's ends as "vertex" a (weight 1 - s) and a2 (weight s, in slot 3 of
+         * the partner's weights, applied on A's side); the border edge's as corners
+         * b (1 - t) and b2 (t). */
+        e->one[0] = c->b, e->one[1] = c->b2, e->one[2] = c->a2;
+        e->tri = e->one;
+        e->w[0] = 1.0f - t, e->w[1] = t, e->w[2] = 0.0f;
+        e->im[0] = inv_mass(B, c->b);
+        e->im[1] = inv_mass(B, c->b2);
+        e->im[2] = 0.0f;
+        e->ee_s = s;
+        e->ima = inv_mass(A, c->a);
+        e->ima2 = inv_mass(A, c->a2);
+        return 1;
     } else {
         float o[3], r[3];
         load3(o, CONST3(B->p), c->b);
@@ -966,6 +1297,27 @@ static int evaluate(const rbc_contact *c, const rbc_contact_body *bodies, cc_eva
     return 1;
 }
 
+/* Edge-edge: the point s of edge a a2 and the point t of edge b b2 apart by viol along
+ * dir, split by the weights (1 - s, s, 1 - t, t) and inverse masses. */
+static void project_ee(rbc_contact_body *bodies, rbc_contact *c, const cc_eval *e) {
+    const float s = e->ee_s, wa0 = 1.0f - s, wa1 = s;
+    const float den = wa0 * wa0 * e->ima + wa1 * wa1 * e->ima2 + e->w[0] * e->w[0] * e->im[0] +
+                      e->w[1] * e->w[1] * e->im[1];
+    if (!(den > 0.0f)) return;
+    const float lam = e->viol / den;
+    rbc_contact_body *A = &bodies[c->body_a], *B = &bodies[c->body_b];
+    for (int k = 0; k < 3; ++k) {
+        const float dv = lam * e->dir[k];
+        A->p[k][c->a] += e->ima * wa0 * dv;
+        A->p[k][c->a2] += e->ima2 * wa1 * dv;
+        B->p[k][c->b] -= e->im[0] * e->w[0] * dv;
+        B->p[k][c->b2] -= e->im[1] * e->w[1] * dv;
+    }
+    for (int k = 0; k < 3; ++k) c->n[k] = e->dir[k];
+    c->w[0] = s, c->w[1] = e->w[1], c->w[2] = 0.0f;
+    if (e->viol > c->dn) c->dn = e->viol;
+}
+
 float rbc_clothcontact_project(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count) {
     if (count != cc->body_count) return 0.0f;
     rbc_contact *list = cc->contacts.ptr;
@@ -975,6 +1327,10 @@ float rbc_clothcontact_project(rbc_clothcontact *cc, rbc_contact_body *bodies, u
         cc_eval e;
         if (!evaluate(c, bodies, &e)) continue;
         if (e.viol > worst) worst = e.viol;
+        if (c->kind == RBC_CONTACT_EE) {
+            project_ee(bodies, c, &e);
+            continue;
+        }
         const float den = e.ima + e.w[0] * e.w[0] * e.im[0] + e.w[1] * e.w[1] * e.im[1] +
                           e.w[2] * e.w[2] * e.im[2];
         if (!(den > 0.0f)) continue; /* everything pinned */
@@ -1006,7 +1362,7 @@ void rbc_clothcontact_friction(rbc_clothcontact *cc, rbc_contact_body *bodies, u
     rbc_contact *list = cc->contacts.ptr;
     for (uint32_t m = 0; m < cc->count; ++m) {
         const rbc_contact *c = &list[m];
-        if (!(c->dn > 0.0f)) continue;
+        if (!(c->dn > 0.0f) || c->kind == RBC_CONTACT_EE) continue; /* EE: no friction */
         const rbc_contact_body *A = &bodies[c->body_a], *B = &bodies[c->body_b];
         const float mu = A->friction > B->friction ? A->friction : B->friction;
         const float limit = mu * c->dn;
