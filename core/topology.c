@@ -637,6 +637,9 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
      * by the internal index of the lower host vertex, so that the local step walks
      * the particles in memory order instead of at random) with their own stiffness,
      * and the internal CSR adjacency with one slot per spring end. */
+    /* Positions are read from the internal copies (the same floats as P, placed in
+     * step 6): i runs in memory order and j is near it, where P[hi], P[hj] of a
+     * scattered mesh were two cache misses per spring. */
     uint32_t k = 0;
     for (uint32_t r = 0; r < n; ++r) {
         const uint32_t hi = scattered ? t->to_host[r] : r;
@@ -645,13 +648,15 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
             uint32_t i = t->to_internal[hi], j = t->to_internal[hj];
             t->sa[k] = i;
             t->sb[k] = j;
-            double len = sqrt(dist3_sq(P, hi, hj));
+            double dx = (double)t->rest_x[i] - t->rest_x[j], dy = (double)t->rest_y[i] - t->rest_y[j],
+                   dz = (double)t->rest_z[i] - t->rest_z[j];
+            double len = sqrt(dx * dx + dy * dy + dz * dz); /* dist3_sq's arithmetic */
             t->rest_len[k] = (float)len;
             t->stiff[k] = bits_float((uint32_t)s.entries[e]);
             if (len > 0.0) {
-                t->ux[k] = (float)(((double)P[3 * (size_t)hi] - P[3 * (size_t)hj]) / len);
-                t->uy[k] = (float)(((double)P[3 * (size_t)hi + 1] - P[3 * (size_t)hj + 1]) / len);
-                t->uz[k] = (float)(((double)P[3 * (size_t)hi + 2] - P[3 * (size_t)hj + 2]) / len);
+                t->ux[k] = (float)(dx / len);
+                t->uy[k] = (float)(dy / len);
+                t->uz[k] = (float)(dz / len);
             }
             t->adj_start[i + 1]++;
             t->adj_start[j + 1]++;
