@@ -748,48 +748,6 @@ static void rhs_particle(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, 
  * four stiffness streams (16 of the pass's ~84 bytes per particle, which is bound by
  * memory bandwidth at 1M particles): a missing neighbour's rest length 0 makes its
  * term k (e * 0) = 0 either way. */
-RBC_ALWAYS_INLINE int rhs_interior_body(uint32_t count, const float *restrict px, const float *restrict py,
-                        const float *restrict pz, const float *restrict lx,
-                        const float *restrict ly, const float *restrict lz,
-                        const float *restrict rx, const float *restrict ry,
-                        const float *restrict rz, const float *restrict dx,
-                        const float *restrict dy, const float *restrict dz,
-                        const float *restrict ux, const float *restrict uy,
-                        const float *restrict uz, const float *restrict kl,
-                        const float *restrict kr, const float *restrict kd,
-                        const float *restrict ku, const float *restrict ll,
-                        const float *restrict lr, const float *restrict ld,
-                        const float *restrict lu, const float *restrict w,
-                        const float *restrict yx, const float *restrict yy,
-                        const float *restrict yz, float *restrict bx, float *restrict by,
-                        float *restrict bz, float kuni, const int uni) {
-    int bad = 0;
-    for (uint32_t m = 0; m < count; ++m) {
-        float x = px[m], y = py[m], z = pz[m], wi = w[m];
-        float sx = wi * yx[m], sy = wi * yy[m], sz = wi * yz[m];
-#define RBC_DIR(NX, NY, NZ, K, L)                                                          \
-        {                                                                                  \
-            float ex = x - NX[m], ey = y - NY[m], ez = z - NZ[m];                          \
-            float len2 = ex * ex + ey * ey + ez * ez;                                      \
-            bad |= len2 <= 1e-24f;                                                         \
-            float fl = L[m] / sqrtf(len2), kk = uni ? kuni : K[m];                                      \
-            sx += kk * (ex * fl);                                                          \
-            sy += kk * (ey * fl);                                                          \
-            sz += kk * (ez * fl);                                                          \
-        }
-        RBC_DIR(lx, ly, lz, kl, ll)
-        RBC_DIR(rx, ry, rz, kr, lr)
-        RBC_DIR(dx, dy, dz, kd, ld)
-        RBC_DIR(ux, uy, uz, ku, lu)
-#undef RBC_DIR
-        bx[m] = sx;
-        by[m] = sy;
-        bz[m] = sz;
-    }
-    return bad;
-}
-
-
 RBC_VECTOR_CLONES
 static int rhs_interior(uint32_t count, const float *restrict px, const float *restrict py,
                         const float *restrict pz, const float *restrict lx,
@@ -806,9 +764,38 @@ static int rhs_interior(uint32_t count, const float *restrict px, const float *r
                         const float *restrict yx, const float *restrict yy,
                         const float *restrict yz, float *restrict bx, float *restrict by,
                         float *restrict bz, float kuni) {
-    if (kuni != 0.0f)
-        return rhs_interior_body(count, px, py, pz, lx, ly, lz, rx, ry, rz, dx, dy, dz, ux, uy, uz, kl, kr, kd, ku, ll, lr, ld, lu, w, yx, yy, yz, bx, by, bz, kuni, 1);
-    return rhs_interior_body(count, px, py, pz, lx, ly, lz, rx, ry, rz, dx, dy, dz, ux, uy, uz, kl, kr, kd, ku, ll, lr, ld, lu, w, yx, yy, yz, bx, by, bz, 0.0f, 0);
+    int bad = 0;
+    /* KL..KU: the four stiffnesses of particle m (the streams, or kuni four times). */
+#define RBC_DIR(NX, NY, NZ, KK, L)                                                         \
+        {                                                                                  \
+            float ex = x - NX[m], ey = y - NY[m], ez = z - NZ[m];                          \
+            float len2 = ex * ex + ey * ey + ez * ez;                                      \
+            bad |= len2 <= 1e-24f;                                                         \
+            float fl = L[m] / sqrtf(len2), kk = KK;                                        \
+            sx += kk * (ex * fl);                                                          \
+            sy += kk * (ey * fl);                                                          \
+            sz += kk * (ez * fl);                                                          \
+        }
+#define RBC_RHS_LOOP(KL, KR, KD, KU)                                                       \
+    for (uint32_t m = 0; m < count; ++m) {                                                 \
+        float x = px[m], y = py[m], z = pz[m], wi = w[m];                                  \
+        float sx = wi * yx[m], sy = wi * yy[m], sz = wi * yz[m];                           \
+        RBC_DIR(lx, ly, lz, KL, ll)                                                        \
+        RBC_DIR(rx, ry, rz, KR, lr)                                                        \
+        RBC_DIR(dx, dy, dz, KD, ld)                                                        \
+        RBC_DIR(ux, uy, uz, KU, lu)                                                        \
+        bx[m] = sx;                                                                        \
+        by[m] = sy;                                                                        \
+        bz[m] = sz;                                                                        \
+    }
+    if (kuni != 0.0f) {
+        RBC_RHS_LOOP(kuni, kuni, kuni, kuni)
+    } else {
+        RBC_RHS_LOOP(kl[m], kr[m], kd[m], ku[m])
+    }
+#undef RBC_RHS_LOOP
+#undef RBC_DIR
+    return bad;
 }
 
 void rbc_grid_rhs(const rbc_grid *g, rbc_cloth_state *c, uint32_t tid, uint32_t nt) {
