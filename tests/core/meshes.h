@@ -214,4 +214,26 @@ static inline test_mesh mesh_split_triangles(uint32_t n) {
     free(edge_n);
     return m;
 }
+/* g with its vertices renumbered by a deterministic shuffle (an LCG from seed) and,
+ * with flip_odd, every other quad wound backwards: the same mesh in a scattered host
+ * order. */
+static inline test_mesh mesh_shuffled(const test_mesh *g, uint32_t seed, int flip_odd) {
+    uint32_t *perm = malloc(sizeof(uint32_t) * g->nv);
+    for (uint32_t v = 0; v < g->nv; ++v) perm[v] = v;
+    for (uint32_t v = g->nv - 1; v > 0; --v) {
+        seed = seed * 1664525u + 1013904223u;
+        uint32_t r = (seed >> 8) % (v + 1), tmp = perm[v];
+        perm[v] = perm[r];
+        perm[r] = tmp;
+    }
+    test_mesh m = {g->nv, g->nq, malloc(sizeof(float) * 3 * g->nv),
+                   malloc(sizeof(uint32_t) * 4 * g->nq)};
+    for (uint32_t v = 0; v < g->nv; ++v)
+        for (int c = 0; c < 3; ++c) m.pos[3 * perm[v] + c] = g->pos[3 * v + c];
+    for (uint32_t f = 0; f < g->nq; ++f)
+        for (int k = 0; k < 4; ++k)
+            m.quads[4 * f + k] = perm[g->quads[4 * f + ((flip_odd && (f & 1)) ? 3 - k : k)]];
+    free(perm);
+    return m;
+}
 #endif

@@ -286,21 +286,7 @@ static void check_non_manifold(void) {
  * grid's counts and colors. */
 static void check_shuffled_grid(void) {
     test_mesh g = mesh_grid(31, 17, 0.02f);
-    uint32_t *perm = malloc(sizeof(uint32_t) * g.nv);
-    for (uint32_t v = 0; v < g.nv; ++v) perm[v] = v;
-    uint32_t seed = 7;
-    for (uint32_t v = g.nv - 1; v > 0; --v) {
-        seed = seed * 1664525u + 1013904223u;
-        uint32_t r = (seed >> 8) % (v + 1), tmp = perm[v];
-        perm[v] = perm[r];
-        perm[r] = tmp;
-    }
-    test_mesh m = {g.nv, g.nq, malloc(sizeof(float) * 3 * g.nv), malloc(sizeof(uint32_t) * 4 * g.nq)};
-    for (uint32_t v = 0; v < g.nv; ++v)
-        for (int c = 0; c < 3; ++c) m.pos[3 * perm[v] + c] = g.pos[3 * v + c];
-    for (uint32_t f = 0; f < g.nq; ++f)
-        for (int k = 0; k < 4; ++k)
-            m.quads[4 * f + k] = perm[g.quads[4 * f + ((f & 1) ? 3 - k : k)]];
+    test_mesh m = mesh_shuffled(&g, 7, 1);
     const uint32_t nx = 31, ny = 17;
     uint32_t structural = 2 * nx * ny - nx - ny, nshear = 2 * (nx - 1) * (ny - 1),
              nbend = (nx - 2) * ny + nx * (ny - 2);
@@ -308,7 +294,6 @@ static void check_shuffled_grid(void) {
     check_topology("grid 31x17 shuffled +bend", &m, 0, K_BEND, structural + nbend, 3);
     check_topology("grid 31x17 shuffled +shear +bend", &m, K_SHEAR, K_BEND,
                    structural + nshear + nbend, 5);
-    free(perm);
     mesh_free(&m);
     mesh_free(&g);
 }

@@ -258,19 +258,7 @@ static uint32_t color_of(const rbc_topology *t, uint32_t i) {
 static void test_scattered_order(void) {
     rbc_allocator al = rbc_allocator_default();
     test_mesh g = mesh_split_triangles(64);
-    uint32_t *perm = malloc(sizeof(uint32_t) * g.nv);
-    for (uint32_t v = 0; v < g.nv; ++v) perm[v] = v;
-    uint32_t seed = 11;
-    for (uint32_t v = g.nv - 1; v > 0; --v) {
-        seed = seed * 1664525u + 1013904223u;
-        uint32_t r = (seed >> 8) % (v + 1), tmp = perm[v];
-        perm[v] = perm[r];
-        perm[r] = tmp;
-    }
-    test_mesh m = {g.nv, g.nq, malloc(sizeof(float) * 3 * g.nv), malloc(sizeof(uint32_t) * 4 * g.nq)};
-    for (uint32_t v = 0; v < g.nv; ++v)
-        for (int c = 0; c < 3; ++c) m.pos[3 * perm[v] + c] = g.pos[3 * v + c];
-    for (uint32_t f = 0; f < g.nq * 4; ++f) m.quads[f] = perm[g.quads[f]];
+    test_mesh m = mesh_shuffled(&g, 11, 0);
     rbc_solver s, s2;
     CHECK_EQ(rbc_solver_init(&s, &al, 1), RBC_OK);
     CHECK_EQ(rbc_solver_init(&s2, &al, 1), RBC_OK);
@@ -335,7 +323,6 @@ static void test_scattered_order(void) {
     CHECK(max_diff(c, csr) == 0.0);
     rbc_solver_fini(&s);
     rbc_solver_fini(&s2);
-    free(perm);
     mesh_free(&g);
     mesh_free(&m);
 }
