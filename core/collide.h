@@ -50,7 +50,7 @@ typedef struct rbc_col_contact {
     float last;        /* correction of the latest projection pass, m */
     float mu;          /* Coulomb coefficient */
     uint32_t collider; /* index in the solver's dense collider list */
-    uint32_t pad;
+    float fn_row;      /* normal force for friction, N (rbc_collide_normal_forces) */
 } rbc_col_contact;
 
 typedef struct rbc_contact_list {
@@ -62,6 +62,14 @@ typedef struct rbc_contact_list {
 /* The collider's pose at fraction f of the step (0 = where it was at the end of the
  * last step, 1 = its pose now): position interpolated linearly, rotation by nlerp. */
 void rbc_collider_frame_at(const struct rbc_collider_state *c, float f, rbc_frame *out);
+
+/* The normal force of each contact for its friction, from the positions the solve
+ * ended with: the residual of the particle's row of Eq. 6, f = (m/h^2 + sum s) p_i -
+ * b_i - sum_j s_ij p_j (b_i = m/h^2 y_i + sum s d_ij), which is what the contacts had
+ * to supply to hold the particle there, inertia and springs together, along n (0 if
+ * it pulls). It only reads positions: every thread computes its list, then a barrier,
+ * then rbc_collide_finish corrects positions. */
+void rbc_collide_normal_forces(struct rbc_solver *s, rbc_contact_list *list, float h);
 
 /* Detect the contacts of this thread's particles (its energy blocks of every cloth)
  * against every collider; f0/f1 the substep's fractions of the step, h its length.

@@ -1536,6 +1536,12 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
             /* Friction, and the work the colliders did (impulse . their velocity; a
              * static one supplies nothing). */
             STAGE_BEGIN();
+            /* Every contact's normal force from the solve's positions, before any
+             * friction moves one (a neighbour may be another thread's). */
+            rbc_collide_normal_forces(s, &s->contacts[tid], ctx->h);
+            if (tid == 0 && ctx->host_contacts)
+                rbc_collide_normal_forces(s, &s->host_contacts, ctx->h);
+            rbc_pool_barrier(pool);
             rbc_collide_finish(s, &s->contacts[tid], ctx->h, tid, nt, NULL);
             rbc_collide_post(s, (float)sub / (float)ctx->substeps,
                              (float)(sub + 1) / (float)ctx->substeps, ctx->h, tid, nt);
@@ -1549,6 +1555,7 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
             /* Host contacts: friction, and their work on the cloth they touch. */
             if (tid == 0) {
                 rbc_contact_list *l = &s->host_contacts;
+                if (!s->collider_count) rbc_collide_normal_forces(s, l, ctx->h);
                 for (uint32_t m = 0; m < l->count; ++m) {
                     rbc_contact_list one = {&l->c[m], 1, 1, 1};
                     double w = 0.0;

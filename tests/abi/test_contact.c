@@ -260,12 +260,26 @@ static double slide(float mu) {
     return sqrt(d2);
 }
 
+/* Below tan 20 = 0.364 the cloth slides with Coulomb's acceleration g (sin 20 - mu
+ * cos 20), so 1 s moves it g (sin 20 - mu cos 20) / 2. Verlet started from rest covers
+ * a h^2 n (n + 1) / 2 in n steps of h, 1/n more than a t^2 / 2: 0.4% at the 240
+ * substeps of 1 s here; the bound allows 1% of the distance and 0.5 mm for the
+ * first substeps' fall of 1e-4 m onto the plane. At mu 0.4 it sticks. (Before the
+ * friction's normal force came from the row residual, mu 0.2 already stuck.) */
 static void test_friction(void) {
-    double stick = slide(0.6f), slip = slide(0.0f);
-    printf("slope of 20 degrees, 1 s: mu 0.6 moved %.3g mm, mu 0 moved %.3g m\n", stick * 1e3,
-           slip);
+    double stick = slide(0.6f), slip = slide(0.0f), hold = slide(0.4f);
+    printf("slope of 20 degrees, 1 s: mu 0.6 moved %.3g mm, mu 0.4 %.3g mm, mu 0 %.3g m\n",
+           stick * 1e3, hold * 1e3, slip);
     CHECK(stick < 1e-3);
+    CHECK(hold < 1e-3);
     CHECK(slip > 1.0);
+    const double th = 20.0 * 3.14159265358979 / 180.0;
+    const float mus[3] = {0.1f, 0.2f, 0.3f};
+    for (int k = 0; k < 3; ++k) {
+        double coulomb = 0.5 * 9.81 * (sin(th) - mus[k] * cos(th)), got = slide(mus[k]);
+        printf("  mu %.1f: slid %.4f m, Coulomb %.4f m\n", (double)mus[k], got, coulomb);
+        CHECK(fabs(got - coulomb) <= 0.01 * coulomb + 5e-4);
+    }
 }
 
 /* ------------------------------------------------------------------------- */
