@@ -245,6 +245,8 @@ void rbc_collide_detect(rbc_solver *s, rbc_contact_list *list, float f0, float f
                     ct->mu = mu;
                     ct->collider = ci;
                     ct->fn_row = 0.0f;
+                    ct->ft[0] = ct->ft[1] = ct->ft[2] = 0.0f;
+                    ct->color = rbc_collide_color_of(&c->topo, i);
                   }
                 }
             }
@@ -256,7 +258,28 @@ void rbc_collide_detect(rbc_solver *s, rbc_contact_list *list, float f0, float f
     list->count = list->need < list->cap ? list->need : list->cap;
 }
 
-int rbc_collide_project(rbc_solver *s, rbc_contact_list *list, int alt) {
+/* Coulomb friction of contact ct on particle i of c, after its normal push v > 0 in
+ * the same pass: the slip (motion since the substep's start less the surface's,
+ * tangential) removed while within mu v, else cut by mu v. */
+static void pass_friction(rbc_col_contact *ct, rbc_cloth_state *c, float *const P[3], uint32_t i,
+                          float v, float h) {
+    ct->ft[0] = ct->ft[1] = ct->ft[2] = 0.0f;
+    if (!(ct->mu > 0.0f)) return;
+    const float *n = ct->n;
+    float dl[3];
+    for (int a = 0; a < 3; ++a) dl[a] = P[a][i] - c->x[a][i] - ct->u[a] * h;
+    float dn = dl[0] * n[0] + dl[1] * n[1] + dl[2] * n[2];
+    float tg[3] = {dl[0] - dn * n[0], dl[1] - dn * n[1], dl[2] - dn * n[2]};
+    float tl = sqrtf(tg[0] * tg[0] + tg[1] * tg[1] + tg[2] * tg[2]);
+    float lim = ct->mu * v;
+    float f = tl <= lim ? 1.0f : lim / tl; /* static: all of it; kinetic: mu v */
+    for (int a = 0; a < 3; ++a) {
+        ct->ft[a] = -f * tg[a];
+        P[a][i] += ct->ft[a];
+    }
+}
+
+int rbc_collide_project(rbc_solver *s, rbc_contact_list *list, int alt, float h) {
     int moved = 0;
     uint32_t m = 0;
     while (m < list->count) {
@@ -275,10 +298,39 @@ int rbc_collide_project(rbc_solver *s, rbc_contact_list *list, int alt) {
                 P2[i] += v * ct->n[2];
                 ct->last = v;
                 moved = 1;
+                if (h > 0.0f) pass_friction(ct, c, P, i, v, h);
             } else {
                 ct->last = 0.0f;
             }
         }
+    }
+    return moved;
+}
+
+uint32_t rbc_collide_color_of(const rbc_topology *t, uint32_t i) {
+    uint32_t c = 0;
+    while (c + 1 < t->ncolors && i >= t->color_start[c + 1]) ++c;
+    return c;
+}
+
+int rbc_collide_project_color(rbc_solver *s, rbc_contact_list *list, uint32_t color, float h) {
+    int moved = 0;
+    for (uint32_t m = 0; m < list->count; ++m) {
+        rbc_col_contact *ct = &list->c[m];
+        if (ct->color != color) continue;
+        rbc_cloth_state *c = s->cloths[ct->cloth];
+        const uint32_t i = ct->idx;
+        float *const *P = c->p;
+        const float *n = ct->n;
+        float v = ct->d - (n[0] * P[0][i] + n[1] * P[1][i] + n[2] * P[2][i]);
+        if (!(v > 0.0f)) {
+            ct->last = 0.0f; /* not pressed: no friction, the last one's stays counted */
+            continue;
+        }
+        for (int a = 0; a < 3; ++a) P[a][i] += v * n[a];
+        ct->last = v;
+        moved = 1;
+        pass_friction(ct, c, P, i, v, h);
     }
     return moved;
 }
@@ -308,7 +360,7 @@ void rbc_collide_normal_forces(rbc_solver *s, rbc_contact_list *list, float h) {
 }
 
 void rbc_collide_finish(rbc_solver *s, rbc_contact_list *list, float h, uint32_t tid, uint32_t nt,
-                        double *work_out) {
+                        double *work_out, int in_pass) {
     /* Zero this thread's collider-work slots. */
     for (uint32_t k = 0; !work_out && k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
@@ -340,7 +392,10 @@ void rbc_collide_finish(rbc_solver *s, rbc_contact_list *list, float h, uint32_t
         float fn = fn_last > fn_depth ? fn_last : fn_depth;
         const float disp = fn * h * h / c->topo.mass[i]; /* the impulse f h, as m / h * disp */
         float moved[3] = {disp * n[0], disp * n[1], disp * n[2]};
-        if (active && ct->mu > 0.0f) {
+        if (in_pass) {
+            /* The passes applied the friction: the last correction's impulse. */
+            for (int ax = 0; ax < 3; ++ax) moved[ax] += ct->ft[ax];
+        } else if (active && ct->mu > 0.0f) {
             /* Tangential displacement relative to the collider's surface. */
             float dl[3];
             for (int ax = 0; ax < 3; ++ax) dl[ax] = p[ax] - c->x[ax][i] - ct->u[ax] * h;

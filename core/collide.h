@@ -30,6 +30,7 @@
 #include <stdint.h>
 
 #include "alloc.h"
+#include "topology.h"
 
 struct rbc_solver;
 struct rbc_collider_state;
@@ -51,6 +52,8 @@ typedef struct rbc_col_contact {
     float mu;          /* Coulomb coefficient */
     uint32_t collider; /* index in the solver's dense collider list */
     float fn_row;      /* normal force for friction, N (rbc_collide_normal_forces) */
+    float ft[3];       /* friction correction of the latest pass that applied it, m */
+    uint32_t color;    /* the particle's color in its cloth (rbc_collide_project_color) */
 } rbc_col_contact;
 
 typedef struct rbc_contact_list {
@@ -78,13 +81,30 @@ void rbc_collide_normal_forces(struct rbc_solver *s, rbc_contact_list *list, flo
 void rbc_collide_detect(struct rbc_solver *s, rbc_contact_list *list, float f0, float f1, float h,
                         uint32_t tid, uint32_t nt);
 /* Project every contact of the list onto its half-space; alt = 1 projects the Jacobi
- * destination iterate (cloth->alt) instead of p. Returns 1 if any particle moved. */
-int rbc_collide_project(struct rbc_solver *s, rbc_contact_list *list, int alt);
+ * destination iterate (cloth->alt) instead of p. With friction (h > 0), also Coulomb
+ * friction in the same pass, as rbc_collide_project_color: the first pass of a
+ * substep, onto the prediction, whose push is the prediction's whole depth (what a
+ * cloth sliding as a whole feels). Returns 1 if any particle moved. */
+int rbc_collide_project(struct rbc_solver *s, rbc_contact_list *list, int alt, float h);
+/* Project the contacts of particles of one color, after that color's Gauss-Seidel
+ * sweep, with their friction: a particle's normal push v and its slip (its motion
+ * from where it was at the substep's start, less the surface's, tangential) come from
+ * the one value it was just given, so the slip is removed while it is within mu v
+ * (static) and cut by mu v otherwise (kinetic), one unit for both. After the first
+ * pass (rbc_collide_project with h) has taken the prediction's share, what these add
+ * is what the springs did: a particle they pull along the surface with more than mu
+ * times what they press it in with slides. Returns 1 if any particle moved. */
+int rbc_collide_project_color(struct rbc_solver *s, rbc_contact_list *list, uint32_t color,
+                              float h);
+/* The color of internal particle i. */
+uint32_t rbc_collide_color_of(const rbc_topology *t, uint32_t i);
 /* After the solve: friction, and the work the colliders did, h the substep: into this
  * thread's energy blocks (their collider-work slots, zeroed first) when work_out is
- * NULL, else added to *work_out (host contacts, one thread). */
+ * NULL, else added to *work_out (host contacts, one thread). in_pass: the passes
+ * applied the friction (rbc_collide_project_color); its last correction counts in the
+ * work. */
 void rbc_collide_finish(struct rbc_solver *s, rbc_contact_list *list, float h, uint32_t tid,
-                        uint32_t nt, double *work_out);
+                        uint32_t nt, double *work_out, int in_pass);
 /* The safety pass after the solve and friction: a particle whose solved motion
  * (relative to a collider) still enters it, or ends within thickness of its surface,
  * is projected onto the entry's tangent plane (the springs pulled it into the

@@ -663,6 +663,8 @@ typedef struct step_ctx {
     } part[64];
     int clamp;            /* the energy guard scales velocities at this commit */
     int any_contacts;     /* some collider contact exists in this substep */
+    int color_pass;       /* collider and host contacts are projected after each color's
+                             sweep, with their friction (rbc_collide_project_color) */
     int host_contacts;    /* the host reported contacts for this substep */
     int cc_active;        /* some cloth takes part in cloth contact */
     int grow;             /* a contact list must grow: detect again */
@@ -946,6 +948,17 @@ static void linear_iteration(step_ctx *ctx, uint32_t k, uint32_t tid, uint32_t n
                 rbc_global_gs_color(s->cloths[q], color, v, ctx->sor_omega[q < 64 ? q : 63], tid,
                                     nt);
             rbc_pool_barrier(pool);
+            /* Collider contacts join particles of one color (each touches only its own
+             * particle), so they are solved right after that color's sweep, before the
+             * next color reads it: a particle's push and its friction then come from
+             * the one Gauss-Seidel value it was just given (collide.h). */
+            if (ctx->color_pass && (ctx->any_contacts || ctx->host_contacts)) {
+                if (ctx->any_contacts)
+                    rbc_collide_project_color(s, &s->contacts[tid], color, ctx->h);
+                if (tid == 0 && ctx->host_contacts)
+                    rbc_collide_project_color(s, &s->host_contacts, color, ctx->h);
+                rbc_pool_barrier(pool);
+            }
         }
         if (v == RBC_GS_STASH) {
             for (uint32_t q = 0; q < s->cloth_count; ++q)
@@ -971,13 +984,18 @@ static void linear_iteration(step_ctx *ctx, uint32_t k, uint32_t tid, uint32_t n
  * stacked layers 2-3 mm deeper than their 2 mm thickness and let them pass through
  * each other sooner). */
 #define RBC_CC_EVERY 1u
-static void contact_pass(step_ctx *ctx, int alt, uint32_t tid, int cloth) {
+/* colliders: 0 skips the collider and host contacts (after an iteration whose color
+ * passes projected them, ctx->color_pass); 2 projects them with friction (the first
+ * pass of a substep, onto the prediction, under ctx->color_pass); 1 without. */
+static void contact_pass(step_ctx *ctx, int alt, uint32_t tid, int cloth, int colliders) {
     rbc_solver *s = ctx->s;
-    if (!ctx->any_contacts && !ctx->host_contacts && !(ctx->cc_active && cloth)) return;
-    if (ctx->any_contacts) rbc_collide_project(s, &s->contacts[tid], alt);
-    if (ctx->host_contacts || (ctx->cc_active && cloth)) {
+    const int any = colliders && ctx->any_contacts, host = colliders && ctx->host_contacts;
+    const float fh = colliders == 2 && ctx->color_pass ? ctx->h : 0.0f;
+    if (!any && !host && !(ctx->cc_active && cloth)) return;
+    if (any) rbc_collide_project(s, &s->contacts[tid], alt, fh);
+    if (host || (ctx->cc_active && cloth)) {
         rbc_pool_barrier(s->pool);
-        if (tid == 0 && ctx->host_contacts) rbc_collide_project(s, &s->host_contacts, alt);
+        if (tid == 0 && host) rbc_collide_project(s, &s->host_contacts, alt, fh);
     }
     if (ctx->cc_active && cloth) {
         if (tid == 0) {
@@ -1066,7 +1084,7 @@ static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uin
         linear_iteration(ctx, k, tid, nt);
         const int jac = st->kind == RBC_SOLVER_JACOBI || st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV;
         cloth_done = (k + 1) % RBC_CC_EVERY == 0 || (fixed && k + 1 >= limit);
-        contact_pass(ctx, jac ? !(k & 1) : 0, tid, cloth_done);
+        contact_pass(ctx, jac ? !(k & 1) : 0, tid, cloth_done, !ctx->color_pass);
         k++;
         if (fixed) {
             if (k >= limit) break;
@@ -1133,7 +1151,7 @@ static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uin
         contact_pass(ctx,
                      (st->kind == RBC_SOLVER_JACOBI || st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV) &&
                          !((k - 1) & 1),
-                     tid, 1);
+                     tid, 1, !ctx->color_pass);
     if (tid == 0) ctx->linear_done += k;
     if ((st->kind == RBC_SOLVER_JACOBI || st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV) && (k & 1)) {
         /* The last iteration wrote alt: make it p. */
@@ -1338,6 +1356,7 @@ static rbc_result RBC_CALL sink_add(rbc_contact_sink *sink, const rbc_host_conta
         ct->depth = pen > 0.0f ? pen : 0.0f;
         ct->mu = h->friction;
         ct->collider = UINT32_MAX;
+        ct->color = rbc_collide_color_of(&c->topo, i);
     }
     return RBC_OK;
 }
@@ -1498,7 +1517,7 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
                  * step keeps each spring's direction from the local step, so a particle
                  * whose neighbours the contact lifts is lifted with them. The inertial
                  * target y stays as predicted.) */
-                contact_pass(ctx, 0, tid, 1);
+                contact_pass(ctx, 0, tid, 1, 2);
             STAGE_END(collide);
             if (ctx->result != RBC_OK) return;
         }
@@ -1524,7 +1543,7 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
                                      (const float *const *)c->y, c->dx, c->dy, c->dz, c->p);
                 }
                 rbc_pool_barrier(pool);
-                contact_pass(ctx, 0, tid, 1);
+                contact_pass(ctx, 0, tid, 1, 1);
                 if (tid == 0) ctx->linear_done += 1;
             } else {
                 global_step(ctx, sub * nl_count + nl, ctx->substeps * nl_count, tid, nt);
@@ -1538,11 +1557,13 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
             STAGE_BEGIN();
             /* Every contact's normal force from the solve's positions, before any
              * friction moves one (a neighbour may be another thread's). */
-            rbc_collide_normal_forces(s, &s->contacts[tid], ctx->h);
-            if (tid == 0 && ctx->host_contacts)
-                rbc_collide_normal_forces(s, &s->host_contacts, ctx->h);
-            rbc_pool_barrier(pool);
-            rbc_collide_finish(s, &s->contacts[tid], ctx->h, tid, nt, NULL);
+            if (!ctx->color_pass) {
+                rbc_collide_normal_forces(s, &s->contacts[tid], ctx->h);
+                if (tid == 0 && ctx->host_contacts)
+                    rbc_collide_normal_forces(s, &s->host_contacts, ctx->h);
+                rbc_pool_barrier(pool);
+            }
+            rbc_collide_finish(s, &s->contacts[tid], ctx->h, tid, nt, NULL, ctx->color_pass);
             rbc_collide_post(s, (float)sub / (float)ctx->substeps,
                              (float)(sub + 1) / (float)ctx->substeps, ctx->h, tid, nt);
             rbc_pool_barrier(pool);
@@ -1555,11 +1576,11 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
             /* Host contacts: friction, and their work on the cloth they touch. */
             if (tid == 0) {
                 rbc_contact_list *l = &s->host_contacts;
-                if (!s->collider_count) rbc_collide_normal_forces(s, l, ctx->h);
+                if (!s->collider_count && !ctx->color_pass) rbc_collide_normal_forces(s, l, ctx->h);
                 for (uint32_t m = 0; m < l->count; ++m) {
                     rbc_contact_list one = {&l->c[m], 1, 1, 1};
                     double w = 0.0;
-                    rbc_collide_finish(s, &one, ctx->h, 0, 1, &w);
+                    rbc_collide_finish(s, &one, ctx->h, 0, 1, &w, ctx->color_pass);
                     if (guard) s->cloths[l->c[m].cloth]->e_step_budget += w;
                 }
             }
@@ -1716,6 +1737,11 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
      * spectral radius for SOR and Chebyshev, the factorisation for the direct
      * solver). These change only when h, the pins or the topology change. */
     const rbc_solver_settings *st = &s->settings;
+    /* The color sweeps of these solvers leave each color's values as they are until its
+     * next sweep (Chebyshev blends after the sweeps; the others have no colors): their
+     * collider contacts and friction are solved per color. */
+    ctx.color_pass = st->kind == RBC_SOLVER_RBGS || st->kind == RBC_SOLVER_RBGS_SOR ||
+                     st->kind == RBC_SOLVER_MULTICOLOR_GS;
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
         prepare_weights(c, ctx.h);
