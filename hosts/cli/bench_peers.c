@@ -756,14 +756,14 @@ static void md_fixed_costs(const peers_ctx *ctx, FILE *f, const peer_row *best) 
     if (p && r->c.solver != RBC_SOLVER_RBGS)
         fprintf(f, "Fixed costs, default guard (clamp): %s takes %.3f ms per frame, other "
                    "%.4f ms. The same counts with plain RBGS (no blow-up check, which the "
-                   "library runs every substep for SOR, Jacobi and Chebyshev only, a pass over "
-                   "the springs): other %.4f ms, so the check costs %.4f ms per substep (%.4f per "
-                   "frame, %.0f%% of the step); the sweeps cost %.4f against RBGS's %.4f ms per "
-                   "frame (RBGS's E %.3e).\n\n",
+                   "library runs once per step, at its last substep, for SOR, Jacobi and "
+                   "Chebyshev only, a pass over the springs): other %.4f ms, so the check "
+                   "and what else differs cost %.4f ms per frame (%.0f%% of the step, %.4f "
+                   "per substep); the sweeps cost %.4f against RBGS's %.4f ms per frame "
+                   "(RBGS's E %.3e).\n\n",
                 solver_name(r->c.solver), r->ms, r->other_ms, p->other_ms,
-                (r->other_ms - p->other_ms) / s, r->other_ms - p->other_ms,
-                100.0 * (r->other_ms - p->other_ms) / r->ms, r->global_ms, p->global_ms,
-                p->eq7_host);
+                r->other_ms - p->other_ms, 100.0 * (r->other_ms - p->other_ms) / r->ms,
+                (r->other_ms - p->other_ms) / s, r->global_ms, p->global_ms, p->eq7_host);
     if (o)
         fprintf(f, "With the energy guard off: %.3f ms per frame, other %.4f ms (the guard "
                    "costs %.4f ms per frame here), E %.3e (with the guard: %.3e, %llu "
