@@ -75,6 +75,9 @@ struct rbc_clothcontact {
     cc_buf bedge;               /* uint32 [2 per border edge]: its ends, local indices */
     cc_buf ekey;                /* cc_ekey [count]: what the border edges were found from */
     cc_buf escratch;            /* uint64 [3 per triangle of one body]: sort keys */
+    cc_buf abase;               /* uint32 [count + 1]: first edge of a body (all edges) */
+    cc_buf aedge;               /* uint32 [2 per edge]: every edge's ends, ascending */
+    cc_buf frozen;              /* uint8 [vertices]: the fail-safe put it back to x */
     uint32_t ekey_count;
 };
 
@@ -126,7 +129,8 @@ void rbc_clothcontact_destroy(rbc_clothcontact *cc) {
     const rbc_allocator a = cc->alloc;
     cc_buf *bufs[] = {&cc->vbase, &cc->tbase, &cc->bgrow, &cc->active, &cc->vbox,
                       &cc->tbox, &cc->vbody, &cc->tbody, &cc->trec, &cc->contacts,
-                      &cc->bbox, &cc->ebase, &cc->bedge, &cc->ekey, &cc->escratch};
+                      &cc->bbox, &cc->ebase, &cc->bedge, &cc->ekey, &cc->escratch,
+                      &cc->abase, &cc->aedge, &cc->frozen};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) buf_free(&a, bufs[k]);
     hash_free(&a, &cc->th);
     hash_free(&a, &cc->vh);
@@ -144,7 +148,7 @@ size_t rbc_clothcontact_bytes(const rbc_clothcontact *cc) {
                             &cc->tbox, &cc->vbody, &cc->tbody, &cc->contacts, &cc->bbox,
                             &cc->trec, &cc->th.start, &cc->th.id, &cc->th.big,
                             &cc->vh.start, &cc->vh.id, &cc->vh.big, &cc->ebase, &cc->bedge,
-                            &cc->ekey, &cc->escratch};
+                            &cc->ekey, &cc->escratch, &cc->abase, &cc->aedge, &cc->frozen};
     size_t b = sizeof *cc;
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) b += bufs[k]->bytes;
     return b;
@@ -658,10 +662,12 @@ static int border_edges(rbc_clothcontact *cc, const rbc_contact_body *bodies, ui
     if (!buf_reserve(a, &cc->ekey, count, sizeof(cc_ekey), 0) ||
         !buf_reserve(a, &cc->ebase, (size_t)count + 1, sizeof(uint32_t), 0))
         return 0;
-    uint32_t total = 0;
+    if (!buf_reserve(a, &cc->abase, (size_t)count + 1, sizeof(uint32_t), 0)) return 0;
+    uint32_t total = 0, all = 0;
     for (uint32_t b = 0; b < count; ++b) {
         const rbc_contact_body *B = &bodies[b];
         ((uint32_t *)cc->ebase.ptr)[b] = total;
+        ((uint32_t *)cc->abase.ptr)[b] = all;
         if (!B->tri_count) continue;
         const size_t m = 3 * (size_t)B->tri_count;
         if (!buf_reserve(a, &cc->escratch, m, sizeof(uint64_t), 0)) return 0;
@@ -675,6 +681,12 @@ static int border_edges(rbc_clothcontact *cc, const rbc_contact_body *bodies, ui
         for (size_t i = 0; i < m;) {
             size_t j = i + 1;
             while (j < m && key[j] == key[i]) ++j;
+            if (!buf_reserve(a, &cc->aedge, 2 * ((size_t)all + 1), sizeof(uint32_t),
+                             sizeof(uint32_t) * 2 * (size_t)all))
+                return 0;
+            ((uint32_t *)cc->aedge.ptr)[2 * (size_t)all] = (uint32_t)(key[i] >> 32);
+            ((uint32_t *)cc->aedge.ptr)[2 * (size_t)all + 1] = (uint32_t)key[i];
+            all++;
             if (j - i == 1) {
                 if (!buf_reserve(a, &cc->bedge, 2 * ((size_t)total + 1), sizeof(uint32_t),
                                  sizeof(uint32_t) * 2 * (size_t)total))
@@ -688,6 +700,7 @@ static int border_edges(rbc_clothcontact *cc, const rbc_contact_body *bodies, ui
         }
     }
     ((uint32_t *)cc->ebase.ptr)[count] = total;
+    ((uint32_t *)cc->abase.ptr)[count] = all;
     for (uint32_t b = 0; b < count; ++b) {
         cc_ekey *k = (cc_ekey *)cc->ekey.ptr + b;
         k->tris = bodies[b].tris;
@@ -827,6 +840,37 @@ static int cmp_ecand(const void *a, const void *b) {
     return x->u1 < y->u1 ? -1 : x->u1 > y->u1;
 }
 
+/* Add the edges of triangle t (global) whose swept boxes (their ends') meet box, once
+ * each (insertion into the sorted set cand of *nc; 0 = the set is full). */
+static int add_tri_edges(const cc_detect *d, uint32_t t, const float box[6], cc_ecand *cand,
+                         uint32_t *nc, uint32_t cap) {
+    const uint32_t bt = d->tbody[t];
+    const uint32_t *tri = d->bodies[bt].tris + 3 * (size_t)(t - d->tbase[bt]);
+    const uint32_t vb = d->vbase[bt];
+    for (int k = 0; k < 3; ++k) {
+        uint32_t a = tri[k], b = tri[(k + 1) % 3];
+        if (a > b) {
+            uint32_t tmp = a;
+            a = b, b = tmp;
+        }
+        const float *ba = d->vbox + 6 * ((size_t)vb + a), *bb = d->vbox + 6 * ((size_t)vb + b);
+        int out = 0;
+        for (int j = 0; j < 3 && !out; ++j)
+            out = min2(ba[j], bb[j]) > box[3 + j] || max2(ba[3 + j], bb[3 + j]) < box[j];
+        if (out) continue;
+        const cc_ecand e = {bt, a, b};
+        uint32_t m = *nc;
+        while (m > 0 && cmp_ecand(&cand[m - 1], &e) > 0) --m;
+        if (m > 0 && cmp_ecand(&cand[m - 1], &e) == 0) continue;
+        if (*nc >= cap) return 0;
+        memmove(&cand[m + 1], &cand[m], sizeof(cc_ecand) * (*nc - m));
+        cand[m] = e;
+        (*nc)++;
+    }
+    return 1;
+}
+
+
 /* Edge-edge contacts: every border edge looks up the triangles around its swept box
  * (the triangle hash) and tests their edges, each once (a small sorted set per border
  * edge: in body, then index order, so the list is deterministic). */
@@ -870,14 +914,10 @@ static void detect_ee(cc_detect *d, const uint8_t *active, uint32_t count, uint3
                                     const uint32_t t = id[q], bt = d->tbody[t];
                                     if (!bodies_pair(&d->bodies[bt], B, bt == bb)) continue;
                                     if (!boxes_overlap(box, d->tbox + 6 * (size_t)t, 0.0f)) continue;
-                                    const uint32_t *tri = d->bodies[bt].tris + 3 * (size_t)(t - d->tbase[bt]);
-                                    for (int k = 0; k < 3; ++k) {
-                                        uint32_t a = tri[k], b2 = tri[(k + 1) % 3];
-                                        if (nc < CAND_MAX)
-                                            cand[nc++] = (cc_ecand){bt, a < b2 ? a : b2, a < b2 ? b2 : a};
-                                        else
-                                            full = 1;
-                                    }
+                                    float olo[3], ohi[3];
+                                    grown_box(d->tbox, t, cc->tri_grow, olo, ohi);
+                                    if (!lower_corner_is(lo, olo, inv, c)) continue; /* once */
+                                    if (!add_tri_edges(d, t, box, cand, &nc, CAND_MAX)) full = 1;
                                 }
                             }
                 }
@@ -886,20 +926,11 @@ static void detect_ee(cc_detect *d, const uint8_t *active, uint32_t count, uint3
                     const uint32_t bt = d->tbody[t];
                     if (!active[bt] || !bodies_pair(&d->bodies[bt], B, bt == bb)) continue;
                     if (!boxes_overlap(box, d->tbox + 6 * (size_t)t, 0.0f)) continue;
-                    const uint32_t *tri = d->bodies[bt].tris + 3 * (size_t)(t - d->tbase[bt]);
-                    for (int k = 0; k < 3; ++k) {
-                        uint32_t a = tri[k], b2 = tri[(k + 1) % 3];
-                        if (nc < CAND_MAX)
-                            cand[nc++] = (cc_ecand){bt, a < b2 ? a : b2, a < b2 ? b2 : a};
-                        else
-                            full = 1;
-                    }
+                    if (!add_tri_edges(d, t, box, cand, &nc, CAND_MAX)) full = 1;
                 }
             }
             (void)full; /* near more than CAND_MAX / 3 triangles: the first found (in hash order) */
-            qsort(cand, nc, sizeof cand[0], cmp_ecand);
             for (uint32_t k = 0; k < nc && !d->oom; ++k) {
-                if (k && cmp_ecand(&cand[k], &cand[k - 1]) == 0) continue;
                 /* Not the border edge itself; two border edges once (from the later). */
                 const int64_t o = border_index(cc, cand[k].body, cand[k].u0, cand[k].u1);
                 if (o >= 0 && (uint64_t)o >= e) continue;
@@ -1394,4 +1425,132 @@ void rbc_clothcontact_friction(rbc_clothcontact *cc, rbc_contact_body *bodies, u
         float dv[3] = {f * t[0], f * t[1], f * t[2]};
         apply(A, c->a, ima, B, tri, im, c->w, dv);
     }
+}
+
+/* ---- fail-safe ------------------------------------------------------------------- */
+
+/* Signed volume of (b - a, c - a, d - a), in double from the floats. */
+static double orient3d(const float a[3], const float b[3], const float c[3], const float d[3]) {
+    const double u0 = (double)b[0] - a[0], u1 = (double)b[1] - a[1], u2 = (double)b[2] - a[2];
+    const double v0 = (double)c[0] - a[0], v1 = (double)c[1] - a[1], v2 = (double)c[2] - a[2];
+    const double w0 = (double)d[0] - a[0], w1 = (double)d[1] - a[1], w2 = (double)d[2] - a[2];
+    return u0 * (v1 * w2 - v2 * w1) - u1 * (v0 * w2 - v2 * w0) + u2 * (v0 * w1 - v1 * w0);
+}
+
+/* 1: segment pq crosses triangle abc properly (p, q strictly on either side of its
+ * plane, the line through the inside). */
+static int seg_crosses_tri(const float p[3], const float q[3], const float a[3], const float b[3],
+                           const float c[3]) {
+    const double sp = orient3d(a, b, c, p), sq = orient3d(a, b, c, q);
+    if (!((sp > 0.0 && sq < 0.0) || (sp < 0.0 && sq > 0.0))) return 0;
+    const double s1 = orient3d(p, q, a, b), s2 = orient3d(p, q, b, c), s3 = orient3d(p, q, c, a);
+    return (s1 > 0.0 && s2 > 0.0 && s3 > 0.0) || (s1 < 0.0 && s2 < 0.0 && s3 < 0.0);
+}
+
+static inline void freeze(rbc_contact_body *B, uint8_t *fr, uint32_t base, uint32_t i,
+                          uint32_t *newly) {
+    if (fr[base + i] || inv_mass(B, i) == 0.0f) return;
+    fr[base + i] = 1;
+    for (int k = 0; k < 3; ++k) B->p[k][i] = B->x[k][i];
+    (*newly)++;
+}
+
+/* Edge u0 u1 of body ba (box: its box at p) against triangle t (global): if they may
+ * touch and the edge crosses the triangle at p, both go back to x (frozen). Returns 1
+ * if it crossed. */
+static uint32_t failsafe_pair(const rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t ba,
+                              uint32_t u0, uint32_t u1, const float box[6], uint32_t t,
+                              const uint32_t *tbody, uint8_t *fr, uint32_t *newly) {
+    const uint32_t bt = tbody[t];
+    rbc_contact_body *A = &bodies[ba], *T = &bodies[bt];
+    if (!bodies_pair(A, T, ba == bt)) return 0;
+    const uint32_t *tbase = cc->tbase.ptr, *vbase = cc->vbase.ptr;
+    const uint32_t *tri = T->tris + 3 * (size_t)(t - tbase[bt]);
+    if (ba == bt && (tri[0] == u0 || tri[1] == u0 || tri[2] == u0 || tri[0] == u1 ||
+                     tri[1] == u1 || tri[2] == u1))
+        return 0;
+    float C[3][3];
+    for (int k = 0; k < 3; ++k) load3(C[k], CONST3(T->p), tri[k]);
+    for (int k = 0; k < 3; ++k)
+        if (min2(C[0][k], min2(C[1][k], C[2][k])) > box[3 + k] ||
+            max2(C[0][k], max2(C[1][k], C[2][k])) < box[k])
+            return 0;
+    float P0[3], P1[3];
+    load3(P0, CONST3(A->p), u0);
+    load3(P1, CONST3(A->p), u1);
+    if (!seg_crosses_tri(P0, P1, C[0], C[1], C[2])) return 0;
+    freeze(A, fr, vbase[ba], u0, newly);
+    freeze(A, fr, vbase[ba], u1, newly);
+    for (int k = 0; k < 3; ++k) freeze(T, fr, vbase[bt], tri[k], newly);
+    return 1;
+}
+
+uint32_t rbc_clothcontact_failsafe(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count) {
+    if (count != cc->body_count || !cc->ekey_count) return 0;
+    const uint32_t *vbase = cc->vbase.ptr, *tbase = cc->tbase.ptr, *abase = cc->abase.ptr;
+    const uint32_t *ae = cc->aedge.ptr, *tbody = cc->tbody.ptr;
+    const float *tbox = cc->tbox.ptr;
+    const uint8_t *active = cc->active.ptr;
+    const uint32_t nv = vbase[count];
+    if (!buf_reserve(&cc->alloc, &cc->frozen, nv ? nv : 1, 1, 0)) return 0;
+    uint8_t *fr = cc->frozen.ptr;
+    memset(fr, 0, nv);
+    const cc_hash *h = &cc->th;
+    const uint32_t *start = h->start.ptr, *id = h->id.ptr, *big = h->big.ptr;
+    const float inv = cc->inv_cell;
+    uint32_t total = 0;
+    /* Rounds until none crosses: each freezes at least one more vertex or ends, and a
+     * pair whose five vertices are all back at x does not cross (x did not). */
+    for (uint32_t round = 0; round < 64; ++round) {
+        uint32_t newly = 0, left = 0;
+        for (uint32_t ba = 0; ba < count; ++ba) {
+            if (!active[ba]) continue;
+            rbc_contact_body *A = &bodies[ba];
+            for (uint32_t e = abase[ba]; e < abase[ba + 1]; ++e) {
+                const uint32_t u0 = ae[2 * (size_t)e], u1 = ae[2 * (size_t)e + 1];
+                float P0[3], P1[3], lo[3], hi[3];
+                load3(P0, CONST3(A->p), u0);
+                load3(P1, CONST3(A->p), u1);
+                for (int k = 0; k < 3; ++k) lo[k] = min2(P0[k], P1[k]), hi[k] = max2(P0[k], P1[k]);
+                const float box[6] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]};
+                cc_range r;
+                box_range(lo, hi, inv, &r);
+                /* The triangles' hashed boxes hold x..p, so p is in them (a frozen
+                 * corner, at x, too). Cells beyond CC_BIG_CELLS: every triangle. */
+                const int all = range_cells(&r) > CC_BIG_CELLS;
+                const uint32_t tn = tbase[count];
+                int32_t c[3];
+                for (uint32_t pass = 0; pass < 2; ++pass) {
+                    const uint32_t m_end = pass ? (all ? tn : h->big_count) : 0;
+                    const int hashed = !pass && !all;
+                    if (hashed) {
+                        for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
+                            for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
+                                for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
+                                    const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
+                                    for (uint32_t q = start[bk]; q < start[bk + 1]; ++q) {
+                                        /* As in detect: the hashed (grown) box first,
+                                         * then each pair in one cell only. */
+                                        const uint32_t t = id[q];
+                                        if (!boxes_overlap(box, tbox + 6 * (size_t)t, cc->tri_grow))
+                                            continue;
+                                        float olo[3], ohi[3];
+                                        grown_box(tbox, t, cc->tri_grow, olo, ohi);
+                                        if (!lower_corner_is(lo, olo, inv, c)) continue;
+                                        left += failsafe_pair(cc, bodies, ba, u0, u1, box, t, tbody,
+                                                              fr, &newly);
+                                    }
+                                }
+                    } else {
+                        for (uint32_t m = 0; m < m_end; ++m)
+                            left += failsafe_pair(cc, bodies, ba, u0, u1, box, all ? m : big[m],
+                                                  tbody, fr, &newly);
+                    }
+                }
+            }
+        }
+        total += newly;
+        if (!left || !newly) break;
+    }
+    return total;
 }

@@ -1588,7 +1588,11 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
         }
         if (ctx->cc_active) {
             STAGE_BEGIN();
-            if (tid == 0) rbc_clothcontact_friction(s->cc, s->cc_bodies, s->cloth_count);
+            if (tid == 0) {
+                rbc_clothcontact_friction(s->cc, s->cc_bodies, s->cloth_count);
+                /* The last word: no edge ends the substep through another layer. */
+                rbc_clothcontact_failsafe(s->cc, s->cc_bodies, s->cloth_count);
+            }
             STAGE_END(collide);
         }
         if (s->callback) {
