@@ -21,6 +21,13 @@
  * It also reports, per frame: cloth contacts, the least distance from a vertex to a
  * triangle of another layer (the penetration is thickness minus that), kinetic
  * energy. Usage: test_layer_order [frames [threads]] (defaults 60, 1).
+ *
+ * Measured (core/clothcontact.c): with vertex-triangle and vertex-vertex contacts
+ * only, the first crossing came at frame 8 (up to 113 crossings in a frame), 232 of
+ * the first 237 with a border vertex; with edge-against-border-edge contacts none in
+ * this scene, but crossings at frames 10-38 when the sphere's radius or speed
+ * changed; the fail-safe after friction (rbc_clothcontact_failsafe) is what makes
+ * "none" hold by construction: it acts in about a third of the substeps here.
  */
 #include <math.h>
 #include <stdint.h>
