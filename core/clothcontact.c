@@ -1447,110 +1447,161 @@ static int seg_crosses_tri(const float p[3], const float q[3], const float a[3],
     return (s1 > 0.0 && s2 > 0.0 && s3 > 0.0) || (s1 < 0.0 && s2 < 0.0 && s3 < 0.0);
 }
 
+/* fr[v]: 0 = not frozen, r + 1 = frozen in round r. */
 static inline void freeze(rbc_contact_body *B, uint8_t *fr, uint32_t base, uint32_t i,
-                          uint32_t *newly) {
+                          uint8_t mark, uint32_t *newly) {
     if (fr[base + i] || inv_mass(B, i) == 0.0f) return;
-    fr[base + i] = 1;
+    fr[base + i] = mark;
     for (int k = 0; k < 3; ++k) B->p[k][i] = B->x[k][i];
     (*newly)++;
 }
 
-/* Edge u0 u1 of body ba (box: its box at p) against triangle t (global): if they may
- * touch and the edge crosses the triangle at p, both go back to x (frozen). Returns 1
- * if it crossed. */
-static uint32_t failsafe_pair(const rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t ba,
-                              uint32_t u0, uint32_t u1, const float box[6], uint32_t t,
-                              const uint32_t *tbody, uint8_t *fr, uint32_t *newly) {
-    const uint32_t bt = tbody[t];
-    rbc_contact_body *A = &bodies[ba], *T = &bodies[bt];
-    if (!bodies_pair(A, T, ba == bt)) return 0;
+typedef struct cc_fs {
+    const rbc_clothcontact *cc;
+    rbc_contact_body *bodies;
+    uint8_t *fr;
+    uint8_t mark;               /* this round's fr value */
+    uint32_t newly, left;
+} cc_fs;
+
+/* Edge u0 u1 of body ba against triangle t (global): if the edge crosses the triangle
+ * at p, all five vertices go back to x (frozen). */
+static void failsafe_pair(cc_fs *f, uint32_t ba, uint32_t u0, uint32_t u1, const float box[6],
+                          uint32_t t) {
+    const rbc_clothcontact *cc = f->cc;
+    const uint32_t bt = ((const uint32_t *)cc->tbody.ptr)[t];
+    rbc_contact_body *A = &f->bodies[ba], *T = &f->bodies[bt];
+    if (!bodies_pair(A, T, ba == bt)) return;
     const uint32_t *tbase = cc->tbase.ptr, *vbase = cc->vbase.ptr;
     const uint32_t *tri = T->tris + 3 * (size_t)(t - tbase[bt]);
     if (ba == bt && (tri[0] == u0 || tri[1] == u0 || tri[2] == u0 || tri[0] == u1 ||
                      tri[1] == u1 || tri[2] == u1))
-        return 0;
+        return;
     float C[3][3];
     for (int k = 0; k < 3; ++k) load3(C[k], CONST3(T->p), tri[k]);
     for (int k = 0; k < 3; ++k)
         if (min2(C[0][k], min2(C[1][k], C[2][k])) > box[3 + k] ||
             max2(C[0][k], max2(C[1][k], C[2][k])) < box[k])
-            return 0;
+            return;
     float P0[3], P1[3];
     load3(P0, CONST3(A->p), u0);
     load3(P1, CONST3(A->p), u1);
-    if (!seg_crosses_tri(P0, P1, C[0], C[1], C[2])) return 0;
-    freeze(A, fr, vbase[ba], u0, newly);
-    freeze(A, fr, vbase[ba], u1, newly);
-    for (int k = 0; k < 3; ++k) freeze(T, fr, vbase[bt], tri[k], newly);
-    return 1;
+    if (!seg_crosses_tri(P0, P1, C[0], C[1], C[2])) return;
+    f->left++;
+    freeze(A, f->fr, vbase[ba], u0, f->mark, &f->newly);
+    freeze(A, f->fr, vbase[ba], u1, f->mark, &f->newly);
+    for (int k = 0; k < 3; ++k) freeze(T, f->fr, vbase[bt], tri[k], f->mark, &f->newly);
+}
+
+/* The triangles whose hashed boxes meet box (lo, hi at p), each once: the edge u0 u1
+ * of body ba against each (tri_other = UINT32_MAX), or, for triangle tri_other, the
+ * edges of each against it. The hashed boxes hold x..p of the prediction grown by the
+ * largest thickness + margin, which the solve's moves stay within. */
+static void failsafe_query(cc_fs *f, const float lo[3], const float hi[3], uint32_t ba,
+                           uint32_t u0, uint32_t u1, uint32_t tri_other) {
+    const rbc_clothcontact *cc = f->cc;
+    const cc_hash *h = &cc->th;
+    const uint32_t *start = h->start.ptr, *id = h->id.ptr, *big = h->big.ptr;
+    const uint32_t *tbody = cc->tbody.ptr, *tbase = cc->tbase.ptr;
+    const float *tbox = cc->tbox.ptr, inv = cc->inv_cell;
+    const float box[6] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]};
+    cc_range r;
+    box_range(lo, hi, inv, &r);
+    const int all = range_cells(&r) > CC_BIG_CELLS;
+    const uint32_t tn = tbase[cc->body_count];
+    const uint8_t *active = cc->active.ptr;
+#define CC_FS_VISIT(T)                                                                      \
+    do {                                                                                    \
+        const uint32_t t_ = (T);                                                            \
+        if (tri_other == UINT32_MAX) {                                                      \
+            failsafe_pair(f, ba, u0, u1, box, t_);                                          \
+        } else {                                                                            \
+            const uint32_t b_ = tbody[t_];                                                  \
+            const uint32_t *tr_ = f->bodies[b_].tris + 3 * (size_t)(t_ - tbase[b_]);         \
+            for (int k_ = 0; k_ < 3; ++k_) {                                                \
+                const uint32_t a_ = tr_[k_], c_ = tr_[(k_ + 1) % 3];                        \
+                float e0_[3], e1_[3], eb_[6];                                               \
+                load3(e0_, CONST3(f->bodies[b_].p), a_);                                    \
+                load3(e1_, CONST3(f->bodies[b_].p), c_);                                    \
+                for (int j_ = 0; j_ < 3; ++j_)                                              \
+                    eb_[j_] = min2(e0_[j_], e1_[j_]), eb_[3 + j_] = max2(e0_[j_], e1_[j_]); \
+                failsafe_pair(f, b_, a_, c_, eb_, tri_other);                               \
+            }                                                                               \
+        }                                                                                   \
+    } while (0)
+    if (all) {
+        for (uint32_t t = 0; t < tn; ++t)
+            if (active[tbody[t]]) CC_FS_VISIT(t);
+        return;
+    }
+    int32_t c[3];
+    for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
+        for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
+            for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
+                const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
+                for (uint32_t q = start[bk]; q < start[bk + 1]; ++q) {
+                    /* As in detect: the hashed (grown) box first, then each pair in
+                     * one cell only. */
+                    const uint32_t t = id[q];
+                    if (!boxes_overlap(box, tbox + 6 * (size_t)t, cc->tri_grow)) continue;
+                    float olo[3], ohi[3];
+                    grown_box(tbox, t, cc->tri_grow, olo, ohi);
+                    if (!lower_corner_is(lo, olo, inv, c)) continue;
+                    CC_FS_VISIT(t);
+                }
+            }
+    for (uint32_t m = 0; m < h->big_count; ++m) CC_FS_VISIT(big[m]);
+#undef CC_FS_VISIT
 }
 
 uint32_t rbc_clothcontact_failsafe(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count) {
     if (count != cc->body_count || !cc->ekey_count) return 0;
     const uint32_t *vbase = cc->vbase.ptr, *tbase = cc->tbase.ptr, *abase = cc->abase.ptr;
-    const uint32_t *ae = cc->aedge.ptr, *tbody = cc->tbody.ptr;
-    const float *tbox = cc->tbox.ptr;
+    const uint32_t *ae = cc->aedge.ptr;
     const uint8_t *active = cc->active.ptr;
     const uint32_t nv = vbase[count];
     if (!buf_reserve(&cc->alloc, &cc->frozen, nv ? nv : 1, 1, 0)) return 0;
     uint8_t *fr = cc->frozen.ptr;
     memset(fr, 0, nv);
-    const cc_hash *h = &cc->th;
-    const uint32_t *start = h->start.ptr, *id = h->id.ptr, *big = h->big.ptr;
-    const float inv = cc->inv_cell;
+    cc_fs f = {cc, bodies, fr, 1, 0, 0};
     uint32_t total = 0;
-    /* Rounds until none crosses: each freezes at least one more vertex or ends, and a
-     * pair whose five vertices are all back at x does not cross (x did not). */
-    for (uint32_t round = 0; round < 64; ++round) {
-        uint32_t newly = 0, left = 0;
+    /* Round 0 tests every edge; a later round only what the last one moved: edges
+     * with a vertex it froze against all triangles, and triangles with a corner it
+     * froze against all edges. Each round freezes another vertex or ends, and a pair
+     * whose five vertices are all back at x does not cross (x did not). */
+    for (uint32_t round = 0; round < 250; ++round) {
+        f.mark = (uint8_t)(round + 1);
+        f.newly = f.left = 0;
+        const uint8_t last = (uint8_t)round; /* fr of the vertices the last round froze */
         for (uint32_t ba = 0; ba < count; ++ba) {
             if (!active[ba]) continue;
-            rbc_contact_body *A = &bodies[ba];
+            const rbc_contact_body *A = &bodies[ba];
             for (uint32_t e = abase[ba]; e < abase[ba + 1]; ++e) {
                 const uint32_t u0 = ae[2 * (size_t)e], u1 = ae[2 * (size_t)e + 1];
+                if (round && fr[vbase[ba] + u0] != last && fr[vbase[ba] + u1] != last) continue;
                 float P0[3], P1[3], lo[3], hi[3];
                 load3(P0, CONST3(A->p), u0);
                 load3(P1, CONST3(A->p), u1);
                 for (int k = 0; k < 3; ++k) lo[k] = min2(P0[k], P1[k]), hi[k] = max2(P0[k], P1[k]);
-                const float box[6] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]};
-                cc_range r;
-                box_range(lo, hi, inv, &r);
-                /* The triangles' hashed boxes hold x..p, so p is in them (a frozen
-                 * corner, at x, too). Cells beyond CC_BIG_CELLS: every triangle. */
-                const int all = range_cells(&r) > CC_BIG_CELLS;
-                const uint32_t tn = tbase[count];
-                int32_t c[3];
-                for (uint32_t pass = 0; pass < 2; ++pass) {
-                    const uint32_t m_end = pass ? (all ? tn : h->big_count) : 0;
-                    const int hashed = !pass && !all;
-                    if (hashed) {
-                        for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
-                            for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
-                                for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
-                                    const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
-                                    for (uint32_t q = start[bk]; q < start[bk + 1]; ++q) {
-                                        /* As in detect: the hashed (grown) box first,
-                                         * then each pair in one cell only. */
-                                        const uint32_t t = id[q];
-                                        if (!boxes_overlap(box, tbox + 6 * (size_t)t, cc->tri_grow))
-                                            continue;
-                                        float olo[3], ohi[3];
-                                        grown_box(tbox, t, cc->tri_grow, olo, ohi);
-                                        if (!lower_corner_is(lo, olo, inv, c)) continue;
-                                        left += failsafe_pair(cc, bodies, ba, u0, u1, box, t, tbody,
-                                                              fr, &newly);
-                                    }
-                                }
-                    } else {
-                        for (uint32_t m = 0; m < m_end; ++m)
-                            left += failsafe_pair(cc, bodies, ba, u0, u1, box, all ? m : big[m],
-                                                  tbody, fr, &newly);
-                    }
+                failsafe_query(&f, lo, hi, ba, u0, u1, UINT32_MAX);
+            }
+            if (!round) continue;
+            for (uint32_t t = 0; t < A->tri_count; ++t) {
+                const uint32_t *tri = A->tris + 3 * (size_t)t;
+                if (fr[vbase[ba] + tri[0]] != last && fr[vbase[ba] + tri[1]] != last &&
+                    fr[vbase[ba] + tri[2]] != last)
+                    continue;
+                float C[3][3], lo[3], hi[3];
+                for (int k = 0; k < 3; ++k) load3(C[k], CONST3(A->p), tri[k]);
+                for (int k = 0; k < 3; ++k) {
+                    lo[k] = min2(C[0][k], min2(C[1][k], C[2][k]));
+                    hi[k] = max2(C[0][k], max2(C[1][k], C[2][k]));
                 }
+                failsafe_query(&f, lo, hi, 0, 0, 0, tbase[ba] + t);
             }
         }
-        total += newly;
-        if (!left || !newly) break;
+        total += f.newly;
+        if (!f.newly) break;
     }
     return total;
 }
