@@ -402,15 +402,16 @@ void rbc_collide_finish(rbc_solver *s, rbc_contact_list *list, float h, uint32_t
             float dn = dl[0] * n[0] + dl[1] * n[1] + dl[2] * n[2];
             float tg[3] = {dl[0] - dn * n[0], dl[1] - dn * n[1], dl[2] - dn * n[2]};
             float tl = sqrtf(tg[0] * tg[0] + tg[1] * tg[1] + tg[2] * tg[2]);
-            /* Coulomb: the tangential impulse is at most mu times the normal one, its
-             * force from the row residual (rbc_collide_normal_forces). The push
-             * estimate above overstates it about twice for the color swept last, whose
-             * neighbours were still inside the surface when it was swept: a cloth at
-             * rest on a 20 degree slope stuck at mu 0.2, where tan 20 = 0.36 says it
-             * slides (test_contact's slope now follows Coulomb within 1%). The energy
+            /* The solvers without color passes (Jacobi, serial Gauss-Seidel,
+             * Chebyshev, direct). Coulomb: the tangential impulse is at most mu times
+             * the normal one, its force from the row residual
+             * (rbc_collide_normal_forces; the push estimate above was about twice too
+             * large for the color swept last). On a slope that is Coulomb's law
+             * (test_contact, Jacobi and direct, within 1%); the static test is in a
+             * free particle's units, so a particle its springs pull along a box's edge
+             * can still be held, which the color passes avoid (collide.h). The energy
              * guard's work estimate keeps the push estimate: moved to the residual it
-             * changed the stacked layers' test (a piercing at frame 6), which needs a
-             * study of its own. */
+             * changed the stacked layers' test (a piercing at frame 6). */
             float lim = ct->mu * ct->fn_row * h * h / c->topo.mass[i];
             float f = tl <= lim ? 1.0f : lim / tl; /* static: all of it; kinetic: mu disp */
             for (int ax = 0; ax < 3; ++ax) {

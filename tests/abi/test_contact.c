@@ -224,8 +224,12 @@ static void test_fast_sphere(void) {
 /* A small cloth resting on a plane tilted by 20 degrees (tan = 0.364). With mu = 0.6
  * it stays (static friction: moves less than 1 mm in 1 s); with mu = 0 it slides
  * about g sin(20) t^2 / 2 = 1.68 m in 1 s, at least 1 m with the solver's damping. */
-static double slide(float mu) {
+static double slide_with(float mu, rbc_solver_kind kind) {
     rbc_world_id w = make_world(1, 4, -9.81f);
+    rbc_solver_def sd;
+    CHECK_EQ(rbc_solver_def_init(&sd, (uint32_t)sizeof sd), RBC_OK);
+    sd.solver = kind;
+    CHECK_EQ(rbc_world_set_solver(w, &sd), RBC_OK);
     const float th = 20.0f * 3.14159265f / 180.0f;
     rbc_collider_def d = rbc_collider_def_default();
     d.shape = RBC_SHAPE_PLANE;
@@ -260,6 +264,8 @@ static double slide(float mu) {
     return sqrt(d2);
 }
 
+static double slide(float mu) { return slide_with(mu, RBC_SOLVER_RBGS); }
+
 /* Below tan 20 = 0.364 the cloth slides with Coulomb's acceleration g (sin 20 - mu
  * cos 20), so 1 s moves it g (sin 20 - mu cos 20) / 2. Verlet started from rest covers
  * a h^2 n (n + 1) / 2 in n steps of h, 1/n more than a t^2 / 2: 0.4% at the 240
@@ -279,6 +285,17 @@ static void test_friction(void) {
         double coulomb = 0.5 * 9.81 * (sin(th) - mus[k] * cos(th)), got = slide(mus[k]);
         printf("  mu %.1f: slid %.4f m, Coulomb %.4f m\n", (double)mus[k], got, coulomb);
         CHECK(fabs(got - coulomb) <= 0.01 * coulomb + 5e-4);
+    }
+    /* Jacobi and the direct solve have no color passes: their friction runs after the
+     * solve, with the normal force from the row residual. Same law, same bounds. */
+    const rbc_solver_kind others[2] = {RBC_SOLVER_JACOBI, RBC_SOLVER_DIRECT};
+    for (int k = 0; k < 2; ++k) {
+        double coulomb = 0.5 * 9.81 * (sin(th) - 0.2 * cos(th));
+        double got = slide_with(0.2f, others[k]), held = slide_with(0.4f, others[k]);
+        printf("  %s: mu 0.2 slid %.4f m (Coulomb %.4f), mu 0.4 %.3g mm\n",
+               others[k] == RBC_SOLVER_JACOBI ? "jacobi" : "direct", got, coulomb, held * 1e3);
+        CHECK(fabs(got - coulomb) <= 0.01 * coulomb + 5e-4);
+        CHECK(held < 1e-3);
     }
 }
 
