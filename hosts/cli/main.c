@@ -103,6 +103,8 @@ static const char usage_text[] =
     "  --energy-guard G  when a step adds energy the cloth was not given: clamp\n"
     "                    (default: scale velocities, log, count), fail (error, state\n"
     "                    restored) or off\n"
+    "  --frame-stats F   write F, a CSV of every frame: step and collision ms,\n"
+    "                    kinetic, potential and guard energies, contacts, strain\n"
     "  --quiet           no progress bar and no table of timings\n"
     "\n"
     "Options of bench:\n"
@@ -230,6 +232,12 @@ static int parse_run_args(int argc, char **argv, cli_run_options *o) {
             if (!value || !value[0])
                 return usage_error("%s needs a directory", "--out");
             o->out_dir = value;
+            continue;
+        }
+        if (string_option(arg, "--frame-stats", argc, argv, &i, &value)) {
+            if (!value || !value[0])
+                return usage_error("%s needs a file name", "--frame-stats");
+            o->frame_stats = value;
             continue;
         }
         for (size_t k = 0; k < sizeof reals / sizeof reals[0]; ++k) {

@@ -5,6 +5,7 @@
 #include "run.h"
 
 #include <cJSON.h>
+#include <errno.h>
 #include <math.h>
 #include <stddef.h>
 #include <stdio.h>
@@ -342,16 +343,43 @@ static int write_torn_meshes(run_state *s) {
     return 0;
 }
 
+static int simulate_frames(run_state *s, uint32_t frames, int show_progress, double start,
+                           double *last_draw_io, char *err, FILE *fs);
+
 static int simulate(run_state *s) {
-    const rbc_api_v1 *api = s->api;
     const int show_progress = !s->options->quiet && isatty(STDERR_FILENO);
     const uint32_t frames = s->scene.frames;
     double start = now_seconds(), last_draw = 0.0;
     char err[RBC_SCENE_ERROR_MAX];
+    FILE *fs = NULL;
+    if (s->options->frame_stats) {
+        fs = fopen(s->options->frame_stats, "w");
+        if (!fs) {
+            fprintf(stderr, "rbcloth: cannot write %s: %s\n", s->options->frame_stats,
+                    strerror(errno));
+            return 1;
+        }
+        fputs("frame,step_ms,collide_ms,kinetic_energy,potential_energy,energy_budget,"
+              "energy_removed,collider_contacts,cloth_contacts,max_strain,strain_rms\n",
+              fs);
+    }
+    int rc = simulate_frames(s, frames, show_progress, start, &last_draw, err, fs);
+    if (fs && fclose(fs) != 0 && rc == 0) {
+        fprintf(stderr, "rbcloth: cannot write %s\n", s->options->frame_stats);
+        rc = 1;
+    }
+    return rc;
+}
+
+static int simulate_frames(run_state *s, uint32_t frames, int show_progress, double start,
+                           double *last_draw_io, char *err, FILE *fs) {
+    const rbc_api_v1 *api = s->api;
+    double last_draw = *last_draw_io;
 
     for (uint32_t frame = 0; frame < frames; ++frame) {
         /* Moving colliders and drags to where they are at the end of this frame. */
-        rbc_result r = rbc_scene_apply_frame(api, &s->scene, &s->instance, frame, err, sizeof err);
+        rbc_result r = rbc_scene_apply_frame(api, &s->scene, &s->instance, frame, err,
+                                             RBC_SCENE_ERROR_MAX);
         if (r != RBC_OK)
             return report(api, r, err);
         r = api->world_step(s->instance.world, s->scene.dt);
@@ -361,10 +389,18 @@ static int simulate(run_state *s) {
          * after the last frame. */
         memset(&s->stats, 0, sizeof s->stats);
         s->stats.struct_size = sizeof s->stats;
-        s->stats.skip_measures = frame + 1 < frames;
+        s->stats.skip_measures = frame + 1 < frames && !fs;
         r = api->world_get_stats(s->instance.world, &s->stats);
         if (r != RBC_OK)
             return report_api(api, r);
+        if (fs) {
+            const rbc_world_stats *st = &s->stats;
+            fprintf(fs, "%u,%.4f,%.4f,%.9g,%.9g,%.9g,%.9g,%u,%u,%.6g,%.6g\n", frame + 1,
+                    st->step_ms, st->collide_ms, st->kinetic_energy, st->potential_energy,
+                    st->energy_budget, st->energy_removed, st->collider_contacts,
+                    st->cloth_contacts, st->max_strain, st->strain_rms);
+            fflush(fs);
+        }
         cli_timings_add(&s->timings, &s->stats);
         if (s->stats.iteration_mode == RBC_ITERATE_TARGET) {
             const rbc_world_stats *st = &s->stats;
@@ -406,6 +442,7 @@ static int simulate(run_state *s) {
             last_draw = now;
         }
     }
+    *last_draw_io = last_draw;
     s->wall_seconds = now_seconds() - start;
     progress_clear();
     if (write_torn_meshes(s))

@@ -32,6 +32,8 @@ typedef struct cli_run_options {
     /// caps max_substeps and max_linear_iterations (-1 = the scene's).
     double target_strain;
     long max_substeps, max_linear;
+    /// A CSV file of per-frame figures (time, energies, contacts, strain), or NULL.
+    const char *frame_stats;
     /// No progress bar and no table on stdout.
     int quiet;
 } cli_run_options;
