@@ -78,6 +78,8 @@ struct rbc_clothcontact {
     cc_buf abase;               /* uint32 [count + 1]: first edge of a body (all edges) */
     cc_buf aedge;               /* uint32 [2 per edge]: every edge's ends, ascending */
     cc_buf frozen;              /* uint8 [vertices]: the fail-safe put it back to x */
+    cc_buf nearest;             /* cc_key [contacts of one vertex]: keep_nearest's scratch */
+    uint32_t capped;            /* vertices whose contacts the last detect cut to the cap */
     uint32_t ekey_count;
 };
 
@@ -130,7 +132,7 @@ void rbc_clothcontact_destroy(rbc_clothcontact *cc) {
     cc_buf *bufs[] = {&cc->vbase, &cc->tbase, &cc->bgrow, &cc->active, &cc->vbox,
                       &cc->tbox, &cc->vbody, &cc->tbody, &cc->trec, &cc->contacts,
                       &cc->bbox, &cc->ebase, &cc->bedge, &cc->ekey, &cc->escratch,
-                      &cc->abase, &cc->aedge, &cc->frozen};
+                      &cc->abase, &cc->aedge, &cc->frozen, &cc->nearest};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) buf_free(&a, bufs[k]);
     hash_free(&a, &cc->th);
     hash_free(&a, &cc->vh);
@@ -138,6 +140,8 @@ void rbc_clothcontact_destroy(rbc_clothcontact *cc) {
 }
 
 uint32_t rbc_clothcontact_count(const rbc_clothcontact *cc) { return cc->count; }
+
+uint32_t rbc_clothcontact_capped(const rbc_clothcontact *cc) { return cc->capped; }
 
 const rbc_contact *rbc_clothcontact_list(const rbc_clothcontact *cc) {
     return (const rbc_contact *)cc->contacts.ptr;
@@ -148,7 +152,8 @@ size_t rbc_clothcontact_bytes(const rbc_clothcontact *cc) {
                             &cc->tbox, &cc->vbody, &cc->tbody, &cc->contacts, &cc->bbox,
                             &cc->trec, &cc->th.start, &cc->th.id, &cc->th.big,
                             &cc->vh.start, &cc->vh.id, &cc->vh.big, &cc->ebase, &cc->bedge,
-                            &cc->ekey, &cc->escratch, &cc->abase, &cc->aedge, &cc->frozen};
+                            &cc->ekey, &cc->escratch, &cc->abase, &cc->aedge, &cc->frozen,
+                            &cc->nearest};
     size_t b = sizeof *cc;
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) b += bufs[k]->bytes;
     return b;
@@ -231,6 +236,24 @@ static void closest_bary(const float p[3], const float a[3], const float b[3], c
 static inline void bary_point(float r[3], const float w[3], const float a[3], const float b[3],
                               const float c[3]) {
     for (int k = 0; k < 3; ++k) r[k] = w[0] * a[k] + w[1] * b[k] + w[2] * c[k];
+}
+
+/* Not fminf/fmaxf: their NaN rules make them library calls. */
+static inline float min2(float a, float b) { return a < b ? a : b; }
+static inline float max2(float a, float b) { return a > b ? a : b; }
+
+/* 1 if triangle abc is a sliver (RBC_CC_SLIVER); n = (b - a) x (c - a). */
+static inline int tri_sliver(const float a[3], const float b[3], const float c[3],
+                             const float n[3]) {
+    float e[3];
+    sub3(e, b, a);
+    float l = dot3(e, e);
+    sub3(e, c, a);
+    l = max2(l, dot3(e, e));
+    sub3(e, c, b);
+    l = max2(l, dot3(e, e));
+    const float k = RBC_CC_SLIVER * l;
+    return dot3(n, n) < k * k;
 }
 
 /* Distance from p to triangle abc (m). */
@@ -379,7 +402,7 @@ typedef struct cc_detect {
     const float *vbox, *tbox, *trec, *bgrow;
     float margin;
     int oom;
-    size_t cap;   /* most contacts taken (RBC_CC_MAX_PER_VERTEX per vertex) */
+    size_t cap;   /* most contacts taken (RBC_CC_MAX_TOTAL_PER_VERTEX per vertex) */
     int over;     /* the cap was reached */
 } cc_detect;
 
@@ -409,10 +432,6 @@ static inline int boxes_overlap(const float *a, const float *b, float g) {
 static inline int bodies_pair(const rbc_contact_body *A, const rbc_contact_body *B, int same) {
     return same ? A->self != 0 : (A->others != 0 && B->others != 0);
 }
-
-/* Not fminf/fmaxf: their NaN rules make them library calls. */
-static inline float min2(float a, float b) { return a < b ? a : b; }
-static inline float max2(float a, float b) { return a > b ? a : b; }
 
 /* Squared distance from p to the bounding box of a, b, c: a lower bound of the
  * squared distance to the triangle, to skip most closest-point computations. */
@@ -563,8 +582,13 @@ static void try_vt(cc_detect *d, const cc_vq *q, uint32_t t) {
     }
     rbc_contact *c = push_contact(d);
     if (!c) return;
+    float e1[3], e2[3], nx[3];
+    sub3(e1, B, A);
+    sub3(e2, C, A);
+    cross3(nx, e1, e2);
     c->kind = RBC_CONTACT_VT;
-    c->flags = through ? RBC_CONTACT_CROSSED : 0u;
+    c->flags = (through ? RBC_CONTACT_CROSSED : 0u) |
+               (tri_sliver(A, B, C, nx) ? RBC_CONTACT_THIN : 0u);
     c->body_a = q->bv, c->a = i;
     c->body_b = bt, c->b = tl;
     c->side = side;
@@ -638,6 +662,56 @@ static uint32_t sort_partners(rbc_contact *c, uint32_t from, uint32_t to) {
     for (uint32_t k = from; k < to; ++k)
         if (k == from || c[k].body_b != c[end - 1].body_b || c[k].b != c[end - 1].b) c[end++] = c[k];
     return end;
+}
+
+typedef struct cc_key {
+    float d;
+    uint32_t i;
+} cc_key;
+
+static int cmp_key(const void *a, const void *b) {
+    const cc_key *x = a, *y = b;
+    if (x->d != y->d) return x->d < y->d ? -1 : 1;
+    return x->i < y->i ? -1 : x->i > y->i; /* i: partner order, so ties are fixed too */
+}
+
+/* Contacts [from, to) of one vertex, sorted by partner: if more than
+ * RBC_CC_MAX_PER_VERTEX, keep the nearest that many at p (vertex to triangle or to
+ * the other vertex), still in partner order, and end the list after them. Returns 0
+ * when out of memory. */
+static int keep_nearest(cc_detect *d, uint32_t from) {
+    rbc_clothcontact *cc = d->cc;
+    const uint32_t n = cc->count - from, cap = RBC_CC_MAX_PER_VERTEX;
+    if (n <= cap) return 1;
+    if (!buf_reserve(&cc->alloc, &cc->nearest, n, sizeof(cc_key), 0)) return 0;
+    cc_key *key = cc->nearest.ptr;
+    rbc_contact *c = (rbc_contact *)cc->contacts.ptr + from;
+    for (uint32_t k = 0; k < n; ++k) {
+        const rbc_contact_body *A = &d->bodies[c[k].body_a], *B = &d->bodies[c[k].body_b];
+        float q[3], o[3];
+        load3(q, CONST3(A->p), c[k].a);
+        if (c[k].kind == RBC_CONTACT_VT) {
+            const uint32_t *tri = B->tris + 3 * (size_t)c[k].b;
+            float P[3][3];
+            for (int m = 0; m < 3; ++m) load3(P[m], CONST3(B->p), tri[m]);
+            key[k].d = tri_distance(q, P[0], P[1], P[2]);
+        } else {
+            load3(o, CONST3(B->p), c[k].b);
+            sub3(o, q, o);
+            key[k].d = sqrtf(dot3(o, o));
+        }
+        if (!(key[k].d == key[k].d)) key[k].d = INFINITY; /* NaN last */
+        key[k].i = k;
+    }
+    qsort(key, n, sizeof *key, cmp_key);
+    /* The kept ones in partner order (their indices ascending), moved down in place:
+     * slot k <= index. */
+    for (uint32_t k = 0; k < cap; ++k) key[k].d = (float)key[k].i;
+    qsort(key, cap, sizeof *key, cmp_key);
+    for (uint32_t k = 0; k < cap; ++k) c[k] = c[key[k].i];
+    cc->capped++;
+    cc->count = from + cap;
+    return 1;
 }
 
 /* ---- edge-edge: border edges --------------------------------------------------- */
@@ -944,6 +1018,7 @@ int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, 
                                 float margin) {
     const rbc_allocator *al = &cc->alloc;
     cc->count = 0;
+    cc->capped = 0;
     cc->body_count = count;
     if (!(margin >= 0.0f)) margin = 0.0f;
     /* Bodies: global numbering, growth, and which take part at all. */
@@ -1072,7 +1147,7 @@ int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, 
     for (uint32_t b = 0; b < count; ++b)
         if (active[b]) nactive += bodies[b].n;
     cc_detect d = {cc, bodies, vbase, tbase, vbody, tbody, vbox, tbox, trec, bgrow, margin, 0,
-                   (size_t)(RBC_CC_MAX_PER_VERTEX * nactive + 4096), 0};
+                   (size_t)(RBC_CC_MAX_TOTAL_PER_VERTEX * nactive + 4096), 0};
     const float inv = cc->inv_cell;
 
     /* Vertex-triangle: each vertex looks up the triangles around its swept box. */
@@ -1127,6 +1202,7 @@ int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, 
                 if (boxes_overlap(lo, tbox + 6 * (size_t)big[m], vgrow)) try_vt(&d, &q, big[m]);
         }
         if (!d.oom) cc->count = sort_partners(cc->contacts.ptr, first, cc->count);
+        if (!d.oom && !keep_nearest(&d, first)) d.oom = 1;
     }
 
     /* Vertex-vertex: each vertex looks up the vertices after it. */
@@ -1172,6 +1248,7 @@ int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, 
                     try_vv(&d, v, big[m]);
         }
         if (!d.oom) cc->count = sort_partners(cc->contacts.ptr, first, cc->count);
+        if (!d.oom && !keep_nearest(&d, first)) d.oom = 1;
     }
     /* Edge against border edge. */
     if (!d.oom) {
@@ -1236,6 +1313,7 @@ static int evaluate(const rbc_contact *c, const rbc_contact_body *bodies, cc_eva
         cross3(n, e1, e2);
         const float nn2 = dot3(n, n), th = A->thickness;
         if (!(nn2 > 0.0f)) return 0;
+        const float nsl[3] = {n[0], n[1], n[2]};
         /* Most contacts are not touching: on their side at >= th from the plane means
          * >= th from the triangle too, so no closest point and no square root. */
         sub3(r, q, P[0]);
@@ -1247,10 +1325,24 @@ static int evaluate(const rbc_contact *c, const rbc_contact_body *bodies, cc_eva
         bary_point(cp, e->w, P[0], P[1], P[2]);
         sub3(r, q, cp);
         const float dn = dot3(r, n), r2 = dot3(r, r);
-        if (r2 - dn * dn <= th * th) {
+        if ((c->flags & RBC_CONTACT_THIN) || tri_sliver(P[0], P[1], P[2], nsl)) {
+            /* A sliver: its plane says nothing; keep th from the closest point. */
+            if (r2 >= th * th || !(r2 > 0.0f)) return 0;
+            const float l = sqrtf(r2);
+            e->viol = th - l;
+            for (int k = 0; k < 3; ++k) e->dir[k] = r[k] / l;
+        } else if (r2 - dn * dn <= th * th) {
             /* Over the triangle (its projection on the plane is within th of the
              * triangle): the plane constraint n . (q - cp) >= th, n on its side. */
             if (dn >= th) return 0;
+            /* Deeper than th on the far side of the plane: not a pass through this
+             * triangle since the last pass (the passes run every iteration and would
+             * have caught it shallow), unless detection saw the vertex's motion go
+             * through it (RBC_CONTACT_CROSSED). It got there around the triangle, by
+             * the plane turning, or pushed by other contacts; pushing it back across
+             * was the largest move of a pass (up to 16 mm in the funnel, at 3 mm
+             * thickness), and those moves fed each other in a pile until it tore. */
+            if (dn < -th && !(c->flags & RBC_CONTACT_CROSSED)) return 0;
             e->viol = th - dn;
             for (int k = 0; k < 3; ++k) e->dir[k] = n[k];
         } else if (dn >= 0.0f) {

@@ -60,12 +60,23 @@ typedef struct rbc_contact_body { /* one cloth; arrays in the solver's internal 
 enum { RBC_CONTACT_VT = 0, RBC_CONTACT_VV = 1, RBC_CONTACT_EE = 2 };
 /* rbc_contact.flags: the vertex's motion relative to the triangle crosses the plane
  * within thickness + margin of the triangle (it would pass through this triangle). */
-enum { RBC_CONTACT_CROSSED = 1 };
+/* RBC_CONTACT_THIN: the triangle was a sliver at x (see rbc_clothcontact_project). */
+enum { RBC_CONTACT_CROSSED = 1, RBC_CONTACT_THIN = 2 };
+
+/* A triangle is a sliver when twice its area is below this fraction of its longest
+ * edge squared (a quad's right-angled half: 0.5). The paper's cloth has springs on
+ * the quad edges only, so nothing resists shear and a quad pressed or dragged can
+ * fold flat: its halves' planes then turn freely while no corner moves much. A vertex
+ * kept on one side of such a plane was thrown across by the plane turning (up to 10
+ * mm in one substep where three cloths slid down the funnel), stretched its springs
+ * through the layer and tore the pile apart. Against a sliver a vertex keeps the
+ * thickness from the triangle's closest point instead, on either side. */
+#define RBC_CC_SLIVER 0.1f
 
 /* One contact, as detect made it and project / friction update it. */
 typedef struct rbc_contact {
     uint32_t kind;                /* RBC_CONTACT_VT or RBC_CONTACT_VV */
-    uint32_t flags;               /* RBC_CONTACT_CROSSED or 0 */
+    uint32_t flags;               /* RBC_CONTACT_CROSSED, RBC_CONTACT_THIN or 0 */
     uint32_t body_a, a;           /* VT: the vertex; VV: the first vertex (lower global index);
                                      EE: the first end of the edge */
     uint32_t body_b, b;           /* VT: the triangle; VV: the second vertex; EE: the first
@@ -89,11 +100,18 @@ typedef struct rbc_clothcontact rbc_clothcontact;
 int32_t rbc_clothcontact_create(const rbc_allocator *a, rbc_clothcontact **out);
 void rbc_clothcontact_destroy(rbc_clothcontact *cc);
 
-/* At most this many contacts per vertex taking part (plus 4096): a pile of cloth
- * has about 10; far more means cloth crushed or tangled beyond what the contacts
- * can hold (an unstable solve), whose contacts grew to millions (1.2 GB) in one
- * scene. rbc_clothcontact_detect then returns RBC_ERR_UNSTABLE with an empty list. */
+/* A vertex keeps at most this many vertex-triangle contacts, and as many
+ * vertex-vertex ones: the nearest at p (ties in partner order). A pile of cloth has
+ * about 10 per vertex and the funnel's crowded spout up to 60; a cloth without self
+ * contact folds through itself into a clump where another cloth's vertex was near
+ * 559 triangles, and its contacts grew to millions (1.2 GB) in one scene. The
+ * farther contacts of such a vertex are behind the nearer ones. Detection counts
+ * the vertices it cut (rbc_clothcontact_capped). */
 #define RBC_CC_MAX_PER_VERTEX 64u
+/* All contacts together (vertex-triangle, vertex-vertex and edge-edge) are at most
+ * this many per vertex taking part, plus 4096: past it (edge contacts that grow
+ * without bound) rbc_clothcontact_detect returns RBC_ERR_UNSTABLE, list empty. */
+#define RBC_CC_MAX_TOTAL_PER_VERTEX (2u * RBC_CC_MAX_PER_VERTEX + 32u)
 
 /* Find the candidate contacts of this substep from x (start) and p (the inertial
  * prediction, before the solve). With g = thickness of the vertex's cloth + margin:
@@ -134,7 +152,9 @@ int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, 
  * closest point; beside it on the other side it is put back to the plane if its
  * motion crossed this triangle (RBC_CONTACT_CROSSED: a fast vertex can end far from
  * the triangle it went through, and only this contact knows), and left alone if not
- * (it went around the edge, or it is a neighbouring triangle's business).
+ * (it went around the edge, or it is a neighbouring triangle's business). Against a
+ * sliver (RBC_CC_SLIVER: at x, RBC_CONTACT_THIN, or now) it is kept >= thickness from
+ * the closest point, on whichever side it is.
  * Vertex-vertex: apart until >= thickness_a + thickness_b. Edge-edge: the closest
  * points of the two edges (their ends moved by their weights along the edges) apart
  * until >= the larger thickness, back along the direction at x if they crossed it
@@ -173,6 +193,8 @@ void rbc_clothcontact_friction(rbc_clothcontact *cc, rbc_contact_body *bodies, u
 uint32_t rbc_clothcontact_failsafe(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count);
 
 uint32_t rbc_clothcontact_count(const rbc_clothcontact *cc);
+/* Vertices whose contacts the last detect cut to RBC_CC_MAX_PER_VERTEX. */
+uint32_t rbc_clothcontact_capped(const rbc_clothcontact *cc);
 /* The contacts of the last detect (valid until the next detect or destroy). */
 const rbc_contact *rbc_clothcontact_list(const rbc_clothcontact *cc);
 /* Bytes held (the object and every buffer at its capacity). */

@@ -1456,7 +1456,7 @@ static void detect_contacts(step_ctx *ctx, uint32_t sub, uint32_t tid, uint32_t 
                                    "can hold (smaller steps, more iterations, or a larger "
                                    "thickness keep them apart); the world was restored to its "
                                    "state before the step",
-                                   RBC_CC_MAX_PER_VERTEX, sub, ctx->substeps);
+                                   RBC_CC_MAX_TOTAL_PER_VERTEX, sub, ctx->substeps);
         else if (rc != RBC_OK)
             ctx->result = rbc_fail(ctx->err, ctx->errlen, RBC_ERR_OUT_OF_MEMORY,
                                    "out of memory for cloth contacts at substep %u", sub);

@@ -641,10 +641,13 @@ static void test_wind(void) {
     free(zero);
 }
 
-/* Two cloths crushed into one 2 cm cube with cloth contact on: far past the cap of
- * contacts per vertex (RBC_CC_MAX_PER_VERTEX: 64; a pile has about 10). The step
- * fails with RBC_ERR_UNSTABLE, names the cause, and leaves the state as it was,
- * instead of growing its contact list without bound. */
+/* Two cloths crushed into one 2 cm cube with cloth contact on: each vertex is near
+ * all 722 triangles of the other cloth, far past the contacts a vertex keeps
+ * (RBC_CC_MAX_PER_VERTEX: 64, the nearest; a pile has about 10). Before the cap a
+ * crushed scene's contacts grew to millions (1.2 GB). The steps run, every vertex
+ * keeps at most 64 vertex-triangle and 64 vertex-vertex contacts (so the list is at
+ * most 128 per vertex plus edge contacts, which only border edges make: 76 of them
+ * per cloth here, 192 candidates each at most), and nothing becomes NaN. */
 static void test_contact_cap(void) {
     rbc_world_id w = make_world(1, 1, -9.81f);
     rbc_cloth_id cl[2];
@@ -660,13 +663,27 @@ static void test_contact_cap(void) {
         cd.collision_flags = RBC_CLOTH_COLLIDE_CLOTHS;
         CHECK_EQ(rbc_cloth_create(w, &cd, &cl[b]), RBC_OK);
     }
-    float *before = test_read(w, cl[0], NULL);
-    CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_ERR_UNSTABLE);
-    CHECK(strstr(rbc_last_error(), "contacts per vertex") != NULL);
-    float *after = test_read(w, cl[0], NULL);
-    CHECK(before && after && memcmp(before, after, sizeof(float) * 3 * g.vertex_count) == 0);
-    free(before);
-    free(after);
+    uint32_t most = 0;
+    for (int step = 0; step < 5; ++step) {
+        CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_OK);
+        rbc_world_stats st;
+        memset(&st, 0, sizeof st);
+        st.struct_size = sizeof st;
+        CHECK_EQ(rbc_world_get_stats(w, &st), RBC_OK);
+        if (st.cloth_contacts > most) most = st.cloth_contacts;
+    }
+    const uint32_t n = 2 * g.vertex_count;
+    printf("contact cap: %u vertices crushed into a 2 cm cube: at most %u cloth contacts "
+           "(%.1f per vertex; cap 128 per vertex + edge contacts)\n",
+           n, most, (double)most / n);
+    CHECK(most > 64u * n / 2); /* crushed: most vertices are at the cap */
+    CHECK(most <= 128u * n + 2u * 76u * 192u);
+    for (int b = 0; b < 2; ++b) {
+        float *after = test_read(w, cl[b], NULL);
+        CHECK(after != NULL);
+        for (uint32_t k = 0; after && k < 3 * g.vertex_count; ++k) CHECK(isfinite(after[k]));
+        free(after);
+    }
     test_grid_free(&g);
     CHECK_EQ(rbc_world_destroy(w), RBC_OK);
 }
