@@ -67,6 +67,7 @@ struct rbc_clothcontact {
     cc_buf vbody, tbody;        /* uint32 [object]: its body */
     cc_buf trec;                /* float [CC_TREC per triangle]: see tri_record() */
     cc_hash th, vh;             /* triangles; vertices */
+    cc_hash fh;                 /* triangles by their box at p, for the fail-safe's round 0 */
     cc_buf contacts;            /* rbc_contact */
     uint32_t count;
     /* Border edges (in one triangle only) of every body, kept while the bodies'
@@ -78,10 +79,29 @@ struct rbc_clothcontact {
     cc_buf abase;               /* uint32 [count + 1]: first edge of a body (all edges) */
     cc_buf aedge;               /* uint32 [2 per edge]: every edge's ends, ascending */
     cc_buf frozen;              /* uint8 [vertices]: the fail-safe put it back to x */
-    cc_buf nearest;             /* cc_key [contacts of one vertex]: keep_nearest's scratch */
+    cc_buf pbox;                /* float [6 per triangle]: its box at p, in a fail-safe round */
     uint32_t capped;            /* vertices whose contacts the last detect cut to the cap */
+    /* Threads: each detects the contacts of its share of the vertices into its own
+     * lists, and scans its share of the edges in a fail-safe round. */
+    cc_buf parts;               /* cc_part [part_cap] */
+    uint32_t part_cap;
+    const rbc_contact_body *dbodies; /* of the detect or fail-safe in progress */
+    float dmargin;
+    size_t dcap;                /* most contacts (RBC_CC_MAX_TOTAL_PER_VERTEX per vertex) */
+    int32_t stage_rc;           /* what thread 0's stage of a detect found */
+    uint32_t fs_newly;          /* vertices the last fail-safe round froze */
     uint32_t ekey_count;
 };
+
+/* One thread's lists. */
+typedef struct cc_part {
+    cc_buf vt, vv;              /* rbc_contact: its vertices' vertex-triangle and -vertex ones */
+    cc_buf nearest;             /* cc_key: keep_nearest's scratch */
+    cc_buf hits;                /* uint32 [4 per crossing]: body, edge ends, triangle (global) */
+    uint32_t nvt, nvv, nhits, capped;
+    int oom, over;
+    char pad[64];               /* no false sharing of the counts */
+} cc_part;
 
 typedef struct cc_ekey {
     const uint32_t *tris;
@@ -132,10 +152,19 @@ void rbc_clothcontact_destroy(rbc_clothcontact *cc) {
     cc_buf *bufs[] = {&cc->vbase, &cc->tbase, &cc->bgrow, &cc->active, &cc->vbox,
                       &cc->tbox, &cc->vbody, &cc->tbody, &cc->trec, &cc->contacts,
                       &cc->bbox, &cc->ebase, &cc->bedge, &cc->ekey, &cc->escratch,
-                      &cc->abase, &cc->aedge, &cc->frozen, &cc->nearest};
+                      &cc->abase, &cc->aedge, &cc->frozen, &cc->pbox};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) buf_free(&a, bufs[k]);
+    cc_part *parts = cc->parts.ptr;
+    for (uint32_t t = 0; t < cc->part_cap; ++t) {
+        buf_free(&a, &parts[t].vt);
+        buf_free(&a, &parts[t].vv);
+        buf_free(&a, &parts[t].nearest);
+        buf_free(&a, &parts[t].hits);
+    }
+    buf_free(&a, &cc->parts);
     hash_free(&a, &cc->th);
     hash_free(&a, &cc->vh);
+    hash_free(&a, &cc->fh);
     rbc_mem_free(&a, cc, sizeof *cc);
 }
 
@@ -153,9 +182,12 @@ size_t rbc_clothcontact_bytes(const rbc_clothcontact *cc) {
                             &cc->trec, &cc->th.start, &cc->th.id, &cc->th.big,
                             &cc->vh.start, &cc->vh.id, &cc->vh.big, &cc->ebase, &cc->bedge,
                             &cc->ekey, &cc->escratch, &cc->abase, &cc->aedge, &cc->frozen,
-                            &cc->nearest};
+                            &cc->parts, &cc->pbox, &cc->fh.start, &cc->fh.id, &cc->fh.big};
     size_t b = sizeof *cc;
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) b += bufs[k]->bytes;
+    const cc_part *parts = cc->parts.ptr;
+    for (uint32_t t = 0; t < cc->part_cap; ++t)
+        b += parts[t].vt.bytes + parts[t].vv.bytes + parts[t].nearest.bytes + parts[t].hits.bytes;
     return b;
 }
 
@@ -404,21 +436,25 @@ typedef struct cc_detect {
     int oom;
     size_t cap;   /* most contacts taken (RBC_CC_MAX_TOTAL_PER_VERTEX per vertex) */
     int over;     /* the cap was reached */
+    cc_buf *out;  /* the list contacts go to, and its count */
+    uint32_t *n;
+    cc_buf *nearest; /* keep_nearest's scratch */
+    uint32_t *capped;
 } cc_detect;
 
 static rbc_contact *push_contact(cc_detect *d) {
     rbc_clothcontact *cc = d->cc;
     if (d->oom) return NULL; /* failed once: ask for nothing more, the list is dropped */
-    if (cc->count >= d->cap) {
+    if (*d->n >= d->cap) {
         d->over = d->oom = 1; /* stop as on a failure; reported as a tangle */
         return NULL;
     }
-    if (!buf_reserve(&cc->alloc, &cc->contacts, (size_t)cc->count + 1, sizeof(rbc_contact),
-                     sizeof(rbc_contact) * cc->count)) {
+    if (!buf_reserve(&cc->alloc, d->out, (size_t)*d->n + 1, sizeof(rbc_contact),
+                     sizeof(rbc_contact) * *d->n)) {
         d->oom = 1;
         return NULL;
     }
-    rbc_contact *c = (rbc_contact *)cc->contacts.ptr + cc->count++;
+    rbc_contact *c = (rbc_contact *)d->out->ptr + (*d->n)++;
     memset(c, 0, sizeof *c);
     return c;
 }
@@ -681,11 +717,11 @@ static int cmp_key(const void *a, const void *b) {
  * when out of memory. */
 static int keep_nearest(cc_detect *d, uint32_t from) {
     rbc_clothcontact *cc = d->cc;
-    const uint32_t n = cc->count - from, cap = RBC_CC_MAX_PER_VERTEX;
+    const uint32_t n = *d->n - from, cap = RBC_CC_MAX_PER_VERTEX;
     if (n <= cap) return 1;
-    if (!buf_reserve(&cc->alloc, &cc->nearest, n, sizeof(cc_key), 0)) return 0;
-    cc_key *key = cc->nearest.ptr;
-    rbc_contact *c = (rbc_contact *)cc->contacts.ptr + from;
+    if (!buf_reserve(&cc->alloc, d->nearest, n, sizeof(cc_key), 0)) return 0;
+    cc_key *key = d->nearest->ptr;
+    rbc_contact *c = (rbc_contact *)d->out->ptr + from;
     for (uint32_t k = 0; k < n; ++k) {
         const rbc_contact_body *A = &d->bodies[c[k].body_a], *B = &d->bodies[c[k].body_b];
         float q[3], o[3];
@@ -709,8 +745,8 @@ static int keep_nearest(cc_detect *d, uint32_t from) {
     for (uint32_t k = 0; k < cap; ++k) key[k].d = (float)key[k].i;
     qsort(key, cap, sizeof *key, cmp_key);
     for (uint32_t k = 0; k < cap; ++k) c[k] = c[key[k].i];
-    cc->capped++;
-    cc->count = from + cap;
+    (*d->capped)++;
+    *d->n = from + cap;
     return 1;
 }
 
@@ -1014,8 +1050,19 @@ static void detect_ee(cc_detect *d, const uint8_t *active, uint32_t count, uint3
     }
 }
 
-int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count,
-                                float margin) {
+/* A part per thread, kept (with their buffers) as the count grows. */
+static int parts_reserve(rbc_clothcontact *cc, uint32_t nth) {
+    if (nth <= cc->part_cap) return 1;
+    const size_t old = (size_t)cc->part_cap * sizeof(cc_part);
+    if (!buf_reserve(&cc->alloc, &cc->parts, nth, sizeof(cc_part), old)) return 0;
+    memset((char *)cc->parts.ptr + old, 0, (size_t)(nth - cc->part_cap) * sizeof(cc_part));
+    cc->part_cap = nth;
+    return 1;
+}
+
+/* Thread 0's first stage: bodies, boxes, the hashes, and a part per thread. */
+static int32_t detect_prepare(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count,
+                              float margin, uint32_t nth) {
     const rbc_allocator *al = &cc->alloc;
     cc->count = 0;
     cc->capped = 0;
@@ -1146,14 +1193,43 @@ int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, 
     uint64_t nactive = 0;
     for (uint32_t b = 0; b < count; ++b)
         if (active[b]) nactive += bodies[b].n;
-    cc_detect d = {cc, bodies, vbase, tbase, vbody, tbody, vbox, tbox, trec, bgrow, margin, 0,
-                   (size_t)(RBC_CC_MAX_TOTAL_PER_VERTEX * nactive + 4096), 0};
+    cc->dbodies = bodies;
+    cc->dmargin = margin;
+    cc->dcap = (size_t)(RBC_CC_MAX_TOTAL_PER_VERTEX * nactive + 4096);
+    if (!parts_reserve(cc, nth)) goto oom;
+    return RBC_OK;
+oom:
+    cc->count = 0;
+    return RBC_ERR_OUT_OF_MEMORY;
+}
+
+/* Every thread's stage: the vertex-triangle and vertex-vertex contacts of vertices
+ * [n tid / nth, n (tid + 1) / nth), each vertex's sorted on its own, into the
+ * thread's lists (in vertex order, so their concatenation in thread order is the
+ * single thread's list). */
+static void detect_range(rbc_clothcontact *cc, uint32_t tid, uint32_t nth) {
+    const rbc_contact_body *bodies = cc->dbodies;
+    const uint32_t count = cc->body_count;
+    const uint32_t *vbase = cc->vbase.ptr, *tbase = cc->tbase.ptr;
+    const uint32_t *vbody = cc->vbody.ptr, *tbody = cc->tbody.ptr;
+    const float *vbox = cc->vbox.ptr, *tbox = cc->tbox.ptr, *trec = cc->trec.ptr;
+    const float *bgrow = cc->bgrow.ptr;
+    const uint8_t *active = cc->active.ptr;
+    const uint32_t nvall = vbase[count], nt = tbase[count];
+    const uint32_t v_begin = (uint32_t)((uint64_t)nvall * tid / nth),
+                   v_end = (uint32_t)((uint64_t)nvall * (tid + 1) / nth);
+    cc_part *part = (cc_part *)cc->parts.ptr + tid;
+    part->nvt = part->nvv = part->capped = 0;
+    part->oom = part->over = 0;
+    cc_detect d = {cc, bodies, vbase, tbase, vbody, tbody, vbox, tbox, trec, bgrow,
+                   cc->dmargin, 0, cc->dcap, 0, &part->vt, &part->nvt, &part->nearest,
+                   &part->capped};
     const float inv = cc->inv_cell;
 
     /* Vertex-triangle: each vertex looks up the triangles around its swept box. */
-    for (uint32_t v = 0; v < (uint32_t)nv && !d.oom; ++v) {
+    for (uint32_t v = v_begin; v < v_end && !d.oom; ++v) {
         if (!active[vbody[v]]) continue;
-        const uint32_t first = cc->count;
+        const uint32_t first = *d.n;
         const float *lo = vbox + 6 * (size_t)v, *hi = lo + 3;
         cc_vq q;
         vq_load(&d, v, &q);
@@ -1170,7 +1246,7 @@ int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, 
         /* A box in one cell meets every object there once (per bucket copy). */
         const int one_cell = cells == 1;
         if (cells > CC_BIG_CELLS) {
-            for (uint32_t t = 0; t < (uint32_t)nt; ++t)
+            for (uint32_t t = 0; t < nt; ++t)
                 if (active[tbody[t]] && boxes_overlap(lo, tbox + 6 * (size_t)t, vgrow))
                     try_vt(&d, &q, t);
         } else {
@@ -1201,14 +1277,16 @@ int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, 
             for (uint32_t m = 0; m < h->big_count; ++m)
                 if (boxes_overlap(lo, tbox + 6 * (size_t)big[m], vgrow)) try_vt(&d, &q, big[m]);
         }
-        if (!d.oom) cc->count = sort_partners(cc->contacts.ptr, first, cc->count);
+        if (!d.oom) *d.n = sort_partners(d.out->ptr, first, *d.n);
         if (!d.oom && !keep_nearest(&d, first)) d.oom = 1;
     }
 
     /* Vertex-vertex: each vertex looks up the vertices after it. */
-    for (uint32_t v = 0; v < (uint32_t)nv && !d.oom; ++v) {
+    d.out = &part->vv;
+    d.n = &part->nvv;
+    for (uint32_t v = v_begin; v < v_end && !d.oom; ++v) {
         if (!active[vbody[v]]) continue;
-        const uint32_t first = cc->count;
+        const uint32_t first = *d.n;
         float lo[3], hi[3];
         const float vg = bgrow[vbody[v]];
         const float *vb = vbox + 6 * (size_t)v;
@@ -1218,7 +1296,7 @@ int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, 
         const uint64_t cells = range_cells(&r);
         const int one_cell = cells == 1;
         if (cells > CC_BIG_CELLS) {
-            for (uint32_t u = v + 1; u < (uint32_t)nv; ++u)
+            for (uint32_t u = v + 1; u < nvall; ++u)
                 if (active[vbody[u]] && boxes_overlap(vb, vbox + 6 * (size_t)u, vg + bgrow[vbody[u]]))
                     try_vv(&d, v, u);
         } else {
@@ -1247,13 +1325,50 @@ int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, 
                 if (big[m] > v && boxes_overlap(vb, vbox + 6 * (size_t)big[m], vg + bgrow[vbody[big[m]]]))
                     try_vv(&d, v, big[m]);
         }
-        if (!d.oom) cc->count = sort_partners(cc->contacts.ptr, first, cc->count);
+        if (!d.oom) *d.n = sort_partners(d.out->ptr, first, *d.n);
         if (!d.oom && !keep_nearest(&d, first)) d.oom = 1;
     }
+    part->oom = d.oom && !d.over;
+    part->over = d.over;
+}
+
+/* Thread 0's last stage: the threads' lists joined in order (vertex-triangle, then
+ * vertex-vertex), then the edge contacts. */
+static int32_t detect_finish(rbc_clothcontact *cc, uint32_t nth) {
+    const rbc_contact_body *bodies = cc->dbodies;
+    const uint32_t count = cc->body_count;
+    cc_part *parts = cc->parts.ptr;
+    uint64_t total = 0;
+    int over = 0, oom = 0;
+    for (uint32_t t = 0; t < nth; ++t) {
+        total += (uint64_t)parts[t].nvt + parts[t].nvv;
+        over |= parts[t].over;
+        oom |= parts[t].oom;
+        cc->capped += parts[t].capped;
+    }
+    if (total > cc->dcap) over = 1;
+    if (over) {
+        cc->count = 0;
+        return RBC_ERR_UNSTABLE;
+    }
+    if (oom || !buf_reserve(&cc->alloc, &cc->contacts, (size_t)total, sizeof(rbc_contact), 0))
+        goto oom;
+    rbc_contact *list = cc->contacts.ptr;
+    cc->count = 0;
+    for (int kind = 0; kind < 2; ++kind)
+        for (uint32_t t = 0; t < nth; ++t) {
+            const uint32_t n = kind ? parts[t].nvv : parts[t].nvt;
+            if (n) memcpy(list + cc->count, kind ? parts[t].vv.ptr : parts[t].vt.ptr,
+                          (size_t)n * sizeof(rbc_contact));
+            cc->count += n;
+        }
+    cc_detect d = {cc, bodies, cc->vbase.ptr, cc->tbase.ptr, cc->vbody.ptr, cc->tbody.ptr,
+                   cc->vbox.ptr, cc->tbox.ptr, cc->trec.ptr, cc->bgrow.ptr, cc->dmargin, 0,
+                   cc->dcap, 0, &cc->contacts, &cc->count, NULL, NULL};
     /* Edge against border edge. */
     if (!d.oom) {
         if (!border_edges(cc, bodies, count)) goto oom;
-        detect_ee(&d, active, count, (uint32_t)nt);
+        detect_ee(&d, cc->active.ptr, count, ((const uint32_t *)cc->tbase.ptr)[count]);
     }
     if (d.over) {
         cc->count = 0;
@@ -1264,6 +1379,25 @@ int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, 
 oom:
     cc->count = 0;
     return RBC_ERR_OUT_OF_MEMORY;
+}
+
+
+int32_t rbc_clothcontact_detect_mt(rbc_clothcontact *cc, rbc_contact_body *bodies,
+                                   uint32_t count, float margin, uint32_t tid, uint32_t nth,
+                                   void (*sync)(void *), void *sync_ctx) {
+    if (nth == 0) nth = 1;
+    if (tid == 0) cc->stage_rc = detect_prepare(cc, bodies, count, margin, nth);
+    if (sync) sync(sync_ctx);
+    if (cc->stage_rc == RBC_OK) detect_range(cc, tid, nth);
+    if (sync) sync(sync_ctx);
+    if (tid == 0 && cc->stage_rc == RBC_OK) cc->stage_rc = detect_finish(cc, nth);
+    if (sync) sync(sync_ctx);
+    return cc->stage_rc;
+}
+
+int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count,
+                                float margin) {
+    return rbc_clothcontact_detect_mt(cc, bodies, count, margin, 0, 1, NULL, NULL);
 }
 
 /* ---- projection and friction ------------------------------------------------ */
@@ -1549,18 +1683,19 @@ static inline void freeze(rbc_contact_body *B, uint8_t *fr, uint32_t base, uint3
 }
 
 typedef struct cc_fs {
-    const rbc_clothcontact *cc;
+    rbc_clothcontact *cc;
     rbc_contact_body *bodies;
-    uint8_t *fr;
-    uint8_t mark;               /* this round's fr value */
-    uint32_t newly, left;
+    cc_part *part;              /* where this thread records the crossings it finds */
+    const cc_hash *h;           /* the triangles, hashed by hbox grown by hgrow */
+    const float *hbox;
+    float hgrow;
 } cc_fs;
 
 /* Edge u0 u1 of body ba against triangle t (global): if the edge crosses the triangle
- * at p, all five vertices go back to x (frozen). */
+ * at p, record it (all five vertices go back to x when the round's scan is over). */
 static void failsafe_pair(cc_fs *f, uint32_t ba, uint32_t u0, uint32_t u1, const float box[6],
                           uint32_t t) {
-    const rbc_clothcontact *cc = f->cc;
+    rbc_clothcontact *cc = f->cc;
     const uint32_t bt = ((const uint32_t *)cc->tbody.ptr)[t];
     rbc_contact_body *A = &f->bodies[ba], *T = &f->bodies[bt];
     if (!bodies_pair(A, T, ba == bt)) return;
@@ -1579,10 +1714,16 @@ static void failsafe_pair(cc_fs *f, uint32_t ba, uint32_t u0, uint32_t u1, const
     load3(P0, CONST3(A->p), u0);
     load3(P1, CONST3(A->p), u1);
     if (!seg_crosses_tri(P0, P1, C[0], C[1], C[2])) return;
-    f->left++;
-    freeze(A, f->fr, vbase[ba], u0, f->mark, &f->newly);
-    freeze(A, f->fr, vbase[ba], u1, f->mark, &f->newly);
-    for (int k = 0; k < 3; ++k) freeze(T, f->fr, vbase[bt], tri[k], f->mark, &f->newly);
+    (void)vbase;
+    cc_part *part = f->part;
+    if (part->oom) return;
+    if (!buf_reserve(&cc->alloc, &part->hits, 4 * ((size_t)part->nhits + 1), sizeof(uint32_t),
+                     4 * sizeof(uint32_t) * part->nhits)) {
+        part->oom = 1;
+        return;
+    }
+    uint32_t *h = (uint32_t *)part->hits.ptr + 4 * (size_t)part->nhits++;
+    h[0] = ba, h[1] = u0, h[2] = u1, h[3] = t;
 }
 
 /* The triangles whose hashed boxes meet box (lo, hi at p), each once: the edge u0 u1
@@ -1592,10 +1733,10 @@ static void failsafe_pair(cc_fs *f, uint32_t ba, uint32_t u0, uint32_t u1, const
 static void failsafe_query(cc_fs *f, const float lo[3], const float hi[3], uint32_t ba,
                            uint32_t u0, uint32_t u1, uint32_t tri_other) {
     const rbc_clothcontact *cc = f->cc;
-    const cc_hash *h = &cc->th;
+    const cc_hash *h = f->h;
     const uint32_t *start = h->start.ptr, *id = h->id.ptr, *big = h->big.ptr;
     const uint32_t *tbody = cc->tbody.ptr, *tbase = cc->tbase.ptr;
-    const float *tbox = cc->tbox.ptr, inv = cc->inv_cell;
+    const float *pbox = cc->pbox.ptr, inv = cc->inv_cell;
     const float box[6] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]};
     cc_range r;
     box_range(lo, hi, inv, &r);
@@ -1623,7 +1764,7 @@ static void failsafe_query(cc_fs *f, const float lo[3], const float hi[3], uint3
     } while (0)
     if (all) {
         for (uint32_t t = 0; t < tn; ++t)
-            if (active[tbody[t]]) CC_FS_VISIT(t);
+            if (active[tbody[t]] && boxes_overlap(box, pbox + 6 * (size_t)t, 0.0f)) CC_FS_VISIT(t);
         return;
     }
     int32_t c[3];
@@ -1635,65 +1776,185 @@ static void failsafe_query(cc_fs *f, const float lo[3], const float hi[3], uint3
                     /* As in detect: the hashed (grown) box first, then each pair in
                      * one cell only. */
                     const uint32_t t = id[q];
-                    if (!boxes_overlap(box, tbox + 6 * (size_t)t, cc->tri_grow)) continue;
+                    /* Its box now (the round's start) first: the hashed box is grown by
+                     * the thickness + margin and meets 5-10 times as many. */
+                    if (!boxes_overlap(box, pbox + 6 * (size_t)t, 0.0f)) continue;
                     float olo[3], ohi[3];
-                    grown_box(tbox, t, cc->tri_grow, olo, ohi);
+                    grown_box(f->hbox, t, f->hgrow, olo, ohi);
                     if (!lower_corner_is(lo, olo, inv, c)) continue;
                     CC_FS_VISIT(t);
                 }
             }
-    for (uint32_t m = 0; m < h->big_count; ++m) CC_FS_VISIT(big[m]);
+    for (uint32_t m = 0; m < h->big_count; ++m)
+        if (boxes_overlap(box, pbox + 6 * (size_t)big[m], 0.0f)) CC_FS_VISIT(big[m]);
 #undef CC_FS_VISIT
 }
 
-uint32_t rbc_clothcontact_failsafe(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count) {
-    if (count != cc->body_count || !cc->ekey_count) return 0;
-    const uint32_t *vbase = cc->vbase.ptr, *tbase = cc->tbase.ptr, *abase = cc->abase.ptr;
-    const uint32_t *ae = cc->aedge.ptr;
+/* Boxes at p of this thread's share of the triangles (of colliding bodies). */
+static void failsafe_boxes(rbc_clothcontact *cc, const rbc_contact_body *bodies, uint32_t tid,
+                           uint32_t nth) {
+    const uint32_t count = cc->body_count, *tbase = cc->tbase.ptr;
     const uint8_t *active = cc->active.ptr;
-    const uint32_t nv = vbase[count];
-    if (!buf_reserve(&cc->alloc, &cc->frozen, nv ? nv : 1, 1, 0)) return 0;
-    uint8_t *fr = cc->frozen.ptr;
-    memset(fr, 0, nv);
-    cc_fs f = {cc, bodies, fr, 1, 0, 0};
-    uint32_t total = 0;
-    /* Round 0 tests every edge; a later round only what the last one moved: edges
-     * with a vertex it froze against all triangles, and triangles with a corner it
-     * froze against all edges. Each round freezes another vertex or ends, and a pair
-     * whose five vertices are all back at x does not cross (x did not). */
-    for (uint32_t round = 0; round < 250; ++round) {
-        f.mark = (uint8_t)(round + 1);
-        f.newly = f.left = 0;
-        const uint8_t last = (uint8_t)round; /* fr of the vertices the last round froze */
-        for (uint32_t ba = 0; ba < count; ++ba) {
-            if (!active[ba]) continue;
-            const rbc_contact_body *A = &bodies[ba];
-            for (uint32_t e = abase[ba]; e < abase[ba + 1]; ++e) {
-                const uint32_t u0 = ae[2 * (size_t)e], u1 = ae[2 * (size_t)e + 1];
-                if (round && fr[vbase[ba] + u0] != last && fr[vbase[ba] + u1] != last) continue;
-                float P0[3], P1[3], lo[3], hi[3];
-                load3(P0, CONST3(A->p), u0);
-                load3(P1, CONST3(A->p), u1);
-                for (int k = 0; k < 3; ++k) lo[k] = min2(P0[k], P1[k]), hi[k] = max2(P0[k], P1[k]);
-                failsafe_query(&f, lo, hi, ba, u0, u1, UINT32_MAX);
-            }
-            if (!round) continue;
-            for (uint32_t t = 0; t < A->tri_count; ++t) {
-                const uint32_t *tri = A->tris + 3 * (size_t)t;
-                if (fr[vbase[ba] + tri[0]] != last && fr[vbase[ba] + tri[1]] != last &&
-                    fr[vbase[ba] + tri[2]] != last)
-                    continue;
-                float C[3][3], lo[3], hi[3];
-                for (int k = 0; k < 3; ++k) load3(C[k], CONST3(A->p), tri[k]);
-                for (int k = 0; k < 3; ++k) {
-                    lo[k] = min2(C[0][k], min2(C[1][k], C[2][k]));
-                    hi[k] = max2(C[0][k], max2(C[1][k], C[2][k]));
-                }
-                failsafe_query(&f, lo, hi, 0, 0, 0, tbase[ba] + t);
+    float *pb = cc->pbox.ptr;
+    const uint32_t ntr = tbase[count];
+    const uint32_t t0 = (uint32_t)((uint64_t)ntr * tid / nth), t1 = (uint32_t)((uint64_t)ntr * (tid + 1) / nth);
+    for (uint32_t b = 0; b < count; ++b) {
+        const uint32_t tb = tbase[b] > t0 ? tbase[b] : t0, te = tbase[b + 1] < t1 ? tbase[b + 1] : t1;
+        if (!active[b]) {
+            for (uint32_t g = tb; g < te; ++g) /* an empty box: meets nothing */
+                for (int k = 0; k < 3; ++k) pb[6 * (size_t)g + k] = INFINITY, pb[6 * (size_t)g + 3 + k] = -INFINITY;
+            continue;
+        }
+        const rbc_contact_body *B = &bodies[b];
+        for (uint32_t g = tb; g < te; ++g) {
+            const uint32_t *tri = B->tris + 3 * (size_t)(g - tbase[b]);
+            float *o = pb + 6 * (size_t)g;
+            for (int k = 0; k < 3; ++k) {
+                const float a = B->p[k][tri[0]], c = B->p[k][tri[1]], e = B->p[k][tri[2]];
+                o[k] = min2(a, min2(c, e));
+                o[3 + k] = max2(a, max2(c, e));
             }
         }
-        total += f.newly;
-        if (!f.newly) break;
     }
-    return total;
+}
+
+/* One thread's scan of a round: its share of the edges (round 0: all of them; later
+ * rounds: those with a vertex the last round froze) against the triangles, and of
+ * the triangles with a corner the last round froze against the edges. */
+static void failsafe_scan(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t round,
+                          uint32_t tid, uint32_t nth) {
+    const uint32_t count = cc->body_count;
+    const uint32_t *vbase = cc->vbase.ptr, *tbase = cc->tbase.ptr, *abase = cc->abase.ptr;
+    const uint32_t *ae = cc->aedge.ptr;
+    const uint8_t *active = cc->active.ptr, *fr = cc->frozen.ptr;
+    const uint8_t last = (uint8_t)round; /* fr of the vertices the last round froze */
+    cc_part *part = (cc_part *)cc->parts.ptr + tid;
+    part->nhits = 0;
+    part->oom = 0;
+    /* Round 0 (every edge) looks triangles up by their boxes at p (hashed just
+     * before it): far fewer per cell than the swept boxes grown by thickness +
+     * margin, which later rounds use (their boxes changed where vertices froze; the
+     * swept boxes still hold them). */
+    cc_fs f = {cc, bodies, part, round ? &cc->th : &cc->fh, round ? cc->tbox.ptr : cc->pbox.ptr,
+               round ? cc->tri_grow : 0.0f};
+    const uint32_t ne = abase[count], ntr = tbase[count];
+    const uint32_t e0 = (uint32_t)((uint64_t)ne * tid / nth), e1 = (uint32_t)((uint64_t)ne * (tid + 1) / nth);
+    const uint32_t t0 = (uint32_t)((uint64_t)ntr * tid / nth), t1 = (uint32_t)((uint64_t)ntr * (tid + 1) / nth);
+    for (uint32_t ba = 0; ba < count; ++ba) {
+        if (!active[ba]) continue;
+        const rbc_contact_body *A = &bodies[ba];
+        const uint32_t eb = abase[ba] > e0 ? abase[ba] : e0, ee = abase[ba + 1] < e1 ? abase[ba + 1] : e1;
+        for (uint32_t e = eb; e < ee; ++e) {
+            const uint32_t u0 = ae[2 * (size_t)e], u1 = ae[2 * (size_t)e + 1];
+            if (round && fr[vbase[ba] + u0] != last && fr[vbase[ba] + u1] != last) continue;
+            float P0[3], P1[3], lo[3], hi[3];
+            load3(P0, CONST3(A->p), u0);
+            load3(P1, CONST3(A->p), u1);
+            for (int k = 0; k < 3; ++k) lo[k] = min2(P0[k], P1[k]), hi[k] = max2(P0[k], P1[k]);
+            failsafe_query(&f, lo, hi, ba, u0, u1, UINT32_MAX);
+        }
+        if (!round) continue;
+        const uint32_t tb = tbase[ba] > t0 ? tbase[ba] : t0, te = tbase[ba + 1] < t1 ? tbase[ba + 1] : t1;
+        for (uint32_t g = tb; g < te; ++g) {
+            const uint32_t *tri = A->tris + 3 * (size_t)(g - tbase[ba]);
+            if (fr[vbase[ba] + tri[0]] != last && fr[vbase[ba] + tri[1]] != last &&
+                fr[vbase[ba] + tri[2]] != last)
+                continue;
+            float C[3][3], lo[3], hi[3];
+            for (int k = 0; k < 3; ++k) load3(C[k], CONST3(A->p), tri[k]);
+            for (int k = 0; k < 3; ++k) {
+                lo[k] = min2(C[0][k], min2(C[1][k], C[2][k]));
+                hi[k] = max2(C[0][k], max2(C[1][k], C[2][k]));
+            }
+            failsafe_query(&f, lo, hi, 0, 0, 0, g);
+        }
+    }
+}
+
+/* Thread 0, after a round's scan: the five vertices of every crossing found go back
+ * to x, in thread order (the same for any thread count: the scans only read).
+ * Returns the vertices newly frozen, or UINT32_MAX if a scan ran out of memory. */
+static uint32_t failsafe_apply(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t round,
+                               uint32_t nth) {
+    const uint32_t *vbase = cc->vbase.ptr, *tbase = cc->tbase.ptr, *tbody = cc->tbody.ptr;
+    uint8_t *fr = cc->frozen.ptr;
+    const uint8_t mark = (uint8_t)(round + 1);
+    const cc_part *parts = cc->parts.ptr;
+    uint32_t newly = 0;
+    for (uint32_t t = 0; t < nth; ++t) {
+        if (parts[t].oom) return UINT32_MAX;
+        const uint32_t *h = parts[t].hits.ptr;
+        for (uint32_t m = 0; m < parts[t].nhits; ++m, h += 4) {
+            rbc_contact_body *A = &bodies[h[0]];
+            const uint32_t bt = tbody[h[3]];
+            rbc_contact_body *T = &bodies[bt];
+            const uint32_t *tri = T->tris + 3 * (size_t)(h[3] - tbase[bt]);
+            freeze(A, fr, vbase[h[0]], h[1], mark, &newly);
+            freeze(A, fr, vbase[h[0]], h[2], mark, &newly);
+            for (int k = 0; k < 3; ++k) freeze(T, fr, vbase[bt], tri[k], mark, &newly);
+        }
+    }
+    return newly;
+}
+
+int32_t rbc_clothcontact_failsafe_mt(rbc_clothcontact *cc, rbc_contact_body *bodies,
+                                     uint32_t count, uint32_t tid, uint32_t nth,
+                                     void (*sync)(void *), void *sync_ctx, uint32_t *frozen) {
+    if (nth == 0) nth = 1;
+    if (tid == 0) {
+        cc->stage_rc = RBC_OK;
+        cc->fs_newly = 0;
+        const int run = count == cc->body_count && cc->ekey_count;
+        const uint32_t nv = run ? ((const uint32_t *)cc->vbase.ptr)[count] : 0;
+        if (!run) {
+            cc->stage_rc = 1; /* nothing to do */
+        } else if (!buf_reserve(&cc->alloc, &cc->frozen, nv ? nv : 1, 1, 0) ||
+                   !buf_reserve(&cc->alloc, &cc->pbox,
+                                (size_t)((const uint32_t *)cc->tbase.ptr)[count] + 1,
+                                6 * sizeof(float), 0) ||
+                   !parts_reserve(cc, nth)) {
+            cc->stage_rc = RBC_ERR_OUT_OF_MEMORY;
+        } else {
+            memset(cc->frozen.ptr, 0, nv);
+        }
+    }
+    if (sync) sync(sync_ctx);
+    uint32_t total = 0;
+    if (cc->stage_rc == RBC_OK) {
+        /* Round 0 tests every edge; a later round only what the last one moved: edges
+         * with a vertex it froze against all triangles, and triangles with a corner it
+         * froze against all edges. Each round freezes another vertex or ends, and a
+         * pair whose five vertices are all back at x does not cross (x did not). */
+        for (uint32_t round = 0; round < 250; ++round) {
+            failsafe_boxes(cc, bodies, tid, nth);
+            if (sync) sync(sync_ctx);
+            if (round == 0 && tid == 0 &&
+                !hash_build(cc, &cc->fh, ((const uint32_t *)cc->tbase.ptr)[count], cc->pbox.ptr,
+                            cc->tbody.ptr, NULL, 0.0f, cc->active.ptr))
+                cc->stage_rc = RBC_ERR_OUT_OF_MEMORY;
+            if (round == 0 && sync) sync(sync_ctx);
+            if (cc->stage_rc != RBC_OK) break;
+            failsafe_scan(cc, bodies, round, tid, nth);
+            if (sync) sync(sync_ctx);
+            if (tid == 0) {
+                const uint32_t newly = failsafe_apply(cc, bodies, round, nth);
+                if (newly == UINT32_MAX) cc->stage_rc = RBC_ERR_OUT_OF_MEMORY;
+                cc->fs_newly = newly == UINT32_MAX ? 0 : newly;
+            }
+            if (sync) sync(sync_ctx);
+            total += cc->fs_newly;
+            if (!cc->fs_newly) break;
+            if (sync) sync(sync_ctx); /* everyone has read fs_newly */
+        }
+    }
+    const int32_t rc = cc->stage_rc == 1 ? RBC_OK : cc->stage_rc;
+    if (frozen) *frozen = total;
+    if (sync) sync(sync_ctx);
+    return rc;
+}
+
+uint32_t rbc_clothcontact_failsafe(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count) {
+    uint32_t frozen = 0;
+    rbc_clothcontact_failsafe_mt(cc, bodies, count, 0, 1, NULL, NULL, &frozen);
+    return frozen;
 }

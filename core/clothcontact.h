@@ -143,6 +143,16 @@ void rbc_clothcontact_destroy(rbc_clothcontact *cc);
 int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count,
                                 float margin);
 
+/* rbc_clothcontact_detect on nth threads: every thread tid in [0, nth) calls it with
+ * the same arguments, and sync(sync_ctx) must be a barrier of those threads (NULL
+ * for one thread). Thread 0 builds the boxes and hashes, each thread finds the
+ * contacts of its share of the vertices, thread 0 joins the lists and adds the edge
+ * contacts: the list is the single thread's, bit for bit. Every thread gets the
+ * result. */
+int32_t rbc_clothcontact_detect_mt(rbc_clothcontact *cc, rbc_contact_body *bodies,
+                                   uint32_t count, float margin, uint32_t tid, uint32_t nth,
+                                   void (*sync)(void *), void *sync_ctx);
+
 /* One Gauss-Seidel pass over the contacts in list order, mass-weighted (pinned =
  * infinite mass). Vertex-triangle: while the vertex lies over the triangle (its
  * closest point on the triangle is within thickness of its projection on the plane),
@@ -188,9 +198,20 @@ void rbc_clothcontact_friction(rbc_clothcontact *cc, rbc_contact_body *bodies, u
  * through another layer; a frozen vertex loses its velocity for one substep, far
  * less harm than a layer passing through (Bridson, Fedkiw and Anderson 2002 end
  * with rigid impact zones for the same reason). Static: a crossing that starts and
- * ends within one substep is the swept detection's business. Single-threaded, in
- * body and edge order. Returns the vertices frozen. */
+ * ends within one substep is the swept detection's business. Each round tests
+ * against the state it started from and then freezes what it found. Returns the
+ * vertices frozen (0 if out of memory: see rbc_clothcontact_failsafe_mt). */
 uint32_t rbc_clothcontact_failsafe(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count);
+
+/* The fail-safe on nth threads, called by every thread tid in [0, nth) with sync a
+ * barrier of them (as rbc_clothcontact_detect_mt): in each round every thread tests
+ * its share of the edges and triangles against the state the round started from,
+ * then thread 0 freezes the vertices of every crossing found, in thread order, so
+ * the result is the same for any thread count. *frozen (every thread): the vertices
+ * frozen. Returns RBC_OK, or RBC_ERR_OUT_OF_MEMORY (the crossings may remain). */
+int32_t rbc_clothcontact_failsafe_mt(rbc_clothcontact *cc, rbc_contact_body *bodies,
+                                     uint32_t count, uint32_t tid, uint32_t nth,
+                                     void (*sync)(void *), void *sync_ctx, uint32_t *frozen);
 
 uint32_t rbc_clothcontact_count(const rbc_clothcontact *cc);
 /* Vertices whose contacts the last detect cut to RBC_CC_MAX_PER_VERTEX. */

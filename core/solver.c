@@ -1381,6 +1381,8 @@ static void run_contact_callback(step_ctx *ctx, uint32_t sub) {
 /* Find this substep's contacts from x and the prediction p (collide.h,
  * clothcontact.h). Lists that overflow grow (thread 0, between barriers; a steady
  * scene stops allocating) and detection runs again. */
+static void pool_sync(void *pool) { rbc_pool_barrier(pool); }
+
 static void detect_contacts(step_ctx *ctx, uint32_t sub, uint32_t tid, uint32_t nt) {
     rbc_solver *s = ctx->s;
     rbc_pool *pool = s->pool;
@@ -1421,35 +1423,43 @@ static void detect_contacts(step_ctx *ctx, uint32_t sub, uint32_t tid, uint32_t 
      * the step's end, was 8x cheaper but missed contacts where edges whip and took
      * sides at the step's start that were wrong by its end: stacked layers passed
      * through each other.) */
-    if (ctx->cc_active && ctx->result == RBC_OK && tid == 0) {
-        for (uint32_t k = 0; k < s->cloth_count; ++k) {
-            rbc_cloth_state *c = s->cloths[k];
-            rbc_contact_body *b = &s->cc_bodies[k];
-            memset(b, 0, sizeof *b);
-            b->n = c->topo.n;
-            for (int a = 0; a < 3; ++a) {
-                b->p[a] = c->p[a];
-                b->x[a] = c->x[a];
+    if (ctx->cc_active && ctx->result == RBC_OK) {
+        if (tid == 0) {
+            for (uint32_t k = 0; k < s->cloth_count; ++k) {
+                rbc_cloth_state *c = s->cloths[k];
+                rbc_contact_body *b = &s->cc_bodies[k];
+                memset(b, 0, sizeof *b);
+                b->n = c->topo.n;
+                for (int a = 0; a < 3; ++a) {
+                    b->p[a] = c->p[a];
+                    b->x[a] = c->x[a];
+                }
+                b->rest[0] = c->topo.rest_x;
+                b->rest[1] = c->topo.rest_y;
+                b->rest[2] = c->topo.rest_z;
+                b->mass = c->topo.mass;
+                b->pinned = c->pinned;
+                b->tri_count = c->collision_flags ? c->tri_count : 0;
+                b->tris = c->tris;
+                b->thickness = c->thickness;
+                b->friction = c->friction;
+                b->self = (c->collision_flags & RBC_CLOTH_COLLIDE_SELF) != 0;
+                b->others = (c->collision_flags & RBC_CLOTH_COLLIDE_CLOTHS) != 0;
             }
-            b->rest[0] = c->topo.rest_x;
-            b->rest[1] = c->topo.rest_y;
-            b->rest[2] = c->topo.rest_z;
-            b->mass = c->topo.mass;
-            b->pinned = c->pinned;
-            b->tri_count = c->collision_flags ? c->tri_count : 0;
-            b->tris = c->tris;
-            b->thickness = c->thickness;
-            b->friction = c->friction;
-            b->self = (c->collision_flags & RBC_CLOTH_COLLIDE_SELF) != 0;
-            b->others = (c->collision_flags & RBC_CLOTH_COLLIDE_CLOTHS) != 0;
         }
         /* As for colliders: the solve moves particles by up to about half a spring. */
         float margin = 0.0f;
         for (uint32_t k = 0; k < s->cloth_count; ++k)
             if (s->cloths[k]->collision_flags && 0.5f * s->cloths[k]->mean_rest > margin)
                 margin = 0.5f * s->cloths[k]->mean_rest;
-        int32_t rc = rbc_clothcontact_detect(s->cc, s->cc_bodies, s->cloth_count, margin);
-        if (rc == RBC_ERR_UNSTABLE)
+        rbc_pool_barrier(pool);
+        /* Every thread finds the contacts of its share of the vertices (the list is
+         * the same for any thread count). */
+        int32_t rc = rbc_clothcontact_detect_mt(s->cc, s->cc_bodies, s->cloth_count, margin, tid,
+                                                nt, pool_sync, pool);
+        if (tid != 0) {
+            /* thread 0 reports */
+        } else if (rc == RBC_ERR_UNSTABLE)
             ctx->result = rbc_fail(ctx->err, ctx->errlen, RBC_ERR_UNSTABLE,
                                    "cloth contact: more than %u contacts per vertex at substep %u "
                                    "of %u: the cloths are crushed or tangled beyond what contact "
@@ -1460,9 +1470,11 @@ static void detect_contacts(step_ctx *ctx, uint32_t sub, uint32_t tid, uint32_t 
         else if (rc != RBC_OK)
             ctx->result = rbc_fail(ctx->err, ctx->errlen, RBC_ERR_OUT_OF_MEMORY,
                                    "out of memory for cloth contacts at substep %u", sub);
-        for (uint32_t k = 0; k < s->cloth_count; ++k)
-            for (int a = 0; a < 3; ++a) s->cc_bodies[k].p[a] = s->cloths[k]->p[a];
-        s->last_cloth_contacts = rbc_clothcontact_count(s->cc);
+        if (tid == 0) {
+            for (uint32_t k = 0; k < s->cloth_count; ++k)
+                for (int a = 0; a < 3; ++a) s->cc_bodies[k].p[a] = s->cloths[k]->p[a];
+            s->last_cloth_contacts = rbc_clothcontact_count(s->cc);
+        }
     }
     if (ctx->cc_active) rbc_pool_barrier(pool);
 }
@@ -1588,12 +1600,20 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
         }
         if (ctx->cc_active) {
             STAGE_BEGIN();
-            if (tid == 0) {
-                rbc_clothcontact_friction(s->cc, s->cc_bodies, s->cloth_count);
-                /* The last word: no edge ends the substep through another layer. */
-                rbc_clothcontact_failsafe(s->cc, s->cc_bodies, s->cloth_count);
-            }
+            if (tid == 0) rbc_clothcontact_friction(s->cc, s->cc_bodies, s->cloth_count);
+            rbc_pool_barrier(pool);
+            /* The last word: no edge ends the substep through another layer. */
+            uint32_t frozen = 0;
+            if (rbc_clothcontact_failsafe_mt(s->cc, s->cc_bodies, s->cloth_count, tid, nt,
+                                             pool_sync, pool, &frozen) != RBC_OK &&
+                tid == 0)
+                ctx->result = rbc_fail(ctx->err, ctx->errlen, RBC_ERR_OUT_OF_MEMORY,
+                                       "out of memory for the cloth contact fail-safe at "
+                                       "substep %u; the world was restored to its state "
+                                       "before the step", sub);
+            if (tid == 0) s->last_frozen += frozen;
             STAGE_END(collide);
+            if (ctx->result != RBC_OK) return;
         }
         if (s->callback) {
             /* The host's corrections count as work it does: the change of energy. */
@@ -1787,6 +1807,7 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
         s->cc_bodies_cap = s->cloth_cap;
     }
     s->last_contacts = s->last_cloth_contacts = 0;
+    s->last_frozen = 0;
     rbc_attachments_update(s);
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];

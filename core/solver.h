@@ -168,6 +168,8 @@ typedef struct rbc_solver {
     struct rbc_contact_body *cc_bodies; /* [cloth_cap] */
     uint32_t cc_bodies_cap;
     uint32_t last_contacts, last_cloth_contacts; /* found in the last substep */
+    uint32_t last_frozen;       /* vertices the cloth contact fail-safe froze in the last
+                                   step (over its substeps) */
     /* Host contacts (rbc_contact_fn) of the current substep, projected by thread 0. */
     rbc_contact_fn contact_fn;
     void *contact_user;
