@@ -93,7 +93,7 @@ extern "C" {
 /// Major version of this ABI: incompatible changes bump it.
 #define RBC_ABI_VERSION_MAJOR 1
 /// Minor version of this ABI: appended functions or fields bump it.
-#define RBC_ABI_VERSION_MINOR 4
+#define RBC_ABI_VERSION_MINOR 5
 /// (major << 16) | minor, as returned by rbc_abi_version().
 #define RBC_ABI_VERSION ((RBC_ABI_VERSION_MAJOR << 16) | RBC_ABI_VERSION_MINOR)
 
@@ -748,7 +748,20 @@ typedef struct rbc_world_stats {
     /// cap (each such step is also logged, at 1, 2, 4, ...).
     uint64_t target_missed_steps;
     uint64_t target_capped_steps;
+    /* --- 1.5 --- */
+    /// Cloth contact's fail-safe in the last step (summed over its substeps): the
+    /// vertices it sent back to where their substep started because an edge ended
+    /// the substep through a triangle the contact solve had not kept it from (they
+    /// lose that substep's motion). 0 in a scene whose contacts hold.
+    uint32_t cloth_contact_frozen;
+    /// Vertices of the last step's last substep with more triangles in reach than a
+    /// vertex keeps contacts with (64, the nearest; as many vertex-vertex contacts):
+    /// cloth crushed, or folded through itself (a cloth without self contact).
+    uint32_t cloth_contact_capped;
 } rbc_world_stats;
+
+/// sizeof(rbc_world_stats) in ABI 1.4 (before `cloth_contact_frozen`).
+#define RBC_WORLD_STATS_SIZE_V1_4 ((uint32_t)offsetof(rbc_world_stats, cloth_contact_frozen))
 
 /// sizeof(rbc_world_stats) in ABI 1.3 (before `strain_rms`).
 #define RBC_WORLD_STATS_SIZE_V1_3 ((uint32_t)offsetof(rbc_world_stats, strain_rms))

@@ -745,7 +745,7 @@ static int keep_nearest(cc_detect *d, uint32_t from) {
     for (uint32_t k = 0; k < cap; ++k) key[k].d = (float)key[k].i;
     qsort(key, cap, sizeof *key, cmp_key);
     for (uint32_t k = 0; k < cap; ++k) c[k] = c[key[k].i];
-    (*d->capped)++;
+    if (c[0].kind == RBC_CONTACT_VT) (*d->capped)++; /* a vertex once, by its triangles */
     *d->n = from + cap;
     return 1;
 }

@@ -214,7 +214,7 @@ int32_t rbc_clothcontact_failsafe_mt(rbc_clothcontact *cc, rbc_contact_body *bod
                                      void (*sync)(void *), void *sync_ctx, uint32_t *frozen);
 
 uint32_t rbc_clothcontact_count(const rbc_clothcontact *cc);
-/* Vertices whose contacts the last detect cut to RBC_CC_MAX_PER_VERTEX. */
+/* Vertices whose vertex-triangle contacts the last detect cut to RBC_CC_MAX_PER_VERTEX. */
 uint32_t rbc_clothcontact_capped(const rbc_clothcontact *cc);
 /* The contacts of the last detect (valid until the next detect or destroy). */
 const rbc_contact *rbc_clothcontact_list(const rbc_clothcontact *cc);

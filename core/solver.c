@@ -1474,6 +1474,7 @@ static void detect_contacts(step_ctx *ctx, uint32_t sub, uint32_t tid, uint32_t 
             for (uint32_t k = 0; k < s->cloth_count; ++k)
                 for (int a = 0; a < 3; ++a) s->cc_bodies[k].p[a] = s->cloths[k]->p[a];
             s->last_cloth_contacts = rbc_clothcontact_count(s->cc);
+            s->last_cloth_capped = rbc_clothcontact_capped(s->cc);
         }
     }
     if (ctx->cc_active) rbc_pool_barrier(pool);
@@ -1807,7 +1808,7 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
         s->cc_bodies_cap = s->cloth_cap;
     }
     s->last_contacts = s->last_cloth_contacts = 0;
-    s->last_frozen = 0;
+    s->last_frozen = s->last_cloth_capped = 0;
     rbc_attachments_update(s);
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];

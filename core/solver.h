@@ -170,6 +170,8 @@ typedef struct rbc_solver {
     uint32_t last_contacts, last_cloth_contacts; /* found in the last substep */
     uint32_t last_frozen;       /* vertices the cloth contact fail-safe froze in the last
                                    step (over its substeps) */
+    uint32_t last_cloth_capped; /* vertices whose cloth contacts were cut to the cap in
+                                   the last substep */
     /* Host contacts (rbc_contact_fn) of the current substep, projected by thread 0. */
     rbc_contact_fn contact_fn;
     void *contact_user;

@@ -485,16 +485,18 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
     if (rc) return rc;
     if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: stats is NULL", fn);
     if (out->struct_size != sizeof(rbc_world_stats) &&
+        out->struct_size != RBC_WORLD_STATS_SIZE_V1_4 &&
         out->struct_size != RBC_WORLD_STATS_SIZE_V1_3 &&
         out->struct_size != RBC_WORLD_STATS_SIZE_V1_2 &&
         out->struct_size != RBC_WORLD_STATS_SIZE_V1_1 &&
         out->struct_size != RBC_WORLD_STATS_SIZE_V1_0)
         return world_error(w, RBC_ERR_INVALID_ARGUMENT,
                            "%s: stats->struct_size is %u, which matches no released version "
-                           "(this library knows %zu, the 1.3 size %u, the 1.2 size %u, the 1.1 "
-                           "size %u and the 1.0 size %u)",
+                           "(this library knows %zu, the 1.4 size %u, the 1.3 size %u, the 1.2 "
+                           "size %u, the 1.1 size %u and the 1.0 size %u)",
                            fn, out->struct_size, sizeof(rbc_world_stats),
-                           RBC_WORLD_STATS_SIZE_V1_3, RBC_WORLD_STATS_SIZE_V1_2,
+                           RBC_WORLD_STATS_SIZE_V1_4, RBC_WORLD_STATS_SIZE_V1_3,
+                           RBC_WORLD_STATS_SIZE_V1_2,
                            RBC_WORLD_STATS_SIZE_V1_1,
                            RBC_WORLD_STATS_SIZE_V1_0);
     rbc_solver *s = &w->solver;
@@ -579,6 +581,8 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
                                          : s->settings.max_substeps;
     st.target_missed_steps = s->tgt_missed_steps;
     st.target_capped_steps = s->tgt_capped_steps;
+    st.cloth_contact_frozen = s->last_frozen;
+    st.cloth_contact_capped = s->last_cloth_capped;
     memcpy(out, &st, out->struct_size); /* only what the host's struct holds */
     return RBC_OK;
 }

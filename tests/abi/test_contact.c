@@ -663,7 +663,7 @@ static void test_contact_cap(void) {
         cd.collision_flags = RBC_CLOTH_COLLIDE_CLOTHS;
         CHECK_EQ(rbc_cloth_create(w, &cd, &cl[b]), RBC_OK);
     }
-    uint32_t most = 0;
+    uint32_t most = 0, capped = 0;
     for (int step = 0; step < 5; ++step) {
         CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_OK);
         rbc_world_stats st;
@@ -671,8 +671,13 @@ static void test_contact_cap(void) {
         st.struct_size = sizeof st;
         CHECK_EQ(rbc_world_get_stats(w, &st), RBC_OK);
         if (st.cloth_contacts > most) most = st.cloth_contacts;
+        if (st.cloth_contact_capped > capped) capped = st.cloth_contact_capped;
+        CHECK(st.cloth_contact_capped <= 2 * g.vertex_count);
     }
     const uint32_t n = 2 * g.vertex_count;
+    /* stats.cloth_contact_capped (1.5) says so: most vertices were cut to the cap. */
+    printf("contact cap: up to %u of %u vertices at the cap\n", capped, n);
+    CHECK(capped > n / 2);
     printf("contact cap: %u vertices crushed into a 2 cm cube: at most %u cloth contacts "
            "(%.1f per vertex; cap 128 per vertex + edge contacts)\n",
            n, most, (double)most / n);

@@ -201,6 +201,7 @@ static double least_distance(const layer *A, const layer *B, double reach) {
 typedef struct run_result {
     int first_piercing;     /* frame (1-based), 0 = none */
     uint32_t max_crossings; /* in one frame */
+    uint32_t frozen, frozen_frames; /* fail-safe (stats 1.5): vertices frozen, frames it acted */
     uint32_t max_contacts;
     double least;           /* least vertex-to-other-layer distance over all frames (m) */
     int failed_step;        /* frame whose step failed, 0 = none */
@@ -273,6 +274,8 @@ static run_result run(int frames, uint32_t threads, int verbose) {
         if (hits && !R.first_piercing) R.first_piercing = f;
         if (hits > R.max_crossings) R.max_crossings = hits;
         if (st.cloth_contacts > R.max_contacts) R.max_contacts = st.cloth_contacts;
+        R.frozen += st.cloth_contact_frozen;
+        R.frozen_frames += st.cloth_contact_frozen > 0;
         if (least < R.least) R.least = least;
         double top = 0.0;
         for (uint32_t i = 0; i < L[NL - 1].n; ++i) top += L[NL - 1].x[3 * i + 1];
@@ -280,9 +283,9 @@ static run_result run(int frames, uint32_t threads, int verbose) {
         if (top > R.top) R.top = top;
         if (verbose)
             printf("frame %2d: %4u crossings, %6u contacts, least distance %.3f mm (thickness "
-                   "%.1f), kinetic %.3e J, %.2f ms\n",
+                   "%.1f), kinetic %.3e J, %.2f ms, fail-safe froze %u\n",
                    f, hits, st.cloth_contacts, least * 1e3, THICK * 1e3, st.kinetic_energy,
-                   st.step_ms);
+                   st.step_ms, st.cloth_contact_frozen);
     }
     R.final = malloc(sizeof(float) * 3 * NL * NX * NX);
     for (int k = 0; k < NL; ++k) {
@@ -301,8 +304,9 @@ int main(int argc, char **argv) {
     run_result R = run(frames, threads, 1);
     printf("four layers lifted by a sphere: first piercing at frame %d (0 = none), most "
            "crossings in a frame %u, most contacts %u, least distance %.3f mm (thickness %.1f), "
-           "top layer up to %.3f m\n",
-           R.first_piercing, R.max_crossings, R.max_contacts, R.least * 1e3, THICK * 1e3, R.top);
+           "top layer up to %.3f m; the fail-safe froze %u vertices in %u of %d frames\n",
+           R.first_piercing, R.max_crossings, R.max_contacts, R.least * 1e3, THICK * 1e3, R.top,
+           R.frozen, R.frozen_frames, frames);
     CHECK_EQ(R.failed_step, 0);
     CHECK_EQ(R.first_piercing, 0);
     /* The sphere really carried the stack: at frame 15 it has risen 0.25 m; the
@@ -312,6 +316,7 @@ int main(int argc, char **argv) {
     /* The same run on two threads: bitwise the same. */
     run_result R2 = run(frames, threads == 1 ? 2u : 1u, 0);
     CHECK(memcmp(R.final, R2.final, sizeof(float) * 3 * NL * NX * NX) == 0);
+    CHECK_EQ(R.frozen, R2.frozen);
     free(R.final);
     free(R2.final);
     return check_report("abi_layer_order");

@@ -175,6 +175,13 @@ static void test_sizes(void) {
         clean = 1;
         for (size_t k = RBC_WORLD_STATS_SIZE_V1_3; k < sizeof sb; k++) clean &= sb[k] == 0xAB;
         CHECK(clean);
+        /* And a 1.4 host: the 1.5 fields are not written. */
+        memset(sb, 0xAB, sizeof sb);
+        ((rbc_world_stats *)sb)->struct_size = RBC_WORLD_STATS_SIZE_V1_4;
+        CHECK_EQ(rbc_world_get_stats(w, (rbc_world_stats *)sb), RBC_OK);
+        clean = 1;
+        for (size_t k = RBC_WORLD_STATS_SIZE_V1_4; k < sizeof sb; k++) clean &= sb[k] == 0xAB;
+        CHECK(clean);
         rbc_world_stats st = test_stats(w);
         CHECK_EQ(st.iteration_mode, RBC_ITERATE_FIXED);
         CHECK_EQ(st.substeps, 1);
