@@ -360,7 +360,8 @@ static int simulate(run_state *s) {
             return 1;
         }
         fputs("frame,step_ms,collide_ms,kinetic_energy,potential_energy,energy_budget,"
-              "energy_removed,collider_contacts,cloth_contacts,max_strain,strain_rms\n",
+              "energy_removed,collider_contacts,cloth_contacts,max_strain,strain_rms,"
+              "cloth_contact_frozen,cloth_contact_capped\n",
               fs);
     }
     int rc = simulate_frames(s, frames, show_progress, start, &last_draw, err, fs);
@@ -395,10 +396,11 @@ static int simulate_frames(run_state *s, uint32_t frames, int show_progress, dou
             return report_api(api, r);
         if (fs) {
             const rbc_world_stats *st = &s->stats;
-            fprintf(fs, "%u,%.4f,%.4f,%.9g,%.9g,%.9g,%.9g,%u,%u,%.6g,%.6g\n", frame + 1,
+            fprintf(fs, "%u,%.4f,%.4f,%.9g,%.9g,%.9g,%.9g,%u,%u,%.6g,%.6g,%u,%u\n", frame + 1,
                     st->step_ms, st->collide_ms, st->kinetic_energy, st->potential_energy,
                     st->energy_budget, st->energy_removed, st->collider_contacts,
-                    st->cloth_contacts, st->max_strain, st->strain_rms);
+                    st->cloth_contacts, st->max_strain, st->strain_rms,
+                    st->cloth_contact_frozen, st->cloth_contact_capped);
             fflush(fs);
         }
         cli_timings_add(&s->timings, &s->stats);

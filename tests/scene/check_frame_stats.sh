@@ -5,14 +5,14 @@
 # (kinetic_energy > 0), stretch (max_strain > 0; strain_rms <= max_strain).
 csv=$1
 frames=$2
-header="frame,step_ms,collide_ms,kinetic_energy,potential_energy,energy_budget,energy_removed,collider_contacts,cloth_contacts,max_strain,strain_rms"
+header="frame,step_ms,collide_ms,kinetic_energy,potential_energy,energy_budget,energy_removed,collider_contacts,cloth_contacts,max_strain,strain_rms,cloth_contact_frozen,cloth_contact_capped"
 [ -f "$csv" ] || { echo "no file $csv"; exit 1; }
 first=$(head -n 1 "$csv")
 [ "$first" = "$header" ] || { echo "header is '$first', expected '$header'"; exit 1; }
 awk -F, -v frames="$frames" '
 NR == 1 { next }
 {
-    if (NF != 11) { printf "row %d has %d fields\n", NR - 1, NF; bad = 1; exit }
+    if (NF != 13) { printf "row %d has %d fields\n", NR - 1, NF; bad = 1; exit }
     if ($1 != NR - 1) { printf "row %d is frame %s\n", NR - 1, $1; bad = 1; exit }
     for (i = 2; i <= NF; ++i)
         if ($i !~ /^-?[0-9]+(\.[0-9]*)?([eE][-+]?[0-9]+)?$/) {
