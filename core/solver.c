@@ -1447,11 +1447,17 @@ static void detect_contacts(step_ctx *ctx, uint32_t sub, uint32_t tid, uint32_t 
                 b->others = (c->collision_flags & RBC_CLOTH_COLLIDE_CLOTHS) != 0;
             }
         }
-        /* As for colliders: the solve moves particles by up to about half a spring. */
+        /* A quarter of a spring: the solve moves particles from their prediction by
+         * up to about half a spring where they hit something, and what a smaller
+         * margin misses the fail-safe catches. Half a spring (as for colliders) made
+         * 2.6 times the contacts in the resting four-layer pile (each vertex reached
+         * the next layer's triangles 6 mm away) and the scene twice as slow: 180
+         * frames 177 s against 91 s on two threads, with the same largest strain
+         * (0.052) and kinetic energy (0.089 J) and no vertex frozen in either. */
         float margin = 0.0f;
         for (uint32_t k = 0; k < s->cloth_count; ++k)
-            if (s->cloths[k]->collision_flags && 0.5f * s->cloths[k]->mean_rest > margin)
-                margin = 0.5f * s->cloths[k]->mean_rest;
+            if (s->cloths[k]->collision_flags && 0.25f * s->cloths[k]->mean_rest > margin)
+                margin = 0.25f * s->cloths[k]->mean_rest;
         rbc_pool_barrier(pool);
         /* Every thread finds the contacts of its share of the vertices (the list is
          * the same for any thread count). */
