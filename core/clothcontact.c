@@ -80,6 +80,11 @@ struct rbc_clothcontact {
     cc_buf aedge;               /* uint32 [2 per edge]: every edge's ends, ascending */
     cc_buf frozen;              /* uint8 [vertices]: the fail-safe put it back to x */
     cc_buf pbox;                /* float [6 per triangle]: its box at p, in a fail-safe round */
+    /* The fail-safe's impact zones (per vertex, global): union-find parent (UINT32_MAX:
+     * in none), p before the fail-safe, the zones' vertices in the order they joined,
+     * and per root the mass-weighted sum of p - x (x, y, z, mass) and flags. */
+    cc_buf zparent, zp0, zlist, zsum, zflag;
+    uint32_t zcount;
     uint32_t capped;            /* vertices whose contacts the last detect cut to the cap */
     /* Threads: each detects the contacts of its share of the vertices into its own
      * lists, and scans its share of the edges in a fail-safe round. */
@@ -152,7 +157,8 @@ void rbc_clothcontact_destroy(rbc_clothcontact *cc) {
     cc_buf *bufs[] = {&cc->vbase, &cc->tbase, &cc->bgrow, &cc->active, &cc->vbox,
                       &cc->tbox, &cc->vbody, &cc->tbody, &cc->trec, &cc->contacts,
                       &cc->bbox, &cc->ebase, &cc->bedge, &cc->ekey, &cc->escratch,
-                      &cc->abase, &cc->aedge, &cc->frozen, &cc->pbox};
+                      &cc->abase, &cc->aedge, &cc->frozen, &cc->pbox, &cc->zparent,
+                      &cc->zp0, &cc->zlist, &cc->zsum, &cc->zflag};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) buf_free(&a, bufs[k]);
     cc_part *parts = cc->parts.ptr;
     for (uint32_t t = 0; t < cc->part_cap; ++t) {
@@ -182,7 +188,8 @@ size_t rbc_clothcontact_bytes(const rbc_clothcontact *cc) {
                             &cc->trec, &cc->th.start, &cc->th.id, &cc->th.big,
                             &cc->vh.start, &cc->vh.id, &cc->vh.big, &cc->ebase, &cc->bedge,
                             &cc->ekey, &cc->escratch, &cc->abase, &cc->aedge, &cc->frozen,
-                            &cc->parts, &cc->pbox, &cc->fh.start, &cc->fh.id, &cc->fh.big};
+                            &cc->parts, &cc->pbox, &cc->fh.start, &cc->fh.id, &cc->fh.big,
+                            &cc->zparent, &cc->zp0, &cc->zlist, &cc->zsum, &cc->zflag};
     size_t b = sizeof *cc;
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) b += bufs[k]->bytes;
     const cc_part *parts = cc->parts.ptr;
@@ -1673,15 +1680,7 @@ static int seg_crosses_tri(const float p[3], const float q[3], const float a[3],
     return (s1 > 0.0 && s2 > 0.0 && s3 > 0.0) || (s1 < 0.0 && s2 < 0.0 && s3 < 0.0);
 }
 
-/* fr[v]: 0 = not frozen, r + 1 = frozen in round r. */
-static inline void freeze(rbc_contact_body *B, uint8_t *fr, uint32_t base, uint32_t i,
-                          uint8_t mark, uint32_t *newly) {
-    if (fr[base + i] || inv_mass(B, i) == 0.0f) return;
-    fr[base + i] = mark;
-    for (int k = 0; k < 3; ++k) B->p[k][i] = B->x[k][i];
-    (*newly)++;
-}
-
+/* fr[v]: 0 = untouched, r + 1 = moved by round r. */
 typedef struct cc_fs {
     rbc_clothcontact *cc;
     rbc_contact_body *bodies;
@@ -1871,30 +1870,117 @@ static void failsafe_scan(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32
     }
 }
 
-/* Thread 0, after a round's scan: the five vertices of every crossing found go back
- * to x, in thread order (the same for any thread count: the scans only read).
- * Returns the vertices newly frozen, or UINT32_MAX if a scan ran out of memory. */
+static uint32_t zone_find(uint32_t *parent, uint32_t g) {
+    while (parent[g] != g) {
+        parent[g] = parent[parent[g]];
+        g = parent[g];
+    }
+    return g;
+}
+
+enum { CC_ZONE_TOUCHED = 1, CC_ZONE_PINNED = 2, CC_ZONE_REST = 4 };
+
+/* Thread 0, after a round's scan: the five vertices of every crossing found join an
+ * impact zone (Bridson, Fedkiw and Anderson 2002; Harmon et al. 2008): zones that
+ * share a vertex merge, and every zone this round touched moves rigidly from x by
+ * the mass-weighted mean of its vertices' motion over the substep (p - x before the
+ * fail-safe). x had no crossing and a common translation keeps every pair inside a
+ * zone as it was at x, so a zone has none within; crossings with the rest are the
+ * next round's. A zone with a pinned vertex, or one found crossing again without
+ * growing, goes back to x (stops), which also has none. Stopping every zone
+ * instead (the fail-safe before) left stopped vertices where they were while their
+ * neighbours moved on: in the funnel that was most of its tearing. Hits in thread
+ * order: the same for any thread count. Returns the vertices that moved this round
+ * (0: no crossing was found), or UINT32_MAX if a scan ran out of memory. */
 static uint32_t failsafe_apply(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t round,
                                uint32_t nth) {
     const uint32_t *vbase = cc->vbase.ptr, *tbase = cc->tbase.ptr, *tbody = cc->tbody.ptr;
-    uint8_t *fr = cc->frozen.ptr;
-    const uint8_t mark = (uint8_t)(round + 1);
+    const uint32_t *vbody = cc->vbody.ptr;
+    uint8_t *fr = cc->frozen.ptr, *zf = cc->zflag.ptr;
+    uint32_t *parent = cc->zparent.ptr, *zl = cc->zlist.ptr;
+    float *p0 = cc->zp0.ptr;
+    double *sum = cc->zsum.ptr;
+    const uint8_t mark = (uint8_t)(round + 1 < 255 ? round + 1 : 255);
     const cc_part *parts = cc->parts.ptr;
-    uint32_t newly = 0;
+    uint32_t changed = 0; /* vertices that joined, zones merged, zones stopped */
     for (uint32_t t = 0; t < nth; ++t) {
         if (parts[t].oom) return UINT32_MAX;
         const uint32_t *h = parts[t].hits.ptr;
         for (uint32_t m = 0; m < parts[t].nhits; ++m, h += 4) {
-            rbc_contact_body *A = &bodies[h[0]];
             const uint32_t bt = tbody[h[3]];
-            rbc_contact_body *T = &bodies[bt];
-            const uint32_t *tri = T->tris + 3 * (size_t)(h[3] - tbase[bt]);
-            freeze(A, fr, vbase[h[0]], h[1], mark, &newly);
-            freeze(A, fr, vbase[h[0]], h[2], mark, &newly);
-            for (int k = 0; k < 3; ++k) freeze(T, fr, vbase[bt], tri[k], mark, &newly);
+            const uint32_t *tri = bodies[bt].tris + 3 * (size_t)(h[3] - tbase[bt]);
+            const uint32_t g[5] = {vbase[h[0]] + h[1], vbase[h[0]] + h[2], vbase[bt] + tri[0],
+                                   vbase[bt] + tri[1], vbase[bt] + tri[2]};
+            uint32_t root = UINT32_MAX, grew = 0;
+            for (int k = 0; k < 5; ++k) {
+                const uint32_t v = g[k];
+                if (parent[v] == UINT32_MAX) {
+                    const rbc_contact_body *B = &bodies[vbody[v]];
+                    const uint32_t i = v - vbase[vbody[v]];
+                    parent[v] = v;
+                    zf[v] = inv_mass(B, i) == 0.0f ? CC_ZONE_PINNED : 0;
+                    for (int a = 0; a < 3; ++a) p0[3 * (size_t)v + a] = B->p[a][i];
+                    zl[cc->zcount++] = v;
+                    grew++;
+                }
+                const uint32_t r = zone_find(parent, v);
+                if (root == UINT32_MAX) {
+                    root = r;
+                } else if (r != root) {
+                    parent[r] = root;
+                    zf[root] |= zf[r] & (CC_ZONE_PINNED | CC_ZONE_REST);
+                    grew++;
+                }
+            }
+            zf[root] |= CC_ZONE_TOUCHED;
+            if (!grew && !(zf[root] & (CC_ZONE_REST | CC_ZONE_PINNED))) {
+                zf[root] |= CC_ZONE_REST; /* crossing again, unchanged: stop it */
+                grew = 1;
+            }
+            changed += grew;
         }
     }
-    return newly;
+    /* No crossing, or only ones no zone can change (a stopped zone against a pinned
+     * vertex's motion): done. */
+    if (!changed) {
+        for (uint32_t m = 0; m < cc->zcount; ++m) zf[zl[m]] &= (uint8_t)~CC_ZONE_TOUCHED;
+        return 0;
+    }
+    /* Flags to the roots, then each touched zone's mean motion. */
+    for (uint32_t m = 0; m < cc->zcount; ++m) {
+        const uint32_t v = zl[m], r = zone_find(parent, v);
+        if (r != v) zf[r] |= zf[v] & (CC_ZONE_TOUCHED | CC_ZONE_PINNED | CC_ZONE_REST);
+        sum[4 * (size_t)r] = sum[4 * (size_t)r + 1] = sum[4 * (size_t)r + 2] =
+            sum[4 * (size_t)r + 3] = 0.0;
+    }
+    for (uint32_t m = 0; m < cc->zcount; ++m) {
+        const uint32_t v = zl[m], r = zone_find(parent, v);
+        if (!(zf[r] & CC_ZONE_TOUCHED)) continue;
+        const rbc_contact_body *B = &bodies[vbody[v]];
+        const uint32_t i = v - vbase[vbody[v]];
+        const float im = inv_mass(B, i);
+        if (!(im > 0.0f)) continue;
+        const double w = 1.0 / im;
+        for (int a = 0; a < 3; ++a) sum[4 * (size_t)r + a] += w * ((double)p0[3 * (size_t)v + a] - B->x[a][i]);
+        sum[4 * (size_t)r + 3] += w;
+    }
+    uint32_t moved = 0;
+    for (uint32_t m = 0; m < cc->zcount; ++m) {
+        const uint32_t v = zl[m], r = zone_find(parent, v);
+        if (!(zf[r] & CC_ZONE_TOUCHED)) continue;
+        rbc_contact_body *B = &bodies[vbody[v]];
+        const uint32_t i = v - vbase[vbody[v]];
+        fr[v] = mark;
+        moved++;
+        if (inv_mass(B, i) == 0.0f) continue; /* pinned: where its pin put it */
+        const int rest = (zf[r] & (CC_ZONE_PINNED | CC_ZONE_REST)) || !(sum[4 * (size_t)r + 3] > 0.0);
+        for (int a = 0; a < 3; ++a) {
+            const double d = rest ? 0.0 : sum[4 * (size_t)r + a] / sum[4 * (size_t)r + 3];
+            B->p[a][i] = (float)((double)B->x[a][i] + d);
+        }
+    }
+    for (uint32_t m = 0; m < cc->zcount; ++m) zf[zl[m]] &= (uint8_t)~CC_ZONE_TOUCHED;
+    return moved;
 }
 
 int32_t rbc_clothcontact_failsafe_mt(rbc_clothcontact *cc, rbc_contact_body *bodies,
@@ -1912,10 +1998,17 @@ int32_t rbc_clothcontact_failsafe_mt(rbc_clothcontact *cc, rbc_contact_body *bod
                    !buf_reserve(&cc->alloc, &cc->pbox,
                                 (size_t)((const uint32_t *)cc->tbase.ptr)[count] + 1,
                                 6 * sizeof(float), 0) ||
+                   !buf_reserve(&cc->alloc, &cc->zparent, nv ? nv : 1, sizeof(uint32_t), 0) ||
+                   !buf_reserve(&cc->alloc, &cc->zp0, nv ? nv : 1, 3 * sizeof(float), 0) ||
+                   !buf_reserve(&cc->alloc, &cc->zlist, nv ? nv : 1, sizeof(uint32_t), 0) ||
+                   !buf_reserve(&cc->alloc, &cc->zsum, nv ? nv : 1, 4 * sizeof(double), 0) ||
+                   !buf_reserve(&cc->alloc, &cc->zflag, nv ? nv : 1, 1, 0) ||
                    !parts_reserve(cc, nth)) {
             cc->stage_rc = RBC_ERR_OUT_OF_MEMORY;
         } else {
             memset(cc->frozen.ptr, 0, nv);
+            memset(cc->zparent.ptr, 0xFF, (size_t)nv * sizeof(uint32_t));
+            cc->zcount = 0;
         }
     }
     if (sync) sync(sync_ctx);
@@ -1942,12 +2035,12 @@ int32_t rbc_clothcontact_failsafe_mt(rbc_clothcontact *cc, rbc_contact_body *bod
                 cc->fs_newly = newly == UINT32_MAX ? 0 : newly;
             }
             if (sync) sync(sync_ctx);
-            total += cc->fs_newly;
             if (!cc->fs_newly) break;
             if (sync) sync(sync_ctx); /* everyone has read fs_newly */
         }
     }
     const int32_t rc = cc->stage_rc == 1 ? RBC_OK : cc->stage_rc;
+    if (cc->stage_rc == RBC_OK) total = cc->zcount;
     if (frozen) *frozen = total;
     if (sync) sync(sync_ctx);
     return rc;

@@ -190,25 +190,30 @@ void rbc_clothcontact_friction(rbc_clothcontact *cc, rbc_contact_body *bodies, u
 
 /* The fail-safe, after friction (the last change to the iterate in a substep): every
  * edge of a colliding body that crosses, at p, a triangle it may collide with (another
- * body's, or its own not sharing a vertex) sends the five vertices back to x (p = x:
- * they stop for this substep), in rounds until none crosses. x had no crossing, so a
- * pair with all five vertices at x has none: each round freezes another vertex or
- * ends with none left (pinned vertices stay where they are). The contact solve is
- * not exact and four layers bent over a sphere still end some substeps with an edge
- * through another layer; a frozen vertex loses its velocity for one substep, far
- * less harm than a layer passing through (Bridson, Fedkiw and Anderson 2002 end
- * with rigid impact zones for the same reason). Static: a crossing that starts and
- * ends within one substep is the swept detection's business. Each round tests
- * against the state it started from and then freezes what it found. Returns the
- * vertices frozen (0 if out of memory: see rbc_clothcontact_failsafe_mt). */
+ * body's, or its own not sharing a vertex) puts its five vertices into an impact zone
+ * (Bridson, Fedkiw and Anderson 2002; Harmon et al. 2008, "Robust treatment of
+ * simultaneous collisions"): zones sharing a vertex merge, and a zone moves rigidly
+ * from x by the mass-weighted mean of its vertices' motion over the substep, in
+ * rounds until none crosses. x had no crossing and a common translation keeps the
+ * zone's pairs as at x, so crossings are only ever with what is outside a zone, and
+ * each round grows a zone or stops one: a zone with a pinned vertex, or one found
+ * crossing again without growing, goes back to x (pinned vertices stay where their
+ * pins put them). The contact solve is not exact and four layers bent over a sphere
+ * still end some substeps with an edge through another layer; a zone keeps its mean
+ * velocity and loses its motion relative to it for one substep. (Sending every
+ * vertex back to x instead stopped them while their neighbours moved on: most of
+ * the funnel's tearing.) Static: a crossing that starts and ends within one substep
+ * is the swept detection's business. Each round tests against the state it started
+ * from, then moves what it found. Returns the vertices put into zones (0 if out of
+ * memory: see rbc_clothcontact_failsafe_mt). */
 uint32_t rbc_clothcontact_failsafe(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count);
 
 /* The fail-safe on nth threads, called by every thread tid in [0, nth) with sync a
  * barrier of them (as rbc_clothcontact_detect_mt): in each round every thread tests
  * its share of the edges and triangles against the state the round started from,
- * then thread 0 freezes the vertices of every crossing found, in thread order, so
- * the result is the same for any thread count. *frozen (every thread): the vertices
- * frozen. Returns RBC_OK, or RBC_ERR_OUT_OF_MEMORY (the crossings may remain). */
+ * then thread 0 moves the zones of every crossing found, in thread order, so the
+ * result is the same for any thread count. *frozen (every thread): the vertices put
+ * into zones. Returns RBC_OK, or RBC_ERR_OUT_OF_MEMORY (the crossings may remain). */
 int32_t rbc_clothcontact_failsafe_mt(rbc_clothcontact *cc, rbc_contact_body *bodies,
                                      uint32_t count, uint32_t tid, uint32_t nth,
                                      void (*sync)(void *), void *sync_ctx, uint32_t *frozen);
