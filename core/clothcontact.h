@@ -19,13 +19,14 @@
  * particle physics for real-time applications": static and kinetic friction as a
  * limit on the tangential displacement of a contact).
  *
- * Everything is single-threaded, and the result depends only on the input: the
- * contact list is sorted (vertex, then partner, in body order), so it does not depend
- * on the hash's cell size, table size or buffer capacities. Detection is a loop over
- * vertices whose output per vertex is sorted on its own, so threads could split the
- * vertices and concatenate their lists in order with the same result; projection is
- * Gauss-Seidel over the list and would need a coloring of the contacts to run in
- * parallel (a different, still deterministic, result).
+ * The result depends only on the input: the contact list is sorted (vertex, then
+ * partner, in body order), so it does not depend on the hash's cell size, table size,
+ * buffer capacities or thread count. Detection is a loop over vertices whose output
+ * per vertex is sorted on its own: threads split the vertices and their lists are
+ * joined in order (rbc_clothcontact_detect_mt); the fail-safe's rounds are split the
+ * same way (rbc_clothcontact_failsafe_mt). Projection and friction are Gauss-Seidel
+ * over the list on one thread; a coloring of the contacts would parallelize them (a
+ * different, still deterministic, result).
  */
 #ifndef RBC_CORE_CLOTHCONTACT_H
 #define RBC_CORE_CLOTHCONTACT_H
