@@ -1742,6 +1742,10 @@ static void failsafe_query(cc_fs *f, const float lo[3], const float hi[3], uint3
     const int all = range_cells(&r) > CC_BIG_CELLS;
     const uint32_t tn = tbase[cc->body_count];
     const uint8_t *active = cc->active.ptr;
+    /* An edge's query skips the triangles of bodies it does not collide with first
+     * (its own, without self contact: the nearest triangles, and a quarter of a
+     * four-layer pile's). */
+    const rbc_contact_body *A = tri_other == UINT32_MAX ? &f->bodies[ba] : NULL;
 #define CC_FS_VISIT(T)                                                                      \
     do {                                                                                    \
         const uint32_t t_ = (T);                                                            \
@@ -1777,6 +1781,7 @@ static void failsafe_query(cc_fs *f, const float lo[3], const float hi[3], uint3
                     const uint32_t t = id[q];
                     /* Its box now (the round's start) first: the hashed box is grown by
                      * the thickness + margin and meets 5-10 times as many. */
+                    if (A && !bodies_pair(A, &f->bodies[tbody[t]], tbody[t] == ba)) continue;
                     if (!boxes_overlap(box, pbox + 6 * (size_t)t, 0.0f)) continue;
                     float olo[3], ohi[3];
                     grown_box(f->hbox, t, f->hgrow, olo, ohi);
