@@ -94,7 +94,8 @@ struct rbc_clothcontact {
     float dmargin;
     size_t dcap;                /* most contacts (RBC_CC_MAX_TOTAL_PER_VERTEX per vertex) */
     int32_t stage_rc;           /* what thread 0's stage of a detect found */
-    uint32_t fs_newly;          /* vertices the last fail-safe round froze */
+    uint32_t fs_newly;          /* vertices the last fail-safe round moved */
+    int regrow;                 /* thread 0 grew a thread's full list: run the stage again */
     uint32_t ekey_count;
 };
 
@@ -105,6 +106,15 @@ typedef struct cc_part {
     cc_buf hits;                /* uint32 [4 per crossing]: body, edge ends, triangle (global) */
     uint32_t nvt, nvv, nhits, capped;
     int oom, over;
+    /* Threads never allocate (the host's allocator hooks are called on the thread
+     * that called rbc_world_step only): a list that is full counts what did not fit,
+     * and thread 0 grows it to that and the stage runs again. */
+    int full;                   /* something did not fit this time */
+    uint64_t raw_vt, raw_vv;    /* contacts pushed (copies included) */
+    uint64_t need_vt, need_vv;  /* what the lists need: the pushes, at most the cap per
+                                   vertex, plus the longest run (kept until it is cut) */
+    uint32_t near_need;         /* longest run of one vertex (keep_nearest's scratch) */
+    uint32_t hits_need;         /* crossings found in a fail-safe scan */
     char pad[64];               /* no false sharing of the counts */
 } cc_part;
 
@@ -447,6 +457,9 @@ typedef struct cc_detect {
     uint32_t *n;
     cc_buf *nearest; /* keep_nearest's scratch */
     uint32_t *capped;
+    cc_part *part;   /* a thread's stage: never allocate (see cc_part), else NULL */
+    uint64_t *raw;   /* with part: contacts pushed to out, written or not */
+    rbc_contact sink; /* where a push that does not fit writes */
 } cc_detect;
 
 static rbc_contact *push_contact(cc_detect *d) {
@@ -455,6 +468,17 @@ static rbc_contact *push_contact(cc_detect *d) {
     if (*d->n >= d->cap) {
         d->over = d->oom = 1; /* stop as on a failure; reported as a tangle */
         return NULL;
+    }
+    if (d->part) {
+        (*d->raw)++;
+        if (d->part->full || (size_t)*d->n >= d->out->bytes / sizeof(rbc_contact)) {
+            d->part->full = 1; /* count the rest; thread 0 grows the list */
+            memset(&d->sink, 0, sizeof d->sink);
+            return &d->sink;
+        }
+        rbc_contact *c = (rbc_contact *)d->out->ptr + (*d->n)++;
+        memset(c, 0, sizeof *c);
+        return c;
     }
     if (!buf_reserve(&cc->alloc, d->out, (size_t)*d->n + 1, sizeof(rbc_contact),
                      sizeof(rbc_contact) * *d->n)) {
@@ -726,7 +750,15 @@ static int keep_nearest(cc_detect *d, uint32_t from) {
     rbc_clothcontact *cc = d->cc;
     const uint32_t n = *d->n - from, cap = RBC_CC_MAX_PER_VERTEX;
     if (n <= cap) return 1;
-    if (!buf_reserve(&cc->alloc, d->nearest, n, sizeof(cc_key), 0)) return 0;
+    if (d->part) {
+        if (n > d->part->near_need) d->part->near_need = n;
+        if ((size_t)n > d->nearest->bytes / sizeof(cc_key)) {
+            d->part->full = 1; /* thread 0 grows the scratch; the stage runs again */
+            return 1;
+        }
+    } else if (!buf_reserve(&cc->alloc, d->nearest, n, sizeof(cc_key), 0)) {
+        return 0;
+    }
     cc_key *key = d->nearest->ptr;
     rbc_contact *c = (rbc_contact *)d->out->ptr + from;
     for (uint32_t k = 0; k < n; ++k) {
@@ -1227,16 +1259,19 @@ static void detect_range(rbc_clothcontact *cc, uint32_t tid, uint32_t nth) {
                    v_end = (uint32_t)((uint64_t)nvall * (tid + 1) / nth);
     cc_part *part = (cc_part *)cc->parts.ptr + tid;
     part->nvt = part->nvv = part->capped = 0;
-    part->oom = part->over = 0;
+    part->oom = part->over = part->full = 0;
+    part->raw_vt = part->raw_vv = part->need_vt = part->need_vv = 0;
+    part->near_need = 0;
     cc_detect d = {cc, bodies, vbase, tbase, vbody, tbody, vbox, tbox, trec, bgrow,
                    cc->dmargin, 0, cc->dcap, 0, &part->vt, &part->nvt, &part->nearest,
-                   &part->capped};
+                   &part->capped, part, &part->raw_vt, {0}};
     const float inv = cc->inv_cell;
 
     /* Vertex-triangle: each vertex looks up the triangles around its swept box. */
     for (uint32_t v = v_begin; v < v_end && !d.oom; ++v) {
         if (!active[vbody[v]]) continue;
         const uint32_t first = *d.n;
+        const uint64_t raw_first = *d.raw;
         const float *lo = vbox + 6 * (size_t)v, *hi = lo + 3;
         cc_vq q;
         vq_load(&d, v, &q);
@@ -1284,16 +1319,24 @@ static void detect_range(rbc_clothcontact *cc, uint32_t tid, uint32_t nth) {
             for (uint32_t m = 0; m < h->big_count; ++m)
                 if (boxes_overlap(lo, tbox + 6 * (size_t)big[m], vgrow)) try_vt(&d, &q, big[m]);
         }
-        if (!d.oom) *d.n = sort_partners(d.out->ptr, first, *d.n);
-        if (!d.oom && !keep_nearest(&d, first)) d.oom = 1;
+        if (!d.oom && !part->full) *d.n = sort_partners(d.out->ptr, first, *d.n);
+        if (!d.oom && !part->full && !keep_nearest(&d, first)) d.oom = 1;
+        {
+            const uint64_t run = *d.raw - raw_first;
+            *(d.raw == &part->raw_vt ? &part->need_vt : &part->need_vv) +=
+                run < RBC_CC_MAX_PER_VERTEX ? run : RBC_CC_MAX_PER_VERTEX;
+            if (run > part->near_need) part->near_need = (uint32_t)(run < UINT32_MAX ? run : UINT32_MAX);
+        }
     }
 
     /* Vertex-vertex: each vertex looks up the vertices after it. */
     d.out = &part->vv;
     d.n = &part->nvv;
+    d.raw = &part->raw_vv;
     for (uint32_t v = v_begin; v < v_end && !d.oom; ++v) {
         if (!active[vbody[v]]) continue;
         const uint32_t first = *d.n;
+        const uint64_t raw_first = *d.raw;
         float lo[3], hi[3];
         const float vg = bgrow[vbody[v]];
         const float *vb = vbox + 6 * (size_t)v;
@@ -1332,8 +1375,14 @@ static void detect_range(rbc_clothcontact *cc, uint32_t tid, uint32_t nth) {
                 if (big[m] > v && boxes_overlap(vb, vbox + 6 * (size_t)big[m], vg + bgrow[vbody[big[m]]]))
                     try_vv(&d, v, big[m]);
         }
-        if (!d.oom) *d.n = sort_partners(d.out->ptr, first, *d.n);
-        if (!d.oom && !keep_nearest(&d, first)) d.oom = 1;
+        if (!d.oom && !part->full) *d.n = sort_partners(d.out->ptr, first, *d.n);
+        if (!d.oom && !part->full && !keep_nearest(&d, first)) d.oom = 1;
+        {
+            const uint64_t run = *d.raw - raw_first;
+            *(d.raw == &part->raw_vt ? &part->need_vt : &part->need_vv) +=
+                run < RBC_CC_MAX_PER_VERTEX ? run : RBC_CC_MAX_PER_VERTEX;
+            if (run > part->near_need) part->near_need = (uint32_t)(run < UINT32_MAX ? run : UINT32_MAX);
+        }
     }
     part->oom = d.oom && !d.over;
     part->over = d.over;
@@ -1371,7 +1420,7 @@ static int32_t detect_finish(rbc_clothcontact *cc, uint32_t nth) {
         }
     cc_detect d = {cc, bodies, cc->vbase.ptr, cc->tbase.ptr, cc->vbody.ptr, cc->tbody.ptr,
                    cc->vbox.ptr, cc->tbox.ptr, cc->trec.ptr, cc->bgrow.ptr, cc->dmargin, 0,
-                   cc->dcap, 0, &cc->contacts, &cc->count, NULL, NULL};
+                   cc->dcap, 0, &cc->contacts, &cc->count, NULL, NULL, NULL, NULL, {0}};
     /* Edge against border edge. */
     if (!d.oom) {
         if (!border_edges(cc, bodies, count)) goto oom;
@@ -1395,8 +1444,33 @@ int32_t rbc_clothcontact_detect_mt(rbc_clothcontact *cc, rbc_contact_body *bodie
     if (nth == 0) nth = 1;
     if (tid == 0) cc->stage_rc = detect_prepare(cc, bodies, count, margin, nth);
     if (sync) sync(sync_ctx);
-    if (cc->stage_rc == RBC_OK) detect_range(cc, tid, nth);
-    if (sync) sync(sync_ctx);
+    while (cc->stage_rc == RBC_OK) {
+        detect_range(cc, tid, nth);
+        if (sync) sync(sync_ctx);
+        /* Thread 0 grows what was full (to what was counted, which bounds what is
+         * kept) and the stage runs again: a steady scene stops allocating. */
+        if (tid == 0) {
+            cc->regrow = 0;
+            cc_part *parts = cc->parts.ptr;
+            for (uint32_t t = 0; t < nth && cc->stage_rc == RBC_OK; ++t) {
+                cc_part *pt = &parts[t];
+                if (!pt->full || pt->over) continue;
+                const uint64_t nvt = pt->need_vt + pt->near_need, nvv = pt->need_vv + pt->near_need;
+                if (!buf_reserve(&cc->alloc, &pt->vt, (size_t)(nvt + nvt / 4 + 64),
+                                 sizeof(rbc_contact), 0) ||
+                    !buf_reserve(&cc->alloc, &pt->vv, (size_t)(nvv + nvv / 4 + 64),
+                                 sizeof(rbc_contact), 0) ||
+                    !buf_reserve(&cc->alloc, &pt->nearest, (size_t)pt->near_need + 64,
+                                 sizeof(cc_key), 0))
+                    cc->stage_rc = RBC_ERR_OUT_OF_MEMORY;
+                else
+                    cc->regrow = 1;
+            }
+        }
+        if (sync) sync(sync_ctx);
+        if (!cc->regrow) break;
+        if (sync) sync(sync_ctx); /* everyone has read it */
+    }
     if (tid == 0 && cc->stage_rc == RBC_OK) cc->stage_rc = detect_finish(cc, nth);
     if (sync) sync(sync_ctx);
     return cc->stage_rc;
@@ -1715,10 +1789,10 @@ static void failsafe_pair(cc_fs *f, uint32_t ba, uint32_t u0, uint32_t u1, const
     if (!seg_crosses_tri(P0, P1, C[0], C[1], C[2])) return;
     (void)vbase;
     cc_part *part = f->part;
-    if (part->oom) return;
-    if (!buf_reserve(&cc->alloc, &part->hits, 4 * ((size_t)part->nhits + 1), sizeof(uint32_t),
-                     4 * sizeof(uint32_t) * part->nhits)) {
-        part->oom = 1;
+    (void)cc;
+    part->hits_need++;
+    if ((size_t)part->nhits >= part->hits.bytes / (4 * sizeof(uint32_t))) {
+        part->full = 1; /* thread 0 grows the list and the scan runs again */
         return;
     }
     uint32_t *h = (uint32_t *)part->hits.ptr + 4 * (size_t)part->nhits++;
@@ -1833,8 +1907,8 @@ static void failsafe_scan(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32
     const uint8_t *active = cc->active.ptr, *fr = cc->frozen.ptr;
     const uint8_t last = (uint8_t)round; /* fr of the vertices the last round froze */
     cc_part *part = (cc_part *)cc->parts.ptr + tid;
-    part->nhits = 0;
-    part->oom = 0;
+    part->nhits = part->hits_need = 0;
+    part->oom = part->full = 0;
     /* Round 0 (every edge) looks triangles up by their boxes at p (hashed just
      * before it): far fewer per cell than the swept boxes grown by thickness +
      * margin, which later rounds use (their boxes changed where vertices froze; the
@@ -2034,6 +2108,26 @@ int32_t rbc_clothcontact_failsafe_mt(rbc_clothcontact *cc, rbc_contact_body *bod
             if (cc->stage_rc != RBC_OK) break;
             failsafe_scan(cc, bodies, round, tid, nth);
             if (sync) sync(sync_ctx);
+            /* A full list: thread 0 grows it to what was found and the scan (which
+             * only reads) runs again. */
+            if (tid == 0) {
+                cc->regrow = 0;
+                cc_part *parts = cc->parts.ptr;
+                for (uint32_t t = 0; t < nth; ++t)
+                    if (parts[t].full) {
+                        if (!buf_reserve(&cc->alloc, &parts[t].hits,
+                                         4 * ((size_t)parts[t].hits_need + 64), sizeof(uint32_t), 0))
+                            cc->stage_rc = RBC_ERR_OUT_OF_MEMORY;
+                        cc->regrow = 1;
+                    }
+            }
+            if (sync) sync(sync_ctx);
+            if (cc->stage_rc != RBC_OK) break;
+            if (cc->regrow) {
+                if (sync) sync(sync_ctx); /* everyone has read it */
+                failsafe_scan(cc, bodies, round, tid, nth);
+                if (sync) sync(sync_ctx);
+            }
             if (tid == 0) {
                 const uint32_t newly = failsafe_apply(cc, bodies, round, nth);
                 if (newly == UINT32_MAX) cc->stage_rc = RBC_ERR_OUT_OF_MEMORY;

@@ -6,6 +6,7 @@
  * thread-count independence; tearing and cuts (the pieces and quads that remain),
  * picking, attachments, wind. */
 #include <math.h>
+#include <pthread.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -693,6 +694,71 @@ static void test_contact_cap(void) {
     CHECK_EQ(rbc_world_destroy(w), RBC_OK);
 }
 
+/* The host's allocator hooks are called on the thread that called rbc_world_step
+ * only (rbcloth.h: host callbacks run there), also when cloth contact's detection and
+ * fail-safe run on every thread and their lists grow: a host allocator need not be
+ * thread-safe. Two cloths crushed into a cube (lists that grow, contacts cut to the
+ * cap, fail-safe rounds) on 2 threads, and a pile of two layers hit by a sphere. */
+static pthread_t hook_owner;
+static int hook_foreign, hook_calls;
+
+static void *hook_alloc(void *user, size_t size, size_t alignment) {
+    (void)user;
+    hook_calls++;
+    if (!pthread_equal(pthread_self(), hook_owner)) hook_foreign++;
+    void *p = NULL;
+    if (alignment < sizeof(void *)) alignment = sizeof(void *);
+    return posix_memalign(&p, alignment, size ? size : 1) == 0 ? p : NULL;
+}
+
+static void hook_free(void *user, void *ptr, size_t size) {
+    (void)user;
+    (void)size;
+    if (!pthread_equal(pthread_self(), hook_owner)) hook_foreign++;
+    free(ptr);
+}
+
+static void test_alloc_thread(void) {
+    hook_owner = pthread_self();
+    hook_foreign = hook_calls = 0;
+    rbc_world_def wd = rbc_world_def_default();
+    wd.thread_count = 2;
+    wd.alloc = hook_alloc;
+    wd.free = hook_free;
+    rbc_world_id w = 0;
+    CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
+    test_grid g = test_grid_make(20, 20, 0.01f, 0.0f, 0.0f, 0.0f);
+    uint32_t seed = 777u;
+    for (uint32_t k = 0; k < 3 * g.vertex_count; ++k) {
+        seed = seed * 1664525u + 1013904223u;
+        g.positions[k] = 0.03f * (float)(seed >> 8) / 16777216.0f;
+    }
+    for (int b = 0; b < 2; ++b) {
+        rbc_cloth_def cd = test_grid_def(&g, NULL, 0);
+        cd.thickness = 0.004f;
+        cd.collision_flags = RBC_CLOTH_COLLIDE_CLOTHS | RBC_CLOTH_COLLIDE_SELF;
+        rbc_cloth_id c = 0;
+        CHECK_EQ(rbc_cloth_create(w, &cd, &c), RBC_OK);
+    }
+    uint32_t frozen = 0, capped = 0;
+    for (int step = 0; step < 4; ++step) {
+        CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_OK);
+        rbc_world_stats st;
+        memset(&st, 0, sizeof st);
+        st.struct_size = sizeof st;
+        CHECK_EQ(rbc_world_get_stats(w, &st), RBC_OK);
+        frozen += st.cloth_contact_frozen;
+        capped += st.cloth_contact_capped;
+    }
+    CHECK_EQ(rbc_world_destroy(w), RBC_OK);
+    test_grid_free(&g);
+    printf("allocator hooks: %d calls, %d from another thread (fail-safe zones %u, capped %u)\n",
+           hook_calls, hook_foreign, frozen, capped);
+    CHECK(hook_calls > 0);
+    CHECK(capped > 0); /* the lists really grew past the cap's scratch */
+    CHECK_EQ(hook_foreign, 0);
+}
+
 int main(void) {
     test_drop(RBC_SHAPE_SPHERE);
     test_drop(RBC_SHAPE_BOX);
@@ -709,5 +775,6 @@ int main(void) {
     test_attach();
     test_wind();
     test_contact_cap();
+    test_alloc_thread();
     return check_report("abi_contact");
 }
