@@ -17,8 +17,10 @@
  *     host's wall time around apply + step as a cross-check;
  *   - reported: median and p90 (nearest rank) of ms per step and per substep (step /
  *     stats.substeps), the median of each stage, frames per second (1000 / median
- *     step ms), median contacts, springs torn by the end (stats.torn_springs), and
- *     the deepest penetration of a cloth vertex into an analytic collider (sphere,
+ *     step ms), median contacts, springs torn by the end (stats.torn_springs), the
+ *     vertices cloth contact's fail-safe put into impact zones over the measured
+ *     frames (stats.cloth_contact_frozen, ABI 1.5: 0 where the contact solve alone
+ *     kept every layer in order), and the deepest penetration of a cloth vertex into an analytic collider (sphere,
  *     plane, capsule, box; meshes are skipped) at the last frame, in mm: how far
  *     inside the solid, not counting thickness.
  *
@@ -82,6 +84,7 @@ typedef struct scene_row {
     double integrate, local, global, collide, other, wall_median;
     double collider_contacts, cloth_contacts;
     uint64_t torn_springs;
+    uint64_t failsafe_vertices; /* stats.cloth_contact_frozen over the measured frames */
     /// mm; NaN when the scene has no analytic collider.
     double max_penetration_mm;
     /// A failure: the figures are over the frames before it.
@@ -401,6 +404,7 @@ static int run_scene(scenes_ctx *ctx, const scene_entry *e, uint32_t threads, sc
         v[6][done] = wall;
         v[7][done] = st.collider_contacts;
         v[8][done] = st.cloth_contacts;
+        row->failsafe_vertices += st.cloth_contact_frozen;
         ++done;
     }
 
@@ -455,7 +459,7 @@ static const char csv_header[] =
     "scene,threads,frames,substeps,particles,springs,colliders,step_ms_median,step_ms_p90,"
     "substep_ms_median,substep_ms_p90,integrate_ms,local_ms,global_ms,collide_ms,other_ms,"
     "wall_ms_median,fps,collider_contacts_median,cloth_contacts_median,torn_springs,"
-    "max_penetration_mm,paper_ms_per_substep,paper_ms_per_frame,paper_figure,note,cores,cpu";
+    "failsafe_vertices,max_penetration_mm,paper_ms_per_substep,paper_ms_per_frame,paper_figure,note,cores,cpu";
 
 /* %.6g, or "n/a" for NaN. */
 static const char *num(double x, char *buf, size_t size) {
@@ -475,7 +479,7 @@ static int write_csv(const scenes_ctx *ctx) {
         const scene_row *r = &ctx->rows[k];
         char b[16][32];
         double fps = r->step_median > 0.0 ? 1e3 / r->step_median : NAN;
-        fprintf(f, "%s,%u,%u,%u,%u,%u,%u,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%llu,%s,%s,%s,%s,%s,%ld,%s\n",
+        fprintf(f, "%s,%u,%u,%u,%u,%u,%u,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%s,%llu,%llu,%s,%s,%s,%s,%s,%ld,%s\n",
                 r->name, r->threads ? r->threads : r->threads_requested, r->frames, r->substeps,
                 r->particles, r->springs, r->colliders, num(r->step_median, b[0], 32),
                 num(r->step_p90, b[1], 32), num(r->substep_median, b[2], 32),
@@ -483,7 +487,8 @@ static int write_csv(const scenes_ctx *ctx) {
                 num(r->global, b[6], 32), num(r->collide, b[7], 32), num(r->other, b[8], 32),
                 num(r->wall_median, b[9], 32), num(fps, b[10], 32),
                 num(r->collider_contacts, b[11], 32), num(r->cloth_contacts, b[12], 32),
-                (unsigned long long)r->torn_springs, num(r->max_penetration_mm, b[13], 32),
+                (unsigned long long)r->torn_springs, (unsigned long long)r->failsafe_vertices,
+                num(r->max_penetration_mm, b[13], 32),
                 num(r->entry->paper_ms_substep, b[14], 32), num(r->entry->paper_ms_frame, b[15], 32),
                 r->entry->paper, r->note, ctx->cores, ctx->cpu);
     }
@@ -501,15 +506,15 @@ static const char *fixed(double x, int digits, char *buf, size_t size) {
 static void write_tables(const scenes_ctx *ctx, FILE *f) {
     fprintf(f, "| scene | particles | springs | threads | frames | ms/step median | p90 | "
                "ms/substep median | p90 | integrate | local | global | collide | other | fps | "
-               "contacts collider / cloth | torn springs | max penetration mm | paper (GTX 970, "
-               "measured elsewhere) |\n");
+               "contacts collider / cloth | torn springs | fail-safe vertices | max penetration mm "
+               "| paper (GTX 970, measured elsewhere) |\n");
     fprintf(f, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
-               "---:|---:|---|\n");
+               "---:|---:|---:|---|\n");
     for (uint32_t k = 0; k < ctx->row_count; ++k) {
         const scene_row *r = &ctx->rows[k];
         char b[16][32];
         fprintf(f, "| %s | %u | %u | %u | %u | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | "
-                   "%s / %s | %llu | %s | %s |\n",
+                   "%s / %s | %llu | %llu | %s | %s |\n",
                 r->name, r->particles, r->springs, r->threads ? r->threads : r->threads_requested,
                 r->frames, fixed(r->step_median, 3, b[0], 32), fixed(r->step_p90, 3, b[1], 32),
                 fixed(r->substep_median, 3, b[2], 32), fixed(r->substep_p90, 3, b[3], 32),
@@ -518,8 +523,8 @@ static void write_tables(const scenes_ctx *ctx, FILE *f) {
                 fixed(r->other, 3, b[8], 32),
                 fixed(r->step_median > 0.0 ? 1e3 / r->step_median : NAN, 1, b[9], 32),
                 fixed(r->collider_contacts, 0, b[10], 32), fixed(r->cloth_contacts, 0, b[11], 32),
-                (unsigned long long)r->torn_springs, fixed(r->max_penetration_mm, 2, b[12], 32),
-                r->entry->paper);
+                (unsigned long long)r->torn_springs, (unsigned long long)r->failsafe_vertices,
+                fixed(r->max_penetration_mm, 2, b[12], 32), r->entry->paper);
     }
     int notes = 0;
     for (uint32_t k = 0; k < ctx->row_count; ++k) {
