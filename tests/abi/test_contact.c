@@ -642,9 +642,27 @@ static void test_wind(void) {
     free(zero);
 }
 
+/* Two 20 x 20 grids with their vertices scattered at random (seed) in a cube of
+ * side `size`: cloth crushed far past the contacts a vertex keeps. */
+static test_grid crushed_pair(rbc_world_id w, uint32_t seed, float size, float thickness,
+                              uint32_t flags, rbc_cloth_id cl[2]) {
+    test_grid g = test_grid_make(20, 20, 0.01f, 0.0f, 0.0f, 0.0f);
+    for (uint32_t k = 0; k < 3 * g.vertex_count; ++k) {
+        seed = seed * 1664525u + 1013904223u;
+        g.positions[k] = size * (float)(seed >> 8) / 16777216.0f;
+    }
+    for (int b = 0; b < 2; ++b) {
+        rbc_cloth_def cd = test_grid_def(&g, NULL, 0);
+        cd.thickness = thickness;
+        cd.collision_flags = flags;
+        CHECK_EQ(rbc_cloth_create(w, &cd, &cl[b]), RBC_OK);
+    }
+    return g;
+}
+
 /* Two cloths crushed into one 2 cm cube with cloth contact on: each vertex is near
  * all 722 triangles of the other cloth, far past the contacts a vertex keeps
- * (RBC_CC_MAX_PER_VERTEX: 64, the nearest; a pile has about 10). Before the cap a
+ * (RBC_CC_MAX_PER_VERTEX: 64, the nearest; a resting pile has 10 at most). Before the cap a
  * crushed scene's contacts grew to millions (1.2 GB). The steps run, every vertex
  * keeps at most 64 vertex-triangle and 64 vertex-vertex contacts (so the list is at
  * most 128 per vertex plus edge contacts, which only border edges make: 76 of them
@@ -652,18 +670,7 @@ static void test_wind(void) {
 static void test_contact_cap(void) {
     rbc_world_id w = make_world(1, 1, -9.81f);
     rbc_cloth_id cl[2];
-    test_grid g = test_grid_make(20, 20, 0.01f, 0.0f, 0.0f, 0.0f);
-    uint32_t seed = 12345u;
-    for (uint32_t k = 0; k < 3 * g.vertex_count; ++k) {
-        seed = seed * 1664525u + 1013904223u;
-        g.positions[k] = 0.02f * (float)(seed >> 8) / 16777216.0f;
-    }
-    for (int b = 0; b < 2; ++b) {
-        rbc_cloth_def cd = test_grid_def(&g, NULL, 0);
-        cd.thickness = 0.005f;
-        cd.collision_flags = RBC_CLOTH_COLLIDE_CLOTHS;
-        CHECK_EQ(rbc_cloth_create(w, &cd, &cl[b]), RBC_OK);
-    }
+    test_grid g = crushed_pair(w, 12345u, 0.02f, 0.005f, RBC_CLOTH_COLLIDE_CLOTHS, cl);
     uint32_t most = 0, capped = 0;
     for (int step = 0; step < 5; ++step) {
         CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_OK);
@@ -727,19 +734,9 @@ static void test_alloc_thread(void) {
     wd.free = hook_free;
     rbc_world_id w = 0;
     CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
-    test_grid g = test_grid_make(20, 20, 0.01f, 0.0f, 0.0f, 0.0f);
-    uint32_t seed = 777u;
-    for (uint32_t k = 0; k < 3 * g.vertex_count; ++k) {
-        seed = seed * 1664525u + 1013904223u;
-        g.positions[k] = 0.03f * (float)(seed >> 8) / 16777216.0f;
-    }
-    for (int b = 0; b < 2; ++b) {
-        rbc_cloth_def cd = test_grid_def(&g, NULL, 0);
-        cd.thickness = 0.004f;
-        cd.collision_flags = RBC_CLOTH_COLLIDE_CLOTHS | RBC_CLOTH_COLLIDE_SELF;
-        rbc_cloth_id c = 0;
-        CHECK_EQ(rbc_cloth_create(w, &cd, &c), RBC_OK);
-    }
+    rbc_cloth_id cl[2];
+    test_grid g = crushed_pair(w, 777u, 0.03f, 0.004f,
+                               RBC_CLOTH_COLLIDE_CLOTHS | RBC_CLOTH_COLLIDE_SELF, cl);
     uint32_t frozen = 0, capped = 0;
     for (int step = 0; step < 4; ++step) {
         CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_OK);
