@@ -1784,6 +1784,18 @@ static void failsafe_pair(cc_fs *f, uint32_t ba, uint32_t u0, uint32_t u1, const
     load3(P0, CONST3(A->p), u0);
     load3(P1, CONST3(A->p), u1);
     if (!seg_crosses_tri(P0, P1, C[0], C[1], C[2])) return;
+    /* Crossing at x too: a tangle older than this substep, which neither a zone's
+     * mean motion nor a stop at x can undo. Stopping it (the rule for a zone that
+     * crosses again) held its vertices where they were, substep after substep, while
+     * the rest of their cloths moved on: in the funnel, vertices on the spout's axis
+     * stayed put for frames on end until their springs were 3 times their length. It
+     * is left to the contacts, which keep each vertex on its side at x and so do not
+     * make it deeper. */
+    float X0[3], X1[3], D[3][3];
+    load3(X0, A->x, u0);
+    load3(X1, A->x, u1);
+    for (int k = 0; k < 3; ++k) load3(D[k], T->x, tri[k]);
+    if (seg_crosses_tri(X0, X1, D[0], D[1], D[2])) return;
     (void)vbase;
     cc_part *part = f->part;
     (void)cc;
@@ -1955,7 +1967,7 @@ static uint32_t zone_find(uint32_t *parent, uint32_t g) {
     return g;
 }
 
-enum { CC_ZONE_TOUCHED = 1, CC_ZONE_PINNED = 2, CC_ZONE_REST = 4 };
+enum { CC_ZONE_TOUCHED = 1, CC_ZONE_PINNED = 2, CC_ZONE_REST = 4, CC_ZONE_GREW = 8 };
 
 /* Thread 0, after a round's scan: the five vertices of every crossing found join an
  * impact zone (Bridson, Fedkiw and Anderson 2002; Harmon et al. 2008): zones that
@@ -2010,24 +2022,40 @@ static uint32_t failsafe_apply(rbc_clothcontact *cc, rbc_contact_body *bodies, u
                     grew++;
                 }
             }
-            zf[root] |= CC_ZONE_TOUCHED;
-            if (!grew && !(zf[root] & (CC_ZONE_REST | CC_ZONE_PINNED))) {
-                zf[root] |= CC_ZONE_REST; /* crossing again, unchanged: stop it */
-                grew = 1;
-            }
+            zf[root] |= CC_ZONE_TOUCHED | (grew ? CC_ZONE_GREW : 0);
             changed += grew;
+        }
+    }
+    /* Flags to the roots; a zone crossing again that neither gained a vertex nor
+     * merged in this round stops. Decided per zone after all the round's hits, not
+     * per hit: two triangles that pass through each other give two or more hits on
+     * the same five or six vertices, and the second of those, taken as "crossing
+     * again", stopped zones in their first round (in the funnel, vertices on the
+     * spout's axis stayed put for 20 frames while their springs stretched to 2.4
+     * times their length). */
+    for (uint32_t m = 0; m < cc->zcount; ++m) {
+        const uint32_t v = zl[m], r = zone_find(parent, v);
+        if (r != v) zf[r] |= zf[v] & (CC_ZONE_TOUCHED | CC_ZONE_PINNED | CC_ZONE_REST | CC_ZONE_GREW);
+    }
+    for (uint32_t m = 0; m < cc->zcount; ++m) {
+        const uint32_t r = zl[m];
+        if (zone_find(parent, r) != r) continue;
+        if ((zf[r] & (CC_ZONE_TOUCHED | CC_ZONE_GREW | CC_ZONE_REST | CC_ZONE_PINNED)) ==
+            CC_ZONE_TOUCHED) {
+            zf[r] |= CC_ZONE_REST; /* crossing again, unchanged: stop it */
+            changed++;
         }
     }
     /* No crossing, or only ones no zone can change (a stopped zone against a pinned
      * vertex's motion): done. */
     if (!changed) {
-        for (uint32_t m = 0; m < cc->zcount; ++m) zf[zl[m]] &= (uint8_t)~CC_ZONE_TOUCHED;
+        for (uint32_t m = 0; m < cc->zcount; ++m)
+            zf[zl[m]] &= (uint8_t) ~(CC_ZONE_TOUCHED | CC_ZONE_GREW);
         return 0;
     }
     /* Flags to the roots, then each touched zone's mean motion. */
     for (uint32_t m = 0; m < cc->zcount; ++m) {
         const uint32_t v = zl[m], r = zone_find(parent, v);
-        if (r != v) zf[r] |= zf[v] & (CC_ZONE_TOUCHED | CC_ZONE_PINNED | CC_ZONE_REST);
         sum[4 * (size_t)r] = sum[4 * (size_t)r + 1] = sum[4 * (size_t)r + 2] =
             sum[4 * (size_t)r + 3] = 0.0;
     }
@@ -2057,7 +2085,7 @@ static uint32_t failsafe_apply(rbc_clothcontact *cc, rbc_contact_body *bodies, u
             B->p[a][i] = (float)((double)B->x[a][i] + d);
         }
     }
-    for (uint32_t m = 0; m < cc->zcount; ++m) zf[zl[m]] &= (uint8_t)~CC_ZONE_TOUCHED;
+    for (uint32_t m = 0; m < cc->zcount; ++m) zf[zl[m]] &= (uint8_t) ~(CC_ZONE_TOUCHED | CC_ZONE_GREW);
     return moved;
 }
 

@@ -17,7 +17,9 @@
  *  7. determinism: fresh objects, a repeated call and grown buffers give bitwise
  *     equal results; a repeated detect of the same scene allocates nothing;
  *  8. a failing allocator (every k-th allocation) gives RBC_ERR_OUT_OF_MEMORY and
- *     leaks nothing.
+ *     leaks nothing;
+ *  9. the fail-safe moves an impact zone rigidly by its mean motion in its first
+ *     round, and leaves a crossing that was there at x alone.
  * Prints the time of detect and of one project pass for four 64x64 layers (16K
  * vertices).
  */
@@ -981,6 +983,83 @@ static void test_sliver_and_deep(void) {
     rbc_clothcontact_destroy(cc);
 }
 
+/* The fail-safe's impact zone (rbc_clothcontact_failsafe_mt): a 10 x 10 sheet 1 cm
+ * above another tilts down through it in one substep (its far edge 2 cm lower), with
+ * no projection, so the sheets cross along a line. Every edge that crosses a triangle
+ * there is a hit, and hits fall on vertices earlier hits put into the zone already.
+ * The zone moves rigidly by the mass-weighted mean of its vertices' motion, which is
+ * not zero: half its vertices belong to the sheet that moved down. Before, a hit on
+ * five vertices already in the zone was taken as the zone "crossing again" and
+ * stopped it at x in its first round (in the funnel, vertices stood still for 20
+ * frames while the springs around them stretched to 2.4 times their length). */
+static void test_failsafe_zone(void) {
+    rbc_allocator al = rbc_allocator_default();
+    rbc_clothcontact *cc = NULL;
+    CHECK_EQ(rbc_clothcontact_create(&al, &cc), RBC_OK);
+    const float L = 0.01f;
+    sheet s[2] = {sheet_grid(10, 10, L, 0.0f, 0.0f, 0.0f),
+                  sheet_grid(10, 10, L, 0.003f, 0.01f, 0.002f)};
+    rbc_contact_body b[2] = {body_of(&s[0], 0.001f, 0.0f, 0, 1), body_of(&s[1], 0.001f, 0.0f, 0, 1)};
+    for (uint32_t i = 0; i < s[1].n; ++i) s[1].p[1][i] -= 0.02f * (float)(i % 10) / 9.0f;
+    float *before[3];
+    for (int k = 0; k < 3; ++k) {
+        before[k] = malloc(sizeof(float) * 200);
+        memcpy(before[k], s[0].p[k], sizeof(float) * 100);
+        memcpy(before[k] + 100, s[1].p[k], sizeof(float) * 100);
+    }
+    CHECK_EQ(rbc_clothcontact_detect(cc, b, 2, 0.5f * L), RBC_OK);
+    uint32_t frozen = 0;
+    CHECK_EQ(rbc_clothcontact_failsafe_mt(cc, b, 2, 0, 1, NULL, NULL, &frozen), RBC_OK);
+    /* The vertices the fail-safe moved, and the spread of their motion from x. */
+    uint32_t moved = 0;
+    double d0[3] = {0.0, 0.0, 0.0}, spread = 0.0;
+    for (uint32_t g = 0; g < 200; ++g) {
+        sheet *S = &s[g / 100];
+        const uint32_t i = g % 100;
+        int changed = 0;
+        for (int k = 0; k < 3; ++k) changed |= S->p[k][i] != before[k][g];
+        if (!changed) continue;
+        for (int k = 0; k < 3; ++k) {
+            const double d = (double)S->p[k][i] - S->x[k][i];
+            if (!moved) d0[k] = d;
+            if (fabs(d - d0[k]) > spread) spread = fabs(d - d0[k]);
+        }
+        moved++;
+    }
+    printf("fail-safe zone: %u vertices, %u moved, by (%.3g %.3g %.3g) mm from x, spread %.3g m\n",
+           frozen, moved, d0[0] * 1e3, d0[1] * 1e3, d0[2] * 1e3, spread);
+    CHECK(frozen > 0 && moved > 0);
+    /* One rigid motion (float rounding of x + d: 1e-8 m) ... */
+    CHECK(spread < 1e-6);
+    /* ... down: the moved half of the zone went down 1.1 cm on average and the other
+     * half not at all; a stopped zone moves by 0. */
+    CHECK(d0[1] < -1e-3);
+    /* Tangled at x already (the tilted sheet through the other at the start of the
+     * substep), both moving 1 cm down together: no zone can undo that crossing, and
+     * stopping it held its vertices in place while their cloth moved on. The fail-
+     * safe leaves it alone: nothing moves. */
+    for (uint32_t i = 0; i < s[1].n; ++i) s[1].x[1][i] = 0.01f - 0.02f * (float)(i % 10) / 9.0f;
+    for (int m = 0; m < 2; ++m)
+        for (uint32_t i = 0; i < s[m].n; ++i) s[m].p[1][i] = s[m].x[1][i] - 0.01f;
+    for (int k = 0; k < 3; ++k) {
+        memcpy(before[k], s[0].p[k], sizeof(float) * 100);
+        memcpy(before[k] + 100, s[1].p[k], sizeof(float) * 100);
+    }
+    CHECK_EQ(rbc_clothcontact_detect(cc, b, 2, 0.5f * L), RBC_OK);
+    CHECK_EQ(rbc_clothcontact_failsafe_mt(cc, b, 2, 0, 1, NULL, NULL, &frozen), RBC_OK);
+    uint32_t changed = 0;
+    for (uint32_t g = 0; g < 200; ++g)
+        for (int k = 0; k < 3; ++k) changed += s[g / 100].p[k][g % 100] != before[k][g];
+    printf("fail-safe, tangled at x: %u vertices in zones, %u coordinates changed\n", frozen,
+           changed);
+    CHECK_EQ(frozen, 0u);
+    CHECK_EQ(changed, 0u);
+    for (int k = 0; k < 3; ++k) free(before[k]);
+    sheet_free(&s[0]);
+    sheet_free(&s[1]);
+    rbc_clothcontact_destroy(cc);
+}
+
 int main(void) {
     test_fast_particle();
     test_far_motion();
@@ -992,6 +1071,7 @@ int main(void) {
     test_determinism();
     test_oom();
     test_sliver_and_deep();
+    test_failsafe_zone();
     time_layers(0.004f, 0.002f);
     time_layers(0.002f, 0.001f);
     return check_report("core_clothcontact");
