@@ -655,7 +655,7 @@ static void try_vt(cc_detect *d, const cc_vq *q, uint32_t t) {
     cross3(nx, e1, e2);
     c->kind = RBC_CONTACT_VT;
     c->flags = (through ? RBC_CONTACT_CROSSED : 0u) |
-               (tri_sliver(A, B, C, nx) ? RBC_CONTACT_THIN : 0u);
+               (tri_sliver(A, B, C, nx) ? RBC_CONTACT_THIN : 0u) | RBC_CONTACT_HELD;
     c->body_a = q->bv, c->a = i;
     c->body_b = bt, c->b = tl;
     c->side = side;
@@ -1507,6 +1507,7 @@ static inline void apply(const rbc_contact_body *A, uint32_t i, float ima,
  * dir of the vertex against the triangle point (weights w). */
 typedef struct cc_eval {
     float viol, dir[3], w[3], im[3], ima;
+    int held;                   /* VT: the flag RBC_CONTACT_HELD for the next pass */
     float ee_s, ima2;           /* EE: the edge's parameter, its second end's inverse mass */
     const uint32_t *tri;        /* the triangle's corners, or one[] (the other vertex) */
     uint32_t one[3];
@@ -1538,6 +1539,7 @@ static int evaluate(const rbc_contact *c, const rbc_contact_body *bodies, cc_eva
     load3(q, CONST3(A->p), c->a);
     e->w[0] = 1.0f, e->w[1] = 0.0f, e->w[2] = 0.0f;
     e->im[0] = e->im[1] = e->im[2] = 0.0f;
+    e->held = 1;
     if (c->kind == RBC_CONTACT_VT) {
         const uint32_t *tri = B->tris + 3 * (size_t)c->b;
         float P[3][3], e1[3], e2[3], n[3], r[3], cp[3];
@@ -1576,7 +1578,14 @@ static int evaluate(const rbc_contact *c, const rbc_contact_body *bodies, cc_eva
              * the plane turning, or pushed by other contacts; pushing it back across
              * was the largest move of a pass (up to 16 mm in the funnel, at 3 mm
              * thickness), and those moves fed each other in a pile until it tore. */
-            if (dn < -th && !(c->flags & RBC_CONTACT_CROSSED)) return 0;
+            /* Unless it was held at the last pass: then one iteration of the solve
+             * moved it through (in the funnel's landing pile, 90 % of the edges the
+             * fail-safe found through a triangle had a contact with it, most left
+             * alone by this rule). */
+            if (dn < -th && !(c->flags & (RBC_CONTACT_CROSSED | RBC_CONTACT_HELD))) {
+                e->held = 0;
+                return 0;
+            }
             e->viol = th - dn;
             for (int k = 0; k < 3; ++k) e->dir[k] = n[k];
         } else if (dn >= 0.0f) {
@@ -1590,6 +1599,7 @@ static int evaluate(const rbc_contact *c, const rbc_contact_body *bodies, cc_eva
             e->viol = th - dn;
             for (int k = 0; k < 3; ++k) e->dir[k] = n[k];
         } else {
+            e->held = 0;
             return 0; /* beside it on the other side: around the edge, or a neighbour's */
         }
         e->tri = tri;
@@ -1660,7 +1670,10 @@ float rbc_clothcontact_project(rbc_clothcontact *cc, rbc_contact_body *bodies, u
     for (uint32_t m = 0; m < cc->count; ++m) {
         rbc_contact *c = &list[m];
         cc_eval e;
-        if (!evaluate(c, bodies, &e)) continue;
+        const int v = evaluate(c, bodies, &e);
+        if (c->kind == RBC_CONTACT_VT)
+            c->flags = e.held ? c->flags | RBC_CONTACT_HELD : c->flags & ~(uint32_t)RBC_CONTACT_HELD;
+        if (!v) continue;
         if (e.viol > worst) worst = e.viol;
         if (c->kind == RBC_CONTACT_EE) {
             project_ee(bodies, c, &e);

@@ -61,8 +61,13 @@ typedef struct rbc_contact_body { /* one cloth; arrays in the solver's internal 
 enum { RBC_CONTACT_VT = 0, RBC_CONTACT_VV = 1, RBC_CONTACT_EE = 2 };
 /* rbc_contact.flags: the vertex's motion relative to the triangle crosses the plane
  * within thickness + margin of the triangle (it would pass through this triangle). */
-/* RBC_CONTACT_THIN: the triangle was a sliver at x (see rbc_clothcontact_project). */
-enum { RBC_CONTACT_CROSSED = 1, RBC_CONTACT_THIN = 2 };
+/* RBC_CONTACT_THIN: the triangle was a sliver at x (see rbc_clothcontact_project).
+ * RBC_CONTACT_HELD (VT): at the last projection pass (at detection: at x) the vertex
+ * was on its side, or within the thickness of the plane on the other, over the
+ * triangle; a vertex found deeper on the far side after one held is pushed back
+ * (it went through since that pass, moved by the solve), one that was already there
+ * is left alone. */
+enum { RBC_CONTACT_CROSSED = 1, RBC_CONTACT_THIN = 2, RBC_CONTACT_HELD = 4 };
 
 /* A triangle is a sliver when twice its area is below this fraction of its longest
  * edge squared (a quad's right-angled half: 0.5). The paper's cloth has springs on
