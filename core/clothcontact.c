@@ -1587,6 +1587,13 @@ static int evaluate(const rbc_contact *c, const rbc_contact_body *bodies, cc_eva
                 return 0;
             }
             e->viol = th - dn;
+            /* A held vertex found deep moves back at most twice the thickness a pass
+             * (the rest in the next passes). Unbounded, those pushes fed each other in
+             * the funnel's settling pile: kinetic energy went from 1.5 to 3.9 J in
+             * frames 52-55 and the largest strain to 2.6; capped, the pile settles
+             * (0.07 J by frame 60, strain 0.42). */
+            if (dn < -th && !(c->flags & RBC_CONTACT_CROSSED) && e->viol > 2.0f * th)
+                e->viol = 2.0f * th;
             for (int k = 0; k < 3; ++k) e->dir[k] = n[k];
         } else if (dn >= 0.0f) {
             /* Beside it, on its side: keep th from the closest point. */
