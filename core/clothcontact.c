@@ -67,7 +67,13 @@ struct rbc_clothcontact {
     cc_buf vbody, tbody;        /* uint32 [object]: its body */
     cc_buf trec;                /* float [CC_TREC per triangle]: see tri_record() */
     cc_hash th, vh;             /* triangles; vertices */
-    cc_hash fh;                 /* triangles by their box at p, for the fail-safe's round 0 */
+    cc_hash fh;                 /* patches by their box at p, for the fail-safe's round 0 */
+    /* The fail-safe's round 0 hashes patches of up to CC_PATCH consecutive triangles
+     * of one body (see patches_build). */
+    cc_buf pstart;              /* uint32 [npatch + 1]: first triangle (global) of a patch */
+    cc_buf pbody;               /* uint32 [npatch]: its body */
+    cc_buf pabox;               /* float [6 per patch]: the union of its triangles' boxes at p */
+    uint32_t npatch;
     cc_buf contacts;            /* rbc_contact */
     uint32_t count;
     /* Border edges (in one triangle only) of every body, kept while the bodies'
@@ -168,7 +174,8 @@ void rbc_clothcontact_destroy(rbc_clothcontact *cc) {
                       &cc->tbox, &cc->vbody, &cc->tbody, &cc->trec, &cc->contacts,
                       &cc->bbox, &cc->ebase, &cc->bedge, &cc->ekey, &cc->escratch,
                       &cc->abase, &cc->aedge, &cc->frozen, &cc->pbox, &cc->zparent,
-                      &cc->zp0, &cc->zlist, &cc->zsum, &cc->zflag};
+                      &cc->zp0, &cc->zlist, &cc->zsum, &cc->zflag, &cc->pstart,
+                      &cc->pbody, &cc->pabox};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) buf_free(&a, bufs[k]);
     cc_part *parts = cc->parts.ptr;
     for (uint32_t t = 0; t < cc->part_cap; ++t) {
@@ -199,7 +206,8 @@ size_t rbc_clothcontact_bytes(const rbc_clothcontact *cc) {
                             &cc->vh.start, &cc->vh.id, &cc->vh.big, &cc->ebase, &cc->bedge,
                             &cc->ekey, &cc->escratch, &cc->abase, &cc->aedge, &cc->frozen,
                             &cc->parts, &cc->pbox, &cc->fh.start, &cc->fh.id, &cc->fh.big,
-                            &cc->zparent, &cc->zp0, &cc->zlist, &cc->zsum, &cc->zflag};
+                            &cc->zparent, &cc->zp0, &cc->zlist, &cc->zsum, &cc->zflag,
+                            &cc->pstart, &cc->pbody, &cc->pabox};
     size_t b = sizeof *cc;
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) b += bufs[k]->bytes;
     const cc_part *parts = cc->parts.ptr;
@@ -1776,9 +1784,11 @@ typedef struct cc_fs {
     rbc_clothcontact *cc;
     rbc_contact_body *bodies;
     cc_part *part;              /* where this thread records the crossings it finds */
-    const cc_hash *h;           /* the triangles, hashed by hbox grown by hgrow */
+    const cc_hash *h;           /* the triangles, hashed by hbox grown by hgrow, or
+                                   (patches) the patches by their boxes at p */
     const float *hbox;
     float hgrow;
+    int patches;
 } cc_fs;
 
 /* Edge u0 u1 of body ba against triangle t (global): if the edge crosses the triangle
@@ -1874,6 +1884,38 @@ static void failsafe_query(cc_fs *f, const float lo[3], const float hi[3], uint3
         return;
     }
     int32_t c[3];
+    if (f->patches) {
+        /* Round 0: a patch's body and box, then its triangles' boxes; each patch once
+         * (in the cell of the lower corner of the two boxes' intersection). */
+        const uint32_t *ps = cc->pstart.ptr, *pbd = cc->pbody.ptr;
+        const float *pab = cc->pabox.ptr;
+#define CC_FS_PATCH(K)                                                                      \
+    do {                                                                                    \
+        const uint32_t pk_ = (K);                                                           \
+        for (uint32_t g_ = ps[pk_]; g_ < ps[pk_ + 1]; ++g_)                                 \
+            if (boxes_overlap(box, pbox + 6 * (size_t)g_, 0.0f)) CC_FS_VISIT(g_);           \
+    } while (0)
+        for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
+            for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
+                for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
+                    const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
+                    for (uint32_t q = start[bk]; q < start[bk + 1]; ++q) {
+                        const uint32_t k = id[q];
+                        if (!bodies_pair(A, &f->bodies[pbd[k]], pbd[k] == ba)) continue;
+                        const float *pb = pab + 6 * (size_t)k;
+                        if (!boxes_overlap(box, pb, 0.0f) || !lower_corner_is(lo, pb, inv, c)) continue;
+                        CC_FS_PATCH(k);
+                    }
+                }
+        for (uint32_t m = 0; m < h->big_count; ++m) {
+            const uint32_t k = big[m];
+            if (bodies_pair(A, &f->bodies[pbd[k]], pbd[k] == ba) &&
+                boxes_overlap(box, pab + 6 * (size_t)k, 0.0f))
+                CC_FS_PATCH(k);
+        }
+#undef CC_FS_PATCH
+        return;
+    }
     for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
         for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
             for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
@@ -1929,6 +1971,53 @@ static void failsafe_boxes(rbc_clothcontact *cc, const rbc_contact_body *bodies,
 /* One thread's scan of a round: its share of the edges (round 0: all of them; later
  * rounds: those with a vertex the last round froze) against the triangles, and of
  * the triangles with a corner the last round froze against the edges. */
+/* Thread 0, round 0: patches of consecutive triangles of one body, at most CC_PATCH
+ * and at most CC_PATCH_CELLS cells across in any axis (a mesh whose triangles are not
+ * in spatial order gets patches of one), with the union of their boxes at p. The
+ * patches are hashed instead of the triangles: in a pile of flat layers an edge's
+ * cells hold the triangles of the layers above and below it, whose boxes it never
+ * meets (four layers at rest: 2.7 million triangles read a substep for no box
+ * overlap), and a patch's box rejects a row of them at once. 0 = out of memory. */
+#define CC_PATCH 8u
+#define CC_PATCH_CELLS 3.0f
+static int patches_build(rbc_clothcontact *cc) {
+    const uint32_t count = cc->body_count, *tbase = cc->tbase.ptr;
+    const uint32_t ntr = tbase[count];
+    const rbc_allocator *al = &cc->alloc;
+    if (!buf_reserve(al, &cc->pstart, (size_t)ntr + 1, sizeof(uint32_t), 0) ||
+        !buf_reserve(al, &cc->pbody, ntr ? ntr : 1, sizeof(uint32_t), 0) ||
+        !buf_reserve(al, &cc->pabox, ntr ? ntr : 1, 6 * sizeof(float), 0))
+        return 0;
+    uint32_t *ps = cc->pstart.ptr, *pbd = cc->pbody.ptr, k = 0;
+    float *pab = cc->pabox.ptr;
+    const float *pb = cc->pbox.ptr, span = CC_PATCH_CELLS * cc->cell;
+    for (uint32_t b = 0; b < count; ++b)
+        for (uint32_t g = tbase[b]; g < tbase[b + 1];) {
+            float *o = pab + 6 * (size_t)k;
+            memcpy(o, pb + 6 * (size_t)g, 6 * sizeof(float));
+            ps[k] = g;
+            pbd[k] = b;
+            uint32_t e = g + 1;
+            for (; e < tbase[b + 1] && e - g < CC_PATCH; ++e) {
+                const float *t = pb + 6 * (size_t)e;
+                float u[6];
+                int fits = 1;
+                for (int a = 0; a < 3; ++a) {
+                    u[a] = min2(o[a], t[a]);
+                    u[3 + a] = max2(o[3 + a], t[3 + a]);
+                    if (!(u[3 + a] - u[a] <= span)) fits = 0; /* also an empty (inactive) box */
+                }
+                if (!fits) break;
+                memcpy(o, u, sizeof u);
+            }
+            g = e;
+            k++;
+        }
+    ps[k] = ntr;
+    cc->npatch = k;
+    return 1;
+}
+
 static void failsafe_scan(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t round,
                           uint32_t tid, uint32_t nth) {
     const uint32_t count = cc->body_count;
@@ -1944,7 +2033,7 @@ static void failsafe_scan(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32
      * margin, which later rounds use (their boxes changed where vertices froze; the
      * swept boxes still hold them). */
     cc_fs f = {cc, bodies, part, round ? &cc->th : &cc->fh, round ? cc->tbox.ptr : cc->pbox.ptr,
-               round ? cc->tri_grow : 0.0f};
+               round ? cc->tri_grow : 0.0f, !round};
     const uint32_t ne = abase[count], ntr = tbase[count];
     const uint32_t e0 = (uint32_t)((uint64_t)ne * tid / nth), e1 = (uint32_t)((uint64_t)ne * (tid + 1) / nth);
     const uint32_t t0 = (uint32_t)((uint64_t)ntr * tid / nth), t1 = (uint32_t)((uint64_t)ntr * (tid + 1) / nth);
@@ -2148,8 +2237,9 @@ int32_t rbc_clothcontact_failsafe_mt(rbc_clothcontact *cc, rbc_contact_body *bod
             failsafe_boxes(cc, bodies, tid, nth);
             if (sync) sync(sync_ctx);
             if (round == 0 && tid == 0 &&
-                !hash_build(cc, &cc->fh, ((const uint32_t *)cc->tbase.ptr)[count], cc->pbox.ptr,
-                            cc->tbody.ptr, NULL, 0.0f, cc->active.ptr))
+                (!patches_build(cc) ||
+                 !hash_build(cc, &cc->fh, cc->npatch, cc->pabox.ptr, cc->pbody.ptr, NULL, 0.0f,
+                             cc->active.ptr)))
                 cc->stage_rc = RBC_ERR_OUT_OF_MEMORY;
             if (round == 0 && sync) sync(sync_ctx);
             if (cc->stage_rc != RBC_OK) break;
