@@ -54,6 +54,21 @@ typedef struct cc_hash {
     uint32_t nb, big_count;
 } cc_hash;
 
+/* Patches: runs of up to CC_PATCH consecutive triangles of one body, at most
+ * CC_PATCH_CELLS cells across in any axis (a mesh whose triangles are not in spatial
+ * order gets patches of one), with the union of their boxes (patches_build). The
+ * hashes hold patches, not triangles: in a pile of flat layers a query's cells hold
+ * the triangles of the layers above and below it, whose boxes it does not meet (the
+ * four layers at rest: 16,384 vertex queries read 1.16 million triangles a substep
+ * and 48,132 fail-safe edge queries 2.7 million, and not one box met), and a
+ * patch's box rejects a row of them at once. */
+typedef struct cc_patches {
+    cc_buf start;               /* uint32 [n + 1]: first triangle (global) of a patch */
+    cc_buf body;                /* uint32 [n]: its body */
+    cc_buf box;                 /* float [6 per patch]: the union of its triangles' boxes */
+    uint32_t n;
+} cc_patches;
+
 struct rbc_clothcontact {
     rbc_allocator alloc;
     uint32_t body_count;        /* of the last detect */
@@ -66,14 +81,9 @@ struct rbc_clothcontact {
     cc_buf bbox;                /* float [6 per body]: its vertices' grown swept boxes */
     cc_buf vbody, tbody;        /* uint32 [object]: its body */
     cc_buf trec;                /* float [CC_TREC per triangle]: see tri_record() */
-    cc_hash th, vh;             /* triangles; vertices */
-    cc_hash fh;                 /* patches by their box at p, for the fail-safe's round 0 */
-    /* The fail-safe's round 0 hashes patches of up to CC_PATCH consecutive triangles
-     * of one body (see patches_build). */
-    cc_buf pstart;              /* uint32 [npatch + 1]: first triangle (global) of a patch */
-    cc_buf pbody;               /* uint32 [npatch]: its body */
-    cc_buf pabox;               /* float [6 per patch]: the union of its triangles' boxes at p */
-    uint32_t npatch;
+    cc_hash th, vh;             /* triangle patches (tp) by their swept boxes; vertices */
+    cc_hash fh;                 /* patches (fp) by their boxes at p: the fail-safe's round 0 */
+    cc_patches tp, fp;
     cc_buf contacts;            /* rbc_contact */
     uint32_t count;
     /* Border edges (in one triangle only) of every body, kept while the bodies'
@@ -174,8 +184,8 @@ void rbc_clothcontact_destroy(rbc_clothcontact *cc) {
                       &cc->tbox, &cc->vbody, &cc->tbody, &cc->trec, &cc->contacts,
                       &cc->bbox, &cc->ebase, &cc->bedge, &cc->ekey, &cc->escratch,
                       &cc->abase, &cc->aedge, &cc->frozen, &cc->pbox, &cc->zparent,
-                      &cc->zp0, &cc->zlist, &cc->zsum, &cc->zflag, &cc->pstart,
-                      &cc->pbody, &cc->pabox};
+                      &cc->zp0, &cc->zlist, &cc->zsum, &cc->zflag, &cc->tp.start,
+                      &cc->tp.body, &cc->tp.box, &cc->fp.start, &cc->fp.body, &cc->fp.box};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) buf_free(&a, bufs[k]);
     cc_part *parts = cc->parts.ptr;
     for (uint32_t t = 0; t < cc->part_cap; ++t) {
@@ -207,7 +217,8 @@ size_t rbc_clothcontact_bytes(const rbc_clothcontact *cc) {
                             &cc->ekey, &cc->escratch, &cc->abase, &cc->aedge, &cc->frozen,
                             &cc->parts, &cc->pbox, &cc->fh.start, &cc->fh.id, &cc->fh.big,
                             &cc->zparent, &cc->zp0, &cc->zlist, &cc->zsum, &cc->zflag,
-                            &cc->pstart, &cc->pbody, &cc->pabox};
+                            &cc->tp.start, &cc->tp.body, &cc->tp.box, &cc->fp.start,
+                            &cc->fp.body, &cc->fp.box};
     size_t b = sizeof *cc;
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) b += bufs[k]->bytes;
     const cc_part *parts = cc->parts.ptr;
@@ -447,6 +458,48 @@ static int hash_build(rbc_clothcontact *cc, cc_hash *h, uint32_t m, const float 
     }
     for (uint32_t b = nb; b > 0; --b) start[b] = start[b - 1];
     start[0] = 0;
+    return 1;
+}
+
+#define CC_PATCH 8u
+#define CC_PATCH_CELLS 3.0f
+/* The patches of every body's triangles whose boxes are pb (thread 0). 0 = out of
+ * memory. */
+static int patches_build(rbc_clothcontact *cc, cc_patches *P, const float *pb) {
+    const uint32_t count = cc->body_count, *tbase = cc->tbase.ptr;
+    const uint32_t ntr = tbase[count];
+    const rbc_allocator *al = &cc->alloc;
+    if (!buf_reserve(al, &P->start, (size_t)ntr + 1, sizeof(uint32_t), 0) ||
+        !buf_reserve(al, &P->body, ntr ? ntr : 1, sizeof(uint32_t), 0) ||
+        !buf_reserve(al, &P->box, ntr ? ntr : 1, 6 * sizeof(float), 0))
+        return 0;
+    uint32_t *ps = P->start.ptr, *pbd = P->body.ptr, k = 0;
+    float *pab = P->box.ptr;
+    const float span = CC_PATCH_CELLS * cc->cell;
+    for (uint32_t b = 0; b < count; ++b)
+        for (uint32_t g = tbase[b]; g < tbase[b + 1];) {
+            float *o = pab + 6 * (size_t)k;
+            memcpy(o, pb + 6 * (size_t)g, 6 * sizeof(float));
+            ps[k] = g;
+            pbd[k] = b;
+            uint32_t e = g + 1;
+            for (; e < tbase[b + 1] && e - g < CC_PATCH; ++e) {
+                const float *t = pb + 6 * (size_t)e;
+                float u[6];
+                int fits = 1;
+                for (int a = 0; a < 3; ++a) {
+                    u[a] = min2(o[a], t[a]);
+                    u[3 + a] = max2(o[3 + a], t[3 + a]);
+                    if (!(u[3 + a] - u[a] <= span)) fits = 0; /* also an empty (inactive) box */
+                }
+                if (!fits) break;
+                memcpy(o, u, sizeof u);
+            }
+            g = e;
+            k++;
+        }
+    ps[k] = ntr;
+    P->n = k;
     return 1;
 }
 
@@ -1056,36 +1109,46 @@ static void detect_ee(cc_detect *d, const uint8_t *active, uint32_t count, uint3
             box_range(lo, hi, inv, &r);
             const cc_hash *h = &cc->th;
             const uint32_t *start = h->start.ptr, *id = h->id.ptr;
-            /* Candidate triangles: from the hash (or all, for a huge box). */
+            const uint32_t *ps = cc->tp.start.ptr, *pbd = cc->tp.body.ptr;
+            const float *pab = cc->tp.box.ptr;
+            /* Candidate triangles: from the hash of patches (or all, for a huge box). */
             const uint64_t cells = range_cells(&r);
-            for (uint32_t pass = 0; pass < 2; ++pass) {
-                /* pass 0: hashed cells; pass 1: the big list (or everything). */
-                uint32_t m_end = pass ? (cells > CC_BIG_CELLS ? nt : h->big_count) : 0;
-                int32_t c[3];
-                if (!pass && cells <= CC_BIG_CELLS) {
-                    for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
-                        for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
-                            for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
-                                const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
-                                for (uint32_t q = start[bk]; q < start[bk + 1]; ++q) {
-                                    const uint32_t t = id[q], bt = d->tbody[t];
-                                    if (!bodies_pair(&d->bodies[bt], B, bt == bb)) continue;
-                                    if (!boxes_overlap(box, d->tbox + 6 * (size_t)t, 0.0f)) continue;
-                                    float olo[3], ohi[3];
-                                    grown_box(d->tbox, t, cc->tri_grow, olo, ohi);
-                                    if (!lower_corner_is(lo, olo, inv, c)) continue; /* once */
-                                    if (!add_tri_edges(d, t, box, cand, &nc, CAND_MAX)) full = 1;
-                                }
-                            }
-                }
-                for (uint32_t m = 0; m < m_end; ++m) {
-                    const uint32_t t = cells > CC_BIG_CELLS ? m : ((const uint32_t *)h->big.ptr)[m];
+#define CC_EE_PATCH(K)                                                                      \
+    for (uint32_t t_ = ps[K]; t_ < ps[(K) + 1]; ++t_)                                       \
+        if (boxes_overlap(box, d->tbox + 6 * (size_t)t_, 0.0f) &&                          \
+            !add_tri_edges(d, t_, box, cand, &nc, CAND_MAX))                                \
+            full = 1
+            if (cells > CC_BIG_CELLS) {
+                for (uint32_t t = 0; t < nt; ++t) {
                     const uint32_t bt = d->tbody[t];
                     if (!active[bt] || !bodies_pair(&d->bodies[bt], B, bt == bb)) continue;
                     if (!boxes_overlap(box, d->tbox + 6 * (size_t)t, 0.0f)) continue;
                     if (!add_tri_edges(d, t, box, cand, &nc, CAND_MAX)) full = 1;
                 }
+            } else {
+                int32_t c[3];
+                for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
+                    for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
+                        for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
+                            const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
+                            for (uint32_t q = start[bk]; q < start[bk + 1]; ++q) {
+                                const uint32_t k = id[q], bt = pbd[k];
+                                if (!bodies_pair(&d->bodies[bt], B, bt == bb)) continue;
+                                if (!boxes_overlap(box, pab + 6 * (size_t)k, 0.0f)) continue;
+                                float olo[3], ohi[3];
+                                grown_box(pab, k, cc->tri_grow, olo, ohi);
+                                if (!lower_corner_is(lo, olo, inv, c)) continue; /* once */
+                                CC_EE_PATCH(k);
+                            }
+                        }
+                for (uint32_t m = 0; m < h->big_count; ++m) {
+                    const uint32_t k = ((const uint32_t *)h->big.ptr)[m], bt = pbd[k];
+                    if (!active[bt] || !bodies_pair(&d->bodies[bt], B, bt == bb)) continue;
+                    if (!boxes_overlap(box, pab + 6 * (size_t)k, 0.0f)) continue;
+                    CC_EE_PATCH(k);
+                }
             }
+#undef CC_EE_PATCH
             (void)full; /* near more than CAND_MAX / 3 triangles: the first found (in hash order) */
             for (uint32_t k = 0; k < nc && !d->oom; ++k) {
                 /* Not the border edge itself; two border edges once (from the later). */
@@ -1233,7 +1296,9 @@ static int32_t detect_prepare(rbc_clothcontact *cc, rbc_contact_body *bodies, ui
     cc->cell = cell;
     cc->inv_cell = 1.0f / cell;
 
-    if (!hash_build(cc, &cc->th, (uint32_t)nt, tbox, tbody, NULL, cc->tri_grow, active) ||
+    if (!patches_build(cc, &cc->tp, tbox) ||
+        !hash_build(cc, &cc->th, cc->tp.n, cc->tp.box.ptr, cc->tp.body.ptr, NULL, cc->tri_grow,
+                    active) ||
         !hash_build(cc, &cc->vh, (uint32_t)nv, vbox, vbody, bgrow, 0.0f, active))
         goto oom;
 
@@ -1302,30 +1367,37 @@ static void detect_range(rbc_clothcontact *cc, uint32_t tid, uint32_t nth) {
         } else {
             const cc_hash *h = &cc->th;
             const uint32_t *start = h->start.ptr, *id = h->id.ptr;
+            const uint32_t *ps = cc->tp.start.ptr, *pbd = cc->tp.body.ptr;
+            const float *pab = cc->tp.box.ptr;
             int32_t c[3];
             for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
                 for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
                     for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
                         const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
                         for (uint32_t e = start[bk]; e < start[bk + 1]; ++e) {
-                            const uint32_t t = id[e];
+                            const uint32_t k = id[e];
                             /* Bodies that do not collide (a cloth's own triangles
                              * without self contact: most of a cell) first. */
-                            if (tbody[t] < 64 && !pair_ok[tbody[t]]) continue;
+                            if (pbd[k] < 64 && !pair_ok[pbd[k]]) continue;
                             /* The exact box test first: it rejects most, and is
                              * cheaper than the lower-corner test. */
-                            if (!boxes_overlap(lo, tbox + 6 * (size_t)t, vgrow)) continue;
+                            if (!boxes_overlap(lo, pab + 6 * (size_t)k, vgrow)) continue;
                             if (!one_cell) {
                                 float olo[3], ohi[3];
-                                grown_box(tbox, t, cc->tri_grow, olo, ohi);
+                                grown_box(pab, k, cc->tri_grow, olo, ohi);
                                 if (!lower_corner_is(lo, olo, inv, c)) continue;
                             }
-                            try_vt(&d, &q, t);
+                            for (uint32_t t = ps[k]; t < ps[k + 1]; ++t)
+                                if (boxes_overlap(lo, tbox + 6 * (size_t)t, vgrow)) try_vt(&d, &q, t);
                         }
                     }
             const uint32_t *big = h->big.ptr;
-            for (uint32_t m = 0; m < h->big_count; ++m)
-                if (boxes_overlap(lo, tbox + 6 * (size_t)big[m], vgrow)) try_vt(&d, &q, big[m]);
+            for (uint32_t m = 0; m < h->big_count; ++m) {
+                const uint32_t k = big[m];
+                if (!boxes_overlap(lo, pab + 6 * (size_t)k, vgrow)) continue;
+                for (uint32_t t = ps[k]; t < ps[k + 1]; ++t)
+                    if (boxes_overlap(lo, tbox + 6 * (size_t)t, vgrow)) try_vt(&d, &q, t);
+            }
         }
         if (!d.oom && !part->full) *d.n = sort_partners(d.out->ptr, first, *d.n);
         if (!d.oom && !part->full && !keep_nearest(&d, first)) d.oom = 1;
@@ -1784,11 +1856,9 @@ typedef struct cc_fs {
     rbc_clothcontact *cc;
     rbc_contact_body *bodies;
     cc_part *part;              /* where this thread records the crossings it finds */
-    const cc_hash *h;           /* the triangles, hashed by hbox grown by hgrow, or
-                                   (patches) the patches by their boxes at p */
-    const float *hbox;
+    const cc_hash *h;           /* the patches P, hashed by their boxes grown by hgrow */
+    const cc_patches *P;
     float hgrow;
-    int patches;
 } cc_fs;
 
 /* Edge u0 u1 of body ba against triangle t (global): if the edge crosses the triangle
@@ -1884,59 +1954,41 @@ static void failsafe_query(cc_fs *f, const float lo[3], const float hi[3], uint3
         return;
     }
     int32_t c[3];
-    if (f->patches) {
-        /* Round 0: a patch's body and box, then its triangles' boxes; each patch once
-         * (in the cell of the lower corner of the two boxes' intersection). */
-        const uint32_t *ps = cc->pstart.ptr, *pbd = cc->pbody.ptr;
-        const float *pab = cc->pabox.ptr;
+    /* Patches: body (edge queries) and box first, then each triangle's box at p; each
+     * patch once (in the cell of the lower corner of its hashed box's intersection
+     * with the query). Round 0's (fp) are hashed by their boxes at p; later rounds'
+     * (tp) by the swept boxes grown by thickness + margin, which hold the boxes at p
+     * of every round. */
+    const cc_patches *P = f->P;
+    const uint32_t *ps = P->start.ptr, *pbd = P->body.ptr;
+    const float *pab = P->box.ptr, pg = f->hgrow;
 #define CC_FS_PATCH(K)                                                                      \
     do {                                                                                    \
         const uint32_t pk_ = (K);                                                           \
         for (uint32_t g_ = ps[pk_]; g_ < ps[pk_ + 1]; ++g_)                                 \
             if (boxes_overlap(box, pbox + 6 * (size_t)g_, 0.0f)) CC_FS_VISIT(g_);           \
     } while (0)
-        for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
-            for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
-                for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
-                    const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
-                    for (uint32_t q = start[bk]; q < start[bk + 1]; ++q) {
-                        const uint32_t k = id[q];
-                        if (!bodies_pair(A, &f->bodies[pbd[k]], pbd[k] == ba)) continue;
-                        const float *pb = pab + 6 * (size_t)k;
-                        if (!boxes_overlap(box, pb, 0.0f) || !lower_corner_is(lo, pb, inv, c)) continue;
-                        CC_FS_PATCH(k);
-                    }
-                }
-        for (uint32_t m = 0; m < h->big_count; ++m) {
-            const uint32_t k = big[m];
-            if (bodies_pair(A, &f->bodies[pbd[k]], pbd[k] == ba) &&
-                boxes_overlap(box, pab + 6 * (size_t)k, 0.0f))
-                CC_FS_PATCH(k);
-        }
-#undef CC_FS_PATCH
-        return;
-    }
     for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
         for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
             for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
                 const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
                 for (uint32_t q = start[bk]; q < start[bk + 1]; ++q) {
-                    /* As in detect: the hashed (grown) box first, then each pair in
-                     * one cell only. */
-                    const uint32_t t = id[q];
-                    /* Bodies it does not collide with, then its box now (the round's
-                     * start; in later rounds the hashed box is the swept one grown by
-                     * thickness + margin): the pair test reads corners at random. */
-                    if (A && !bodies_pair(A, &f->bodies[tbody[t]], tbody[t] == ba)) continue;
-                    if (!boxes_overlap(box, pbox + 6 * (size_t)t, 0.0f)) continue;
+                    const uint32_t k = id[q];
+                    if (A && !bodies_pair(A, &f->bodies[pbd[k]], pbd[k] == ba)) continue;
+                    if (!boxes_overlap(box, pab + 6 * (size_t)k, pg)) continue;
                     float olo[3], ohi[3];
-                    grown_box(f->hbox, t, f->hgrow, olo, ohi);
+                    grown_box(pab, k, pg, olo, ohi);
                     if (!lower_corner_is(lo, olo, inv, c)) continue;
-                    CC_FS_VISIT(t);
+                    CC_FS_PATCH(k);
                 }
             }
-    for (uint32_t m = 0; m < h->big_count; ++m)
-        if (boxes_overlap(box, pbox + 6 * (size_t)big[m], 0.0f)) CC_FS_VISIT(big[m]);
+    for (uint32_t m = 0; m < h->big_count; ++m) {
+        const uint32_t k = big[m];
+        if ((!A || bodies_pair(A, &f->bodies[pbd[k]], pbd[k] == ba)) &&
+            boxes_overlap(box, pab + 6 * (size_t)k, pg))
+            CC_FS_PATCH(k);
+    }
+#undef CC_FS_PATCH
 #undef CC_FS_VISIT
 }
 
@@ -1971,52 +2023,6 @@ static void failsafe_boxes(rbc_clothcontact *cc, const rbc_contact_body *bodies,
 /* One thread's scan of a round: its share of the edges (round 0: all of them; later
  * rounds: those with a vertex the last round froze) against the triangles, and of
  * the triangles with a corner the last round froze against the edges. */
-/* Thread 0, round 0: patches of consecutive triangles of one body, at most CC_PATCH
- * and at most CC_PATCH_CELLS cells across in any axis (a mesh whose triangles are not
- * in spatial order gets patches of one), with the union of their boxes at p. The
- * patches are hashed instead of the triangles: in a pile of flat layers an edge's
- * cells hold the triangles of the layers above and below it, whose boxes it never
- * meets (four layers at rest: 2.7 million triangles read a substep for no box
- * overlap), and a patch's box rejects a row of them at once. 0 = out of memory. */
-#define CC_PATCH 8u
-#define CC_PATCH_CELLS 3.0f
-static int patches_build(rbc_clothcontact *cc) {
-    const uint32_t count = cc->body_count, *tbase = cc->tbase.ptr;
-    const uint32_t ntr = tbase[count];
-    const rbc_allocator *al = &cc->alloc;
-    if (!buf_reserve(al, &cc->pstart, (size_t)ntr + 1, sizeof(uint32_t), 0) ||
-        !buf_reserve(al, &cc->pbody, ntr ? ntr : 1, sizeof(uint32_t), 0) ||
-        !buf_reserve(al, &cc->pabox, ntr ? ntr : 1, 6 * sizeof(float), 0))
-        return 0;
-    uint32_t *ps = cc->pstart.ptr, *pbd = cc->pbody.ptr, k = 0;
-    float *pab = cc->pabox.ptr;
-    const float *pb = cc->pbox.ptr, span = CC_PATCH_CELLS * cc->cell;
-    for (uint32_t b = 0; b < count; ++b)
-        for (uint32_t g = tbase[b]; g < tbase[b + 1];) {
-            float *o = pab + 6 * (size_t)k;
-            memcpy(o, pb + 6 * (size_t)g, 6 * sizeof(float));
-            ps[k] = g;
-            pbd[k] = b;
-            uint32_t e = g + 1;
-            for (; e < tbase[b + 1] && e - g < CC_PATCH; ++e) {
-                const float *t = pb + 6 * (size_t)e;
-                float u[6];
-                int fits = 1;
-                for (int a = 0; a < 3; ++a) {
-                    u[a] = min2(o[a], t[a]);
-                    u[3 + a] = max2(o[3 + a], t[3 + a]);
-                    if (!(u[3 + a] - u[a] <= span)) fits = 0; /* also an empty (inactive) box */
-                }
-                if (!fits) break;
-                memcpy(o, u, sizeof u);
-            }
-            g = e;
-            k++;
-        }
-    ps[k] = ntr;
-    cc->npatch = k;
-    return 1;
-}
 
 static void failsafe_scan(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t round,
                           uint32_t tid, uint32_t nth) {
@@ -2032,8 +2038,8 @@ static void failsafe_scan(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32
      * before it): far fewer per cell than the swept boxes grown by thickness +
      * margin, which later rounds use (their boxes changed where vertices froze; the
      * swept boxes still hold them). */
-    cc_fs f = {cc, bodies, part, round ? &cc->th : &cc->fh, round ? cc->tbox.ptr : cc->pbox.ptr,
-               round ? cc->tri_grow : 0.0f, !round};
+    cc_fs f = {cc, bodies, part, round ? &cc->th : &cc->fh, round ? &cc->tp : &cc->fp,
+               round ? cc->tri_grow : 0.0f};
     const uint32_t ne = abase[count], ntr = tbase[count];
     const uint32_t e0 = (uint32_t)((uint64_t)ne * tid / nth), e1 = (uint32_t)((uint64_t)ne * (tid + 1) / nth);
     const uint32_t t0 = (uint32_t)((uint64_t)ntr * tid / nth), t1 = (uint32_t)((uint64_t)ntr * (tid + 1) / nth);
@@ -2237,8 +2243,8 @@ int32_t rbc_clothcontact_failsafe_mt(rbc_clothcontact *cc, rbc_contact_body *bod
             failsafe_boxes(cc, bodies, tid, nth);
             if (sync) sync(sync_ctx);
             if (round == 0 && tid == 0 &&
-                (!patches_build(cc) ||
-                 !hash_build(cc, &cc->fh, cc->npatch, cc->pabox.ptr, cc->pbody.ptr, NULL, 0.0f,
+                (!patches_build(cc, &cc->fp, cc->pbox.ptr) ||
+                 !hash_build(cc, &cc->fh, cc->fp.n, cc->fp.box.ptr, cc->fp.body.ptr, NULL, 0.0f,
                              cc->active.ptr)))
                 cc->stage_rc = RBC_ERR_OUT_OF_MEMORY;
             if (round == 0 && sync) sync(sync_ctx);
