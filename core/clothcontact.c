@@ -2287,9 +2287,3 @@ int32_t rbc_clothcontact_failsafe_mt(rbc_clothcontact *cc, rbc_contact_body *bod
     if (sync) sync(sync_ctx);
     return rc;
 }
-
-uint32_t rbc_clothcontact_failsafe(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count) {
-    uint32_t frozen = 0;
-    rbc_clothcontact_failsafe_mt(cc, bodies, count, 0, 1, NULL, NULL, &frozen);
-    return frozen;
-}

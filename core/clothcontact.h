@@ -205,20 +205,21 @@ void rbc_clothcontact_friction(rbc_clothcontact *cc, rbc_contact_body *bodies, u
  * rounds until none crosses. x had no crossing and a common translation keeps the
  * zone's pairs as at x, so crossings are only ever with what is outside a zone, and
  * each round grows a zone or stops one: a zone with a pinned vertex, or one found
- * crossing again without growing, goes back to x (pinned vertices stay where their
- * pins put them). The contact solve is not exact and four layers bent over a sphere
+ * crossing again after a round in which it neither gained a vertex nor merged, goes
+ * back to x (pinned vertices stay where their pins put them). A pair that crossed at
+ * x already (a tangle older than the substep, which no zone motion undoes) is not a
+ * hit. The contact solve is not exact and four layers bent over a sphere
  * still end some substeps with an edge through another layer; a zone keeps its mean
  * velocity and loses its motion relative to it for one substep. (Sending every
  * vertex back to x instead stopped them while their neighbours moved on: in the
  * funnel's frames 38-42, a largest strain of 0.75-1.8 against 0.38-0.75 with no
  * fail-safe.) Static: a crossing that starts and ends within one substep
  * is the swept detection's business. Each round tests against the state it started
- * from, then moves what it found. Returns the vertices put into zones (0 if out of
- * memory: see rbc_clothcontact_failsafe_mt). */
-uint32_t rbc_clothcontact_failsafe(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count);
-
-/* The fail-safe on nth threads, called by every thread tid in [0, nth) with sync a
- * barrier of them (as rbc_clothcontact_detect_mt): in each round every thread tests
+ * from, then moves what it found.
+ *
+ * On nth threads, called by every thread tid in [0, nth) with sync a barrier of them
+ * (as rbc_clothcontact_detect_mt; nth = 1 and sync NULL: one thread): in each round
+ * every thread tests
  * its share of the edges and triangles against the state the round started from,
  * then thread 0 moves the zones of every crossing found, in thread order, so the
  * result is the same for any thread count. *frozen (every thread): the vertices put

@@ -26,7 +26,7 @@
  * only, the first crossing came at frame 8 (up to 113 crossings in a frame), 232 of
  * the first 237 with a border vertex; with edge-against-border-edge contacts none in
  * this scene, but crossings at frames 10-38 when the sphere's radius or speed
- * changed; the fail-safe after friction (rbc_clothcontact_failsafe) is what makes
+ * changed; the fail-safe after friction (rbc_clothcontact_failsafe_mt) is what makes
  * "none" hold by construction: it acts in about a third of the substeps here.
  */
 #include <math.h>
