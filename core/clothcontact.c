@@ -4,13 +4,15 @@
  *  1. boxes: the swept box (x..p) of every vertex and triangle of the bodies that
  *     collide at all;
  *  2. two spatial hashes over one uniform grid of cell size
- *     max(2 (thickness + margin), mean longest triangle edge at x): triangles by
- *     their swept box grown by the largest thickness + margin, and vertices by theirs
+ *     max(2 (thickness + margin), mean longest triangle edge at x): triangles, in
+ *     patches (cc_patches), by the patch's swept box grown by the largest thickness +
+ *     margin, and vertices by theirs
  *     grown by thickness + margin / 2 (for vertex-vertex pairs). A cell's integer
  *     coordinates are hashed to a bucket; a counting sort puts the objects of every
  *     cell into one flat table, bucket by bucket, in object order;
  *  3. every vertex looks up the buckets of the cells its own box covers and tests the
- *     boxes exactly (this also drops the objects of other cells that share a bucket).
+ *     boxes exactly (a patch's, then its triangles'; this also drops the objects of
+ *     other cells that share a bucket).
  *     A pair whose boxes share several cells is taken only in the cell holding the
  *     lower corner of the boxes' intersection, so it is seen once and no set is
  *     needed (an object in two cells of one bucket can still be seen twice: the sort
@@ -490,7 +492,7 @@ static int patches_build(rbc_clothcontact *cc, cc_patches *P, const float *pb) {
                 for (int a = 0; a < 3; ++a) {
                     u[a] = min2(o[a], t[a]);
                     u[3 + a] = max2(o[3 + a], t[3 + a]);
-                    if (!(u[3 + a] - u[a] <= span)) fits = 0; /* also an empty (inactive) box */
+                    if (!(u[3 + a] - u[a] <= span)) fits = 0; /* NaN does not fit */
                 }
                 if (!fits) break;
                 memcpy(o, u, sizeof u);
@@ -715,8 +717,12 @@ static void try_vt(cc_detect *d, const cc_vq *q, uint32_t t) {
     sub3(e2, C, A);
     cross3(nx, e1, e2);
     c->kind = RBC_CONTACT_VT;
+    /* Held for the first pass (which sees the prediction p) unless the prediction is
+     * deeper than the thickness on the far side: the inertial motion took it there,
+     * around the triangle (through it is RBC_CONTACT_CROSSED), not the solve. */
+    const int deep_p = n1ok && side * d1 < -V->thickness;
     c->flags = (through ? RBC_CONTACT_CROSSED : 0u) |
-               (tri_sliver(A, B, C, nx) ? RBC_CONTACT_THIN : 0u) | RBC_CONTACT_HELD;
+               (tri_sliver(A, B, C, nx) ? RBC_CONTACT_THIN : 0u) | (deep_p ? 0u : RBC_CONTACT_HELD);
     c->body_a = q->bv, c->a = i;
     c->body_b = bt, c->b = tl;
     c->side = side;
@@ -1587,6 +1593,7 @@ static inline void apply(const rbc_contact_body *A, uint32_t i, float ima,
  * dir of the vertex against the triangle point (weights w). */
 typedef struct cc_eval {
     float viol, dir[3], w[3], im[3], ima;
+    float vmax;                 /* the most a pass corrects (viol is the violation) */
     int held;                   /* VT: the flag RBC_CONTACT_HELD for the next pass */
     float ee_s, ima2;           /* EE: the edge's parameter, its second end's inverse mass */
     const uint32_t *tri;        /* the triangle's corners, or one[] (the other vertex) */
@@ -1620,6 +1627,7 @@ static int evaluate(const rbc_contact *c, const rbc_contact_body *bodies, cc_eva
     e->w[0] = 1.0f, e->w[1] = 0.0f, e->w[2] = 0.0f;
     e->im[0] = e->im[1] = e->im[2] = 0.0f;
     e->held = 1;
+    e->vmax = INFINITY;
     if (c->kind == RBC_CONTACT_VT) {
         const uint32_t *tri = B->tris + 3 * (size_t)c->b;
         float P[3][3], e1[3], e2[3], n[3], r[3], cp[3];
@@ -1628,7 +1636,10 @@ static int evaluate(const rbc_contact *c, const rbc_contact_body *bodies, cc_eva
         sub3(e2, P[2], P[0]);
         cross3(n, e1, e2);
         const float nn2 = dot3(n, n), th = A->thickness;
-        if (!(nn2 > 0.0f)) return 0;
+        if (!(nn2 > 0.0f)) {
+            e->held = (c->flags & RBC_CONTACT_HELD) != 0; /* no plane: no news */
+            return 0;
+        }
         const float nsl[3] = {n[0], n[1], n[2]};
         /* Most contacts are not touching: on their side at >= th from the plane means
          * >= th from the triangle too, so no closest point and no square root. */
@@ -1642,7 +1653,10 @@ static int evaluate(const rbc_contact *c, const rbc_contact_body *bodies, cc_eva
         sub3(r, q, cp);
         const float dn = dot3(r, n), r2 = dot3(r, r);
         if ((c->flags & RBC_CONTACT_THIN) || tri_sliver(P[0], P[1], P[2], nsl)) {
-            /* A sliver: its plane says nothing; keep th from the closest point. */
+            /* A sliver: its plane says nothing; keep th from the closest point. A
+             * vertex deep on its far side is not held (the sliver may unfold with it
+             * there, which is not the solve moving it through). */
+            e->held = dn >= -th;
             if (r2 >= th * th || !(r2 > 0.0f)) return 0;
             const float l = sqrtf(r2);
             e->viol = th - l;
@@ -1672,8 +1686,7 @@ static int evaluate(const rbc_contact *c, const rbc_contact_body *bodies, cc_eva
              * the funnel's settling pile: kinetic energy went from 1.5 to 3.9 J in
              * frames 52-55 and the largest strain to 2.6; capped, the pile settles
              * (0.07 J by frame 60, strain 0.42). */
-            if (dn < -th && !(c->flags & RBC_CONTACT_CROSSED) && e->viol > 2.0f * th)
-                e->viol = 2.0f * th;
+            if (dn < -th && !(c->flags & RBC_CONTACT_CROSSED)) e->vmax = 2.0f * th;
             for (int k = 0; k < 3; ++k) e->dir[k] = n[k];
         } else if (dn >= 0.0f) {
             /* Beside it, on its side: keep th from the closest point. */
@@ -1762,6 +1775,7 @@ float rbc_clothcontact_project(rbc_clothcontact *cc, rbc_contact_body *bodies, u
             c->flags = e.held ? c->flags | RBC_CONTACT_HELD : c->flags & ~(uint32_t)RBC_CONTACT_HELD;
         if (!v) continue;
         if (e.viol > worst) worst = e.viol;
+        if (e.viol > e.vmax) e.viol = e.vmax;
         if (c->kind == RBC_CONTACT_EE) {
             project_ee(bodies, c, &e);
             continue;
@@ -2034,12 +2048,10 @@ static void failsafe_scan(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32
     cc_part *part = (cc_part *)cc->parts.ptr + tid;
     part->nhits = part->hits_need = 0;
     part->oom = part->full = 0;
-    /* Round 0 (every edge) looks triangles up by their boxes at p (hashed just
-     * before it): far fewer per cell than the swept boxes grown by thickness +
-     * margin, which later rounds use (their boxes changed where vertices froze; the
-     * swept boxes still hold them). */
-    cc_fs f = {cc, bodies, part, round ? &cc->th : &cc->fh, round ? &cc->tp : &cc->fp,
-               round ? cc->tri_grow : 0.0f};
+    /* Triangles are looked up by their boxes at the round's start (patches hashed
+     * just before it): far fewer per cell than the swept boxes grown by thickness +
+     * margin. */
+    cc_fs f = {cc, bodies, part, &cc->fh, &cc->fp, 0.0f};
     const uint32_t ne = abase[count], ntr = tbase[count];
     const uint32_t e0 = (uint32_t)((uint64_t)ne * tid / nth), e1 = (uint32_t)((uint64_t)ne * (tid + 1) / nth);
     const uint32_t t0 = (uint32_t)((uint64_t)ntr * tid / nth), t1 = (uint32_t)((uint64_t)ntr * (tid + 1) / nth);
@@ -2074,6 +2086,11 @@ static void failsafe_scan(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32
     }
 }
 
+static int cmp_u32(const void *a, const void *b) {
+    const uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return x < y ? -1 : x > y;
+}
+
 static uint32_t zone_find(uint32_t *parent, uint32_t g) {
     while (parent[g] != g) {
         parent[g] = parent[parent[g]];
@@ -2088,7 +2105,8 @@ enum { CC_ZONE_TOUCHED = 1, CC_ZONE_PINNED = 2, CC_ZONE_REST = 4, CC_ZONE_GREW =
  * impact zone (Bridson, Fedkiw and Anderson 2002; Harmon et al. 2008): zones that
  * share a vertex merge, and every zone this round touched moves rigidly from x by
  * the mass-weighted mean of its vertices' motion over the substep (p - x before the
- * fail-safe). x had no crossing and a common translation keeps every pair inside a
+ * fail-safe). x had no crossing the fail-safe acts on (a pair crossing at x is no
+ * hit) and a common translation keeps every pair inside a
  * zone as it was at x, so a zone has none within; crossings with the rest are the
  * next round's. A zone with a pinned vertex, or one found crossing again without
  * growing, goes back to x (stops), which also has none. Stopping every zone
@@ -2141,6 +2159,10 @@ static uint32_t failsafe_apply(rbc_clothcontact *cc, rbc_contact_body *bodies, u
             changed += grew;
         }
     }
+    /* The zones' vertices in index order: the mean motions below are sums in this
+     * order, and the order vertices joined depends on how the round's scan was split
+     * over the threads (later rounds scan edges, then triangles, per thread). */
+    qsort(zl, cc->zcount, sizeof(uint32_t), cmp_u32);
     /* Flags to the roots; a zone crossing again that neither gained a vertex nor
      * merged in this round stops. Decided per zone after all the round's hits, not
      * per hit: two triangles that pass through each other give two or more hits on
@@ -2168,7 +2190,7 @@ static uint32_t failsafe_apply(rbc_clothcontact *cc, rbc_contact_body *bodies, u
             zf[zl[m]] &= (uint8_t) ~(CC_ZONE_TOUCHED | CC_ZONE_GREW);
         return 0;
     }
-    /* Flags to the roots, then each touched zone's mean motion. */
+    /* Each touched zone's mean motion: the sums cleared, then added up. */
     for (uint32_t m = 0; m < cc->zcount; ++m) {
         const uint32_t v = zl[m], r = zone_find(parent, v);
         sum[4 * (size_t)r] = sum[4 * (size_t)r + 1] = sum[4 * (size_t)r + 2] =
@@ -2238,16 +2260,21 @@ int32_t rbc_clothcontact_failsafe_mt(rbc_clothcontact *cc, rbc_contact_body *bod
         /* Round 0 tests every edge; a later round only what the last one moved: edges
          * with a vertex it froze against all triangles, and triangles with a corner it
          * froze against all edges. Each round freezes another vertex or ends, and a
-         * pair whose five vertices are all back at x does not cross (x did not). */
+         * pair whose five vertices are all back at x does not cross (x did not, or the
+         * pair is no hit). */
         for (uint32_t round = 0; round < 250; ++round) {
             failsafe_boxes(cc, bodies, tid, nth);
             if (sync) sync(sync_ctx);
-            if (round == 0 && tid == 0 &&
+            /* Every round hashes the patches by their boxes now: a zone's mean motion can
+             * take a triangle outside its swept box grown by thickness + margin (a
+             * resting vertex in a zone with a fast one), where the swept hash would
+             * miss it. */
+            if (tid == 0 &&
                 (!patches_build(cc, &cc->fp, cc->pbox.ptr) ||
                  !hash_build(cc, &cc->fh, cc->fp.n, cc->fp.box.ptr, cc->fp.body.ptr, NULL, 0.0f,
                              cc->active.ptr)))
                 cc->stage_rc = RBC_ERR_OUT_OF_MEMORY;
-            if (round == 0 && sync) sync(sync_ctx);
+            if (sync) sync(sync_ctx);
             if (cc->stage_rc != RBC_OK) break;
             failsafe_scan(cc, bodies, round, tid, nth);
             if (sync) sync(sync_ctx);

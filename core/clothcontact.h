@@ -62,11 +62,15 @@ enum { RBC_CONTACT_VT = 0, RBC_CONTACT_VV = 1, RBC_CONTACT_EE = 2 };
 /* rbc_contact.flags: the vertex's motion relative to the triangle crosses the plane
  * within thickness + margin of the triangle (it would pass through this triangle). */
 /* RBC_CONTACT_THIN: the triangle was a sliver at x (see rbc_clothcontact_project).
- * RBC_CONTACT_HELD (VT): at the last projection pass (at detection: at x) the vertex
- * was on its side, or within the thickness of the plane on the other, over the
- * triangle; a vertex found deeper on the far side after one held is pushed back
- * (it went through since that pass, moved by the solve), one that was already there
- * is left alone. */
+ * RBC_CONTACT_HELD (VT): the last projection pass found the vertex on its side of
+ * the triangle, within the thickness of the plane on the other side over it, or
+ * being pushed back (a sliver: not deeper than the thickness on its far side; not
+ * held: beside the triangle on the far side, or left alone deep; a degenerate
+ * triangle keeps what the pass before said); at detection: held unless the
+ * prediction is deeper than the thickness on the far side. A held vertex found
+ * deeper on the far side went through since that pass, moved by the solve, and is
+ * pushed back (at most twice the thickness a pass); one that was already there, or
+ * came around an edge, is left alone. */
 enum { RBC_CONTACT_CROSSED = 1, RBC_CONTACT_THIN = 2, RBC_CONTACT_HELD = 4 };
 
 /* A triangle is a sliver when twice its area is below this fraction of its longest
@@ -82,7 +86,7 @@ enum { RBC_CONTACT_CROSSED = 1, RBC_CONTACT_THIN = 2, RBC_CONTACT_HELD = 4 };
 /* One contact, as detect made it and project / friction update it. */
 typedef struct rbc_contact {
     uint32_t kind;                /* RBC_CONTACT_VT or RBC_CONTACT_VV */
-    uint32_t flags;               /* RBC_CONTACT_CROSSED, RBC_CONTACT_THIN or 0 */
+    uint32_t flags;               /* RBC_CONTACT_CROSSED, RBC_CONTACT_THIN, RBC_CONTACT_HELD */
     uint32_t body_a, a;           /* VT: the vertex; VV: the first vertex (lower global index);
                                      EE: the first end of the edge */
     uint32_t body_b, b;           /* VT: the triangle; VV: the second vertex; EE: the first
@@ -202,7 +206,7 @@ void rbc_clothcontact_friction(rbc_clothcontact *cc, rbc_contact_body *bodies, u
  * (Bridson, Fedkiw and Anderson 2002; Harmon et al. 2008, "Robust treatment of
  * simultaneous collisions"): zones sharing a vertex merge, and a zone moves rigidly
  * from x by the mass-weighted mean of its vertices' motion over the substep, in
- * rounds until none crosses. x had no crossing and a common translation keeps the
+ * rounds until none crosses. x had no crossing that counts and a common translation keeps the
  * zone's pairs as at x, so crossings are only ever with what is outside a zone, and
  * each round grows a zone or stops one: a zone with a pinned vertex, or one found
  * crossing again after a round in which it neither gained a vertex nor merged, goes
