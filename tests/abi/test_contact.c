@@ -674,10 +674,7 @@ static void test_contact_cap(void) {
     uint32_t most = 0, capped = 0;
     for (int step = 0; step < 5; ++step) {
         CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_OK);
-        rbc_world_stats st;
-        memset(&st, 0, sizeof st);
-        st.struct_size = sizeof st;
-        CHECK_EQ(rbc_world_get_stats(w, &st), RBC_OK);
+        rbc_world_stats st = test_stats(w);
         if (st.cloth_contacts > most) most = st.cloth_contacts;
         if (st.cloth_contact_capped > capped) capped = st.cloth_contact_capped;
         CHECK(st.cloth_contact_capped <= 2 * g.vertex_count);
@@ -740,10 +737,7 @@ static void test_alloc_thread(void) {
     uint32_t frozen = 0, capped = 0;
     for (int step = 0; step < 4; ++step) {
         CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_OK);
-        rbc_world_stats st;
-        memset(&st, 0, sizeof st);
-        st.struct_size = sizeof st;
-        CHECK_EQ(rbc_world_get_stats(w, &st), RBC_OK);
+        rbc_world_stats st = test_stats(w);
         frozen += st.cloth_contact_frozen;
         capped += st.cloth_contact_capped;
     }
