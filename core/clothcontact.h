@@ -121,9 +121,15 @@ void rbc_clothcontact_destroy(rbc_clothcontact *cc);
  * the vertices it cut (rbc_clothcontact_capped). */
 #define RBC_CC_MAX_PER_VERTEX 64u
 /* All contacts together (vertex-triangle, vertex-vertex and edge-edge) are at most
- * this many per vertex taking part, plus 4096: past it (edge contacts that grow
- * without bound) rbc_clothcontact_detect returns RBC_ERR_UNSTABLE, list empty. */
+ * this many per vertex taking part, plus RBC_CC_MAX_EE_PER_EDGE per interior edge
+ * of a self-colliding body, plus 4096: past it (edge contacts that grow without
+ * bound) rbc_clothcontact_detect returns RBC_ERR_UNSTABLE, list empty. */
 #define RBC_CC_MAX_TOTAL_PER_VERTEX (2u * RBC_CC_MAX_PER_VERTEX + 32u)
+/* An interior edge of a self-colliding body keeps at most this many edge-edge
+ * contacts with the later edges it finds, the nearest at p (ties in partner order):
+ * two cloths crushed into a 2 cm cube had up to 400 (counted in
+ * rbc_clothcontact_capped with the vertices). */
+#define RBC_CC_MAX_EE_PER_EDGE 16u
 
 /* Find the candidate contacts of this substep from x (start) and p (the inertial
  * prediction, before the solve). With g = thickness of the vertex's cloth + margin:
