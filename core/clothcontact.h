@@ -54,10 +54,13 @@ typedef struct rbc_contact_body { /* one cloth; arrays in the solver's internal 
 } rbc_contact_body;
 
 /* RBC_CONTACT_EE: an edge of one cloth against a border edge of another (or of the
- * same, with self contact). Vertex-triangle contacts cannot stop it: where a layer's
- * border slides past another's, an edge can wrap around the other's border edge and
- * cross its border triangle while no vertex passes through any triangle (in the
- * four-layer test, 232 of the first 237 crossings had a border vertex). */
+ * same, with self contact), or two interior edges where either cloth has self
+ * contact. Vertex-triangle contacts cannot stop it: where a layer's border slides
+ * past another's, an edge can wrap around the other's border edge and cross its
+ * border triangle while no vertex passes through any triangle (in the four-layer
+ * test, 232 of the first 237 crossings had a border vertex); where a cloth folds
+ * sharply, one interior edge passes another (a crumpled cloth: 98 % of the
+ * fail-safe's crossings). */
 enum { RBC_CONTACT_VT = 0, RBC_CONTACT_VV = 1, RBC_CONTACT_EE = 2 };
 /* rbc_contact.flags: the vertex's motion relative to the triangle crosses the plane
  * within thickness + margin of the triangle (it would pass through this triangle). */
@@ -122,11 +125,11 @@ void rbc_clothcontact_destroy(rbc_clothcontact *cc);
 #define RBC_CC_MAX_PER_VERTEX 64u
 /* All contacts together (vertex-triangle, vertex-vertex and edge-edge) are at most
  * this many per vertex taking part, plus RBC_CC_MAX_EE_PER_EDGE per interior edge
- * of a self-colliding body, plus 4096: past it (edge contacts that grow without
+ * of a body with interior edge contacts, plus 4096: past it (edge contacts that grow without
  * bound) rbc_clothcontact_detect returns RBC_ERR_UNSTABLE, list empty. */
 #define RBC_CC_MAX_TOTAL_PER_VERTEX (2u * RBC_CC_MAX_PER_VERTEX + 32u)
-/* An interior edge of a self-colliding body keeps at most this many edge-edge
- * contacts with the later edges it finds, the nearest at p (ties in partner order):
+/* An interior edge keeps at most this many interior edge-edge contacts with the
+ * later edges it finds, the nearest at p (ties in partner order):
  * two cloths crushed into a 2 cm cube had up to 400 (counted in
  * rbc_clothcontact_capped with the vertices). */
 #define RBC_CC_MAX_EE_PER_EDGE 16u
@@ -151,12 +154,15 @@ void rbc_clothcontact_destroy(rbc_clothcontact *cc);
  *    of another body or (self) of its own that shares no vertex and is >= 2 *
  *    thickness apart at rest, if the closest points of the two edges are within the
  *    larger thickness + margin at x or at p; the direction between them at x is
- *    kept. Two border edges make one contact. After the vertex contacts.
+ *    kept. Two border edges make one contact. Interior edges likewise, where either
+ *    body has self contact (within it, and against the bodies it collides with),
+ *    each edge's at most RBC_CC_MAX_EE_PER_EDGE. After the vertex contacts.
  * The contacts are sorted by vertex (body, index) and then partner (body, index),
  * vertex-triangle contacts first. Returns RBC_OK or RBC_ERR_OUT_OF_MEMORY (then the
  * list is empty and the object still valid). Buffers grow geometrically and are kept,
  * so a steady scene stops allocating. Cost: O(n + triangles + contacts + hash
- * entries), single-threaded; a box that spans more than 512 hash cells (a particle
+ * entries), the vertex and interior edge contacts split over the threads
+ * (rbc_clothcontact_detect_mt), the border edges' on one; a box that spans more than 512 hash cells (a particle
  * moving far in one substep) is tested by brute force against everything. */
 int32_t rbc_clothcontact_detect(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count,
                                 float margin);

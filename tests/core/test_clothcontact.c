@@ -1090,63 +1090,86 @@ static void test_failsafe_zone(void) {
     rbc_clothcontact_destroy(cc);
 }
 
-/* Edge-edge within a body, between interior edges: one self-colliding body of two
- * pieces, a valley (two quads along x creased downward along their middle edge,
- * walls rising 45 degrees) over a ridge (two quads along z creased upward), their
- * crease edges 2 mm apart, crossed at right angles. The valley moves 3 mm down in one
- * substep: its crease passes through the ridge's while no vertex comes within the
- * thickness of a triangle of the other piece (the valley's crease ends sit 5 mm off
- * the ridge's walls: vertex-triangle contacts see nothing), and neither crease is a
- * border edge. Only an edge-edge contact between interior edges keeps the creases
- * apart: after 8 passes the valley's crease is over the ridge's, the thickness
- * apart (10 % less allowed); without them it ended 1 mm under it, crossed. */
-static void test_interior_ee(void) {
+/* Edge-edge between interior edges: a valley (two quads along x creased downward
+ * along their middle edge, walls rising 45 degrees) over a ridge (two quads along z
+ * creased upward), their crease edges 2 mm apart, crossed at right angles. The valley
+ * moves 3 mm down in one substep: its crease passes through the ridge's while no
+ * vertex comes within the thickness of a triangle of the other piece (the valley's
+ * crease ends sit 5 mm off the ridge's walls: vertex-triangle contacts see nothing),
+ * and neither crease is a border edge. Only an edge-edge contact between interior
+ * edges keeps the creases apart: after 8 passes the valley's crease is over the
+ * ridge's, the thickness apart (10 % less allowed); without them it ended 1 mm under
+ * it, crossed. The pieces are one self-colliding body (mode 0), or two bodies of
+ * which the valley's has self contact (1): contacts. Two bodies without self contact
+ * (2) get none (flat layers do not pay for them): the crease ends crossed. */
+static void test_interior_ee(int mode) {
     rbc_allocator al = rbc_allocator_default();
     rbc_clothcontact *cc = NULL;
     CHECK_EQ(rbc_clothcontact_create(&al, &cc), RBC_OK);
     const float H = 0.005f, th = 0.0005f;
-    /* 12 vertices: 0-5 the valley (rows z = -H, 0, H; columns x = -H, H), 6-11 the
-     * ridge (rows x = -H, 0, H; columns z = -H, H). */
-    sheet s = sheet_grid(4, 3, 0.01f, 0.0f, 0.0f, 0.0f); /* 12 vertices, 12 triangles */
+    /* Piece 0, the valley: rows z = -H, 0, H, columns x = -H, H; piece 1, the ridge:
+     * rows x = -H, 0, H, columns z = -H, H. */
+    sheet s[2] = {sheet_grid(3, 2, 0.01f, 0.0f, 0.0f, 0.0f), sheet_grid(3, 2, 0.01f, 0.0f, 0.0f, 0.0f)};
     for (uint32_t i = 0; i < 6; ++i) {
-        const float z = (float)((int)(i / 2) - 1) * H, x = (i % 2) ? H : -H;
-        s.rest[0][i] = s.x[0][i] = x;
-        s.rest[2][i] = s.x[2][i] = z;
-        s.rest[1][i] = s.x[1][i] = 0.001f + (i / 2 == 1 ? 0.0f : H);
-        const float xr = (float)((int)(i / 2) - 1) * H, zr = (i % 2) ? H : -H;
-        s.rest[0][6 + i] = s.x[0][6 + i] = xr;
-        s.rest[2][6 + i] = s.x[2][6 + i] = zr;
-        s.rest[1][6 + i] = s.x[1][6 + i] = -0.001f - (i / 2 == 1 ? 0.0f : H);
+        const float along = (float)((int)(i / 2) - 1) * H, across = (i % 2) ? H : -H;
+        const float wall = i / 2 == 1 ? 0.0f : H;
+        s[0].x[0][i] = across, s[0].x[2][i] = along, s[0].x[1][i] = 0.001f + wall;
+        s[1].x[0][i] = along, s[1].x[2][i] = across, s[1].x[1][i] = -0.001f - wall;
+        for (int m = 0; m < 2; ++m)
+            for (int k = 0; k < 3; ++k) {
+                s[m].rest[k][i] = s[m].x[k][i] + (k == 1 ? (float)m : 0.0f); /* 1 m apart at rest */
+                s[m].d[k][i] = k == 1 && m == 0 ? -0.003f : 0.0f;
+            }
     }
-    /* Rest: the pieces 1 m apart, so nothing is excluded between them. */
-    for (uint32_t i = 6; i < 12; ++i) s.rest[1][i] -= 1.0f;
-    /* Two quads a piece: rows r and r + 1 of columns 0, 1 (vertices 2r, 2r + 1, ...). */
-    s.nt = 8;
-    uint32_t *t = s.tris;
-    for (uint32_t piece = 0; piece < 2; ++piece)
+    /* Two quads a piece: rows r and r + 1 (vertices 2r, 2r + 1, 2r + 2, 2r + 3). */
+    for (int m = 0; m < 2; ++m)
         for (uint32_t r = 0; r < 2; ++r) {
-            const uint32_t a = 6 * piece + 2 * r, b = a + 1, c = a + 3, dd = a + 2;
+            const uint32_t a = 2 * r, b = a + 1, c = a + 3, dd = a + 2;
+            uint32_t *t = s[m].tris + 6 * r;
             t[0] = a, t[1] = dd, t[2] = c, t[3] = a, t[4] = c, t[5] = b;
-            t += 6;
         }
+    sheet one = sheet_grid(4, 3, 0.01f, 0.0f, 0.0f, 0.0f); /* both pieces in one body */
     for (uint32_t i = 0; i < 12; ++i)
-        for (int k = 0; k < 3; ++k) s.d[k][i] = k == 1 && i < 6 ? -0.003f : 0.0f;
-    rbc_contact_body b = body_of(&s, th, 0.0f, 1, 0);
-    b.n = 12;
+        for (int k = 0; k < 3; ++k) {
+            one.x[k][i] = s[i / 6].x[k][i % 6];
+            one.rest[k][i] = s[i / 6].rest[k][i % 6];
+            one.d[k][i] = s[i / 6].d[k][i % 6];
+        }
+    one.nt = 8;
+    for (uint32_t k = 0; k < 24; ++k) one.tris[k] = s[k / 12].tris[k % 12] + 6 * (k / 12);
+    rbc_contact_body b[2];
+    uint32_t count = 1;
+    if (mode == 0) {
+        b[0] = body_of(&one, th, 0.0f, 1, 0);
+    } else {
+        b[0] = body_of(&s[0], th, 0.0f, mode == 1, 1);
+        b[1] = body_of(&s[1], th, 0.0f, 0, 1);
+        count = 2;
+    }
     float left = 0.0f;
-    CHECK_EQ(substep(cc, &s, &b, 1, 0.001f, 8, 0, &left), RBC_OK);
+    CHECK_EQ(substep(cc, mode == 0 ? &one : s, b, count, 0.001f, 8, 0, &left), RBC_OK);
     uint32_t ee = 0;
     const rbc_contact *list = rbc_clothcontact_list(cc);
     for (uint32_t m = 0; m < rbc_clothcontact_count(cc); ++m) ee += list[m].kind == RBC_CONTACT_EE;
-    /* The creases' middles: valley 2-3, ridge 8-9 (both at x = z = 0). */
-    const float yv = 0.5f * (s.x[1][2] + s.x[1][3]), yr = 0.5f * (s.x[1][8] + s.x[1][9]);
-    printf("interior edge-edge: %u edge contacts of %u; valley crease %.3g mm over the ridge's "
-           "(thickness %.3g mm), violation left %.3g mm\n",
+    /* The creases' middles (both at x = z = 0): valley 2-3, ridge 2-3 of piece 1. */
+    const sheet *V = mode == 0 ? &one : &s[0], *R = mode == 0 ? &one : &s[1];
+    const uint32_t r0 = mode == 0 ? 8 : 2;
+    const float yv = 0.5f * (V->x[1][2] + V->x[1][3]), yr = 0.5f * (R->x[1][r0] + R->x[1][r0 + 1]);
+    printf("interior edge-edge (%s): %u edge contacts of %u; valley crease %.3g mm over the "
+           "ridge's (thickness %.3g mm), violation left %.3g mm\n",
+           mode == 0 ? "one body, self" : mode == 1 ? "two bodies, one with self" : "two bodies, no self",
            ee, rbc_clothcontact_count(cc), (yv - yr) * 1e3, th * 1e3, left * 1e3);
-    CHECK(ee >= 1u);
-    CHECK(yv - yr > 0.9f * th);
-    CHECK(left < 0.1f * th);
-    sheet_free(&s);
+    if (mode < 2) {
+        CHECK(ee >= 1u);
+        CHECK(yv - yr > 0.9f * th);
+        CHECK(left < 0.1f * th);
+    } else {
+        CHECK_EQ(ee, 0u);
+        CHECK(yv - yr < 0.0f);
+    }
+    sheet_free(&s[0]);
+    sheet_free(&s[1]);
+    sheet_free(&one);
     rbc_clothcontact_destroy(cc);
 }
 
@@ -1162,7 +1185,7 @@ int main(void) {
     test_oom();
     test_sliver_and_deep();
     test_failsafe_zone();
-    test_interior_ee();
+    for (int mode = 0; mode < 3; ++mode) test_interior_ee(mode);
     time_layers(0.004f, 0.002f);
     time_layers(0.002f, 0.001f);
     return check_report("core_clothcontact");
