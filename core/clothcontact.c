@@ -1026,23 +1026,23 @@ static inline void seg_diff(float r[3], const float a0[3], const float a1[3], fl
  * substep's motion are within reach of one of the ends, the motion being at most
  * about a margin), not sharing a vertex and, within one body, >= 2 * thickness apart
  * at rest. */
+/* Squared distance between the boxes of segments a0 a1 and b0 b1: at most their
+ * distance. */
+static inline float seg_box_dist2(const float a0[3], const float a1[3], const float b0[3],
+                                  const float b1[3]) {
+    float d2 = 0.0f;
+    for (int k = 0; k < 3; ++k) {
+        const float g = max2(min2(b0[k], b1[k]) - max2(a0[k], a1[k]),
+                             min2(a0[k], a1[k]) - max2(b0[k], b1[k]));
+        if (g > 0.0f) d2 += g * g;
+    }
+    return d2;
+}
+
 static void try_ee(cc_detect *d, uint32_t ba, uint32_t u0, uint32_t u1, uint32_t bb, uint32_t v0,
                    uint32_t v1) {
     const rbc_contact_body *A = &d->bodies[ba], *B = &d->bodies[bb];
-    if (ba == bb) {
-        if (u0 == v0 || u0 == v1 || u1 == v0 || u1 == v1) return;
-        if (A->rest[0]) {
-            float R[4][3], s, t, r[3];
-            load3(R[0], A->rest, u0);
-            load3(R[1], A->rest, u1);
-            load3(R[2], A->rest, v0);
-            load3(R[3], A->rest, v1);
-            closest_seg_seg(R[0], R[1], R[2], R[3], &s, &t);
-            seg_diff(r, R[0], R[1], s, R[2], R[3], t);
-            const float lim = 2.0f * A->thickness;
-            if (dot3(r, r) < lim * lim) return;
-        }
-    }
+    if (ba == bb && (u0 == v0 || u0 == v1 || u1 == v0 || u1 == v1)) return;
     const float th = A->thickness > B->thickness ? A->thickness : B->thickness;
     const float g = th + d->margin;
     float X[4][3], P[4][3], s, t, r[3], rp[3];
@@ -1054,6 +1054,10 @@ static void try_ee(cc_detect *d, uint32_t ba, uint32_t u0, uint32_t u1, uint32_t
     load3(P[1], CONST3(A->p), u1);
     load3(P[2], CONST3(B->p), v0);
     load3(P[3], CONST3(B->p), v1);
+    /* The boxes first: most pairs found are neighbours a spring apart. */
+    if (!(seg_box_dist2(X[0], X[1], X[2], X[3]) < g * g) &&
+        !(seg_box_dist2(P[0], P[1], P[2], P[3]) < g * g))
+        return;
     closest_seg_seg(X[0], X[1], X[2], X[3], &s, &t);
     seg_diff(r, X[0], X[1], s, X[2], X[3], t);
     const float r2 = dot3(r, r);
@@ -1061,6 +1065,17 @@ static void try_ee(cc_detect *d, uint32_t ba, uint32_t u0, uint32_t u1, uint32_t
     closest_seg_seg(P[0], P[1], P[2], P[3], &sp, &tp);
     seg_diff(rp, P[0], P[1], sp, P[2], P[3], tp);
     if (!(r2 < g * g) && !(dot3(rp, rp) < g * g)) return;
+    if (ba == bb && A->rest[0]) {
+        float R[4][3], rs, rt, rr[3];
+        load3(R[0], A->rest, u0);
+        load3(R[1], A->rest, u1);
+        load3(R[2], A->rest, v0);
+        load3(R[3], A->rest, v1);
+        closest_seg_seg(R[0], R[1], R[2], R[3], &rs, &rt);
+        seg_diff(rr, R[0], R[1], rs, R[2], R[3], rt);
+        const float lim = 2.0f * A->thickness;
+        if (dot3(rr, rr) < lim * lim) return;
+    }
     if (!(r2 > 1e-12f)) return; /* touching at x: no direction to keep */
     rbc_contact *c = push_contact(d);
     if (!c) return;
