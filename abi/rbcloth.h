@@ -566,7 +566,8 @@ typedef struct rbc_cloth_def {
 /// rbc_cloth_def.collision_flags. (1.3)
 enum {
     /// The cloth collides with itself (vertex-triangle and vertex-vertex contact
-    /// between parts that do not touch at rest).
+    /// between parts that do not touch at rest, and edge-edge contact between its
+    /// edges; its interior edges also against those of the cloths it collides with).
     RBC_CLOTH_COLLIDE_SELF = 1,
     /// The cloth collides with the other cloths that have this flag.
     RBC_CLOTH_COLLIDE_CLOTHS = 2
