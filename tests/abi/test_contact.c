@@ -750,6 +750,43 @@ static void test_alloc_thread(void) {
     CHECK_EQ(hook_foreign, 0);
 }
 
+/* Self contact's interior edge contacts split over the threads by triangle patch:
+ * two cloths crushed into a 3 cm cube with self and cloth contact, 4 steps on 1 and
+ * on 2 threads, end bitwise the same, and the contacts stay within their caps (128
+ * vertex contacts a vertex, 16 interior edge contacts an interior edge, the border
+ * edges' 192 candidates each). */
+static void test_self_threads(void) {
+    float *end[2][2] = {{NULL, NULL}, {NULL, NULL}};
+    uint32_t most[2] = {0, 0}, n = 0;
+    for (int t = 0; t < 2; ++t) {
+        rbc_world_id w = make_world((uint32_t)t + 1, 1, -9.81f);
+        rbc_cloth_id cl[2];
+        test_grid g = crushed_pair(w, 4242u, 0.03f, 0.004f,
+                                   RBC_CLOTH_COLLIDE_CLOTHS | RBC_CLOTH_COLLIDE_SELF, cl);
+        n = 2 * g.vertex_count;
+        for (int step = 0; step < 4; ++step) {
+            CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_OK);
+            rbc_world_stats st = test_stats(w);
+            if (st.cloth_contacts > most[t]) most[t] = st.cloth_contacts;
+        }
+        for (int b = 0; b < 2; ++b) end[t][b] = test_read(w, cl[b], NULL);
+        test_grid_free(&g);
+        CHECK_EQ(rbc_world_destroy(w), RBC_OK);
+    }
+    int same = 1;
+    for (int b = 0; b < 2; ++b)
+        same &= end[0][b] && end[1][b] && memcmp(end[0][b], end[1][b], sizeof(float) * 3 * (n / 2)) == 0;
+    /* A 20 x 20 grid in triangles: 1,121 edges, 76 on the border, 1,045 inside. */
+    const uint32_t bound = 128u * n + 2u * (16u * 1045u + 76u * 192u);
+    printf("self contact on 1 and 2 threads: %s; at most %u / %u cloth contacts (bound %u)\n",
+           same ? "bitwise equal" : "DIFFERENT", most[0], most[1], bound);
+    CHECK(same);
+    CHECK_EQ(most[0], most[1]);
+    CHECK(most[0] > 0u && most[0] <= bound);
+    for (int t = 0; t < 2; ++t)
+        for (int b = 0; b < 2; ++b) free(end[t][b]);
+}
+
 int main(void) {
     test_drop(RBC_SHAPE_SPHERE);
     test_drop(RBC_SHAPE_BOX);
@@ -767,5 +804,6 @@ int main(void) {
     test_wind();
     test_contact_cap();
     test_alloc_thread();
+    test_self_threads();
     return check_report("abi_contact");
 }
