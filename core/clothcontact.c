@@ -1253,7 +1253,9 @@ static void ees_pair(cc_detect *d, uint32_t b, uint32_t bq, uint32_t P, uint32_t
     const uint32_t vb = d->vbase[b], vq = d->vbase[bq];
     for (uint32_t t = ps[P]; t < ps[P + 1]; ++t) {
         const float *tb = d->tbox + 6 * (size_t)t;
-        for (uint32_t u = ps[Q]; u < ps[Q + 1]; ++u) {
+        /* Pairs by owner triangle: the edge of the lower one asks (Q > P: all of Q's
+         * are higher), whatever the patches. */
+        for (uint32_t u = P == Q ? t + 1 : ps[Q]; u < ps[Q + 1]; ++u) {
             if (!boxes_overlap(tb, d->tbox + 6 * (size_t)u, g)) continue;
             for (int i = 0; i < 3; ++i) {
                 const uint32_t wi = te[3 * (size_t)t + i], e = wi & ~CC_TEDGE_FIRST;
@@ -1267,13 +1269,17 @@ static void ees_pair(cc_detect *d, uint32_t b, uint32_t bq, uint32_t P, uint32_t
                 }
                 for (int j = 0; j < 3; ++j) {
                     const uint32_t wj = te[3 * (size_t)u + j], f = wj & ~CC_TEDGE_FIRST;
-                    if (!(wj & CC_TEDGE_FIRST) || eb[f] || (P == Q && f <= e)) continue;
+                    if (!(wj & CC_TEDGE_FIRST) || eb[f]) continue;
                     const uint32_t u0 = ae[2 * (size_t)f], u1 = ae[2 * (size_t)f + 1];
                     const float *c0 = d->vbox + 6 * ((size_t)vq + u0), *c1 = d->vbox + 6 * ((size_t)vq + u1);
                     int out = 0;
                     for (int k = 0; k < 3 && !out; ++k)
                         out = min2(c0[k], c1[k]) > box[3 + k] || max2(c0[3 + k], c1[3 + k]) < box[k];
-                    if (!out) try_ee(d, bq, u0, u1, b, v0, v1);
+                    if (out) continue;
+                    const uint32_t n0 = *d->n;
+                    try_ee(d, bq, u0, u1, b, v0, v1);
+                    /* The asking edge's triangle, for the sort (cleared after it). */
+                    if (*d->n > n0 && !d->part->full) ((rbc_contact *)d->out->ptr)[n0].flags = t;
                 }
             }
         }
@@ -1282,6 +1288,7 @@ static void ees_pair(cc_detect *d, uint32_t b, uint32_t bq, uint32_t P, uint32_t
 
 static int cmp_ee_contact(const void *x, const void *y) {
     const rbc_contact *a = x, *b = y;
+    if (a->flags != b->flags) return a->flags < b->flags ? -1 : 1; /* the asking triangle */
     if (a->b != b->b) return a->b < b->b ? -1 : 1;
     if (a->b2 != b->b2) return a->b2 < b->b2 ? -1 : 1;
     if (a->body_a != b->body_a) return a->body_a < b->body_a ? -1 : 1;
@@ -1334,6 +1341,9 @@ static void detect_ee_self(cc_detect *d, uint32_t tid, uint32_t nth) {
                         const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
                         for (uint32_t q = start[bk]; q < start[bk + 1]; ++q) {
                             const uint32_t Q = id[q];
+                            /* A patch in two cells of one bucket is there twice, side
+                             * by side (a bucket holds its objects in order). */
+                            if (q > start[bk] && id[q - 1] == Q) continue;
                             if (Q < P || !EES_PARTNER(pbd[Q]) || !boxes_overlap(box, pab + 6 * (size_t)Q, 0.0f))
                                 continue;
                             float olo[3], ohi[3];
@@ -1365,8 +1375,11 @@ static void detect_ee_self(cc_detect *d, uint32_t tid, uint32_t nth) {
             if (pushed > d->part->ee_run) d->part->ee_run = (uint32_t)(pushed < UINT32_MAX ? pushed : UINT32_MAX);
         }
 #undef EES_PARTNER
-        if (d->oom || d->part->full || *d->n - first < 2) continue;
+        if (d->oom || d->part->full) continue;
         rbc_contact *c = (rbc_contact *)d->out->ptr;
+        /* By asking triangle, asking edge, then partner: patches are runs of
+         * consecutive triangles, so the list (and which edge's cap a pair counts
+         * against) does not depend on how the triangles were cut into patches. */
         qsort(c + first, *d->n - first, sizeof(rbc_contact), cmp_ee_contact);
         /* Each edge's run (by its query edge b, b2): the nearest RBC_CC_MAX_EE_PER_EDGE
          * at p, in partner order. */
@@ -1402,6 +1415,7 @@ static void detect_ee_self(cc_detect *d, uint32_t tid, uint32_t nth) {
             k = m;
         }
         *d->n = out;
+        for (uint32_t k = first; k < out; ++k) c[k].flags = 0;
     }
 }
 

@@ -1173,6 +1173,65 @@ static void test_interior_ee(int mode) {
     rbc_clothcontact_destroy(cc);
 }
 
+/* The interior edge contacts do not depend on how the triangles fall into patches
+ * or cells, and hold each pair once: a 30 x 30 sheet folded like an accordion (its
+ * columns 2.5 mm apart in x, every other one 9.5 mm higher; thickness 2 mm), alone,
+ * then beside a far body of two 100 m triangles that makes the hash's cells 0.3 m
+ * instead of 1.5 cm (so its patches are cut differently): the same edge contacts
+ * of the sheet, in the same order, none twice. Before, a patch hashed from two
+ * cells into one bucket made every contact of its pairs twice, and the order
+ * followed the patches. */
+static void test_ee_layout(void) {
+    rbc_allocator al = rbc_allocator_default();
+    const float L = 0.01f, th = 0.002f;
+    sheet s = sheet_grid(30, 30, L, 0.0f, 0.0f, 0.0f);
+    uint32_t seed = 99u;
+    for (uint32_t j = 0; j < 30; ++j)
+        for (uint32_t i = 0; i < 30; ++i) {
+            const uint32_t v = i + 30 * j;
+            seed = seed * 1664525u + 1013904223u;
+            const float jit = 0.001f * ((float)(seed >> 8) / 16777216.0f - 0.5f);
+            s.x[0][v] = 0.25f * L * (float)i;
+            s.x[1][v] = (i % 2 ? 0.95f * L : 0.0f) + jit;
+            for (int k = 0; k < 3; ++k) s.p[k][v] = s.x[k][v] + (k == 1 ? -0.5f * jit : 0.0f);
+        }
+    sheet far = sheet_grid(2, 2, 100.0f, 1000.0f, 0.0f, 0.0f);
+    rbc_contact_body b[2] = {body_of(&s, th, 0.0f, 1, 0), body_of(&far, th, 0.0f, 1, 0)};
+    rbc_contact *list[2] = {NULL, NULL};
+    uint32_t n[2] = {0, 0}, dup = 0;
+    for (int m = 0; m < 2; ++m) {
+        rbc_clothcontact *cc = NULL;
+        CHECK_EQ(rbc_clothcontact_create(&al, &cc), RBC_OK);
+        CHECK_EQ(rbc_clothcontact_detect(cc, b, (uint32_t)m + 1, 0.002f), RBC_OK);
+        const rbc_contact *c = rbc_clothcontact_list(cc);
+        list[m] = malloc(sizeof(rbc_contact) * (rbc_clothcontact_count(cc) + 1));
+        for (uint32_t k = 0; k < rbc_clothcontact_count(cc); ++k)
+            if (c[k].kind == RBC_CONTACT_EE && c[k].body_a == 0 && c[k].body_b == 0) list[m][n[m]++] = c[k];
+        rbc_clothcontact_destroy(cc);
+    }
+    for (uint32_t k = 0; k < n[0]; ++k)
+        for (uint32_t q = k + 1; q < n[0]; ++q) {
+            const rbc_contact *x = &list[0][k], *y = &list[0][q];
+            const uint32_t xa = x->a < x->a2 ? x->a : x->a2, xa2 = x->a < x->a2 ? x->a2 : x->a;
+            const uint32_t xb = x->b < x->b2 ? x->b : x->b2, xb2 = x->b < x->b2 ? x->b2 : x->b;
+            const uint32_t ya = y->a < y->a2 ? y->a : y->a2, ya2 = y->a < y->a2 ? y->a2 : y->a;
+            const uint32_t yb = y->b < y->b2 ? y->b : y->b2, yb2 = y->b < y->b2 ? y->b2 : y->b;
+            dup += (xa == ya && xa2 == ya2 && xb == yb && xb2 == yb2) ||
+                   (xa == yb && xa2 == yb2 && xb == ya && xb2 == ya2);
+        }
+    const int same = n[0] == n[1] && memcmp(list[0], list[1], sizeof(rbc_contact) * n[0]) == 0;
+    printf("edge contacts and patches: %u of the sheet alone, %u beside a far body (other "
+           "cells and patches), %s; %u pairs twice\n",
+           n[0], n[1], same ? "the same list" : "DIFFERENT", dup);
+    CHECK(n[0] > 100u);
+    CHECK(same);
+    CHECK_EQ(dup, 0u);
+    free(list[0]);
+    free(list[1]);
+    sheet_free(&s);
+    sheet_free(&far);
+}
+
 int main(void) {
     test_fast_particle();
     test_far_motion();
@@ -1186,6 +1245,7 @@ int main(void) {
     test_sliver_and_deep();
     test_failsafe_zone();
     for (int mode = 0; mode < 3; ++mode) test_interior_ee(mode);
+    test_ee_layout();
     time_layers(0.004f, 0.002f);
     time_layers(0.002f, 0.001f);
     return check_report("core_clothcontact");
