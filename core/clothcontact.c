@@ -1146,13 +1146,77 @@ static int add_tri_edges(const cc_detect *d, uint32_t t, const float box[6], cc_
 }
 
 
+/* The patches of the triangle hash (cc->th, cc->tp) whose box meets box, each once:
+ * keep(ctx, k) first (which bodies), then the box test, then visit(ctx, k). Once: in
+ * the cell holding the lower corner of the box's intersection with the patch's
+ * hashed box (grown by tri_grow), and a patch hashed from two cells into one bucket
+ * lies there twice, side by side (a bucket holds its objects in order: without the
+ * check, the interior edge pass made every contact of such a patch twice). A box over
+ * more than CC_BIG_CELLS cells: every patch, in order. The patches too big to hash
+ * come last. Static, with constant keep and visit: the calls are inlined. */
+static inline void patches_near(const rbc_clothcontact *cc, const float box[6],
+                                int (*keep)(void *, uint32_t), void (*visit)(void *, uint32_t),
+                                void *ctx) {
+    const cc_hash *h = &cc->th;
+    const uint32_t *start = h->start.ptr, *id = h->id.ptr, *big = h->big.ptr;
+    const float *pab = cc->tp.box.ptr, inv = cc->inv_cell;
+    cc_range r;
+    box_range(box, box + 3, inv, &r);
+    if (range_cells(&r) > CC_BIG_CELLS) {
+        for (uint32_t k = 0; k < cc->tp.n; ++k)
+            if (keep(ctx, k) && boxes_overlap(box, pab + 6 * (size_t)k, 0.0f)) visit(ctx, k);
+        return;
+    }
+    int32_t c[3];
+    for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
+        for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
+            for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
+                const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
+                for (uint32_t q = start[bk]; q < start[bk + 1]; ++q) {
+                    const uint32_t k = id[q];
+                    if (q > start[bk] && id[q - 1] == k) continue;
+                    if (!keep(ctx, k) || !boxes_overlap(box, pab + 6 * (size_t)k, 0.0f)) continue;
+                    float olo[3], ohi[3];
+                    grown_box(pab, k, cc->tri_grow, olo, ohi);
+                    if (lower_corner_is(box, olo, inv, c)) visit(ctx, k);
+                }
+            }
+    for (uint32_t m = 0; m < h->big_count; ++m)
+        if (keep(ctx, big[m]) && boxes_overlap(box, pab + 6 * (size_t)big[m], 0.0f)) visit(ctx, big[m]);
+}
+
+/* Border edge queries (detect_ee): which patches, and their triangles' edges. */
+typedef struct cc_eeq {
+    cc_detect *d;
+    const uint8_t *active;
+    const rbc_contact_body *B;
+    uint32_t bb, nc, cap;
+    const float *box;
+    cc_ecand *cand;             /* the sorted set of candidate edges, cap at most */
+    int full;
+} cc_eeq;
+
+static int eeq_keep(void *ctx, uint32_t k) {
+    const cc_eeq *q = ctx;
+    const uint32_t bt = ((const uint32_t *)q->d->cc->tp.body.ptr)[k];
+    return q->active[bt] && bodies_pair(&q->d->bodies[bt], q->B, bt == q->bb);
+}
+
+static void eeq_visit(void *ctx, uint32_t k) {
+    cc_eeq *q = ctx;
+    const uint32_t *ps = q->d->cc->tp.start.ptr;
+    for (uint32_t t = ps[k]; t < ps[k + 1]; ++t)
+        if (boxes_overlap(q->box, q->d->tbox + 6 * (size_t)t, 0.0f) &&
+            !add_tri_edges(q->d, t, q->box, q->cand, &q->nc, q->cap))
+            q->full = 1;
+}
+
 /* Edge-edge contacts: every border edge looks up the triangles around its swept box
  * (the triangle hash) and tests their edges, each once (a small sorted set per border
  * edge: in body, then index order, so the list is deterministic). */
-static void detect_ee(cc_detect *d, const uint8_t *active, uint32_t count, uint32_t nt) {
+static void detect_ee(cc_detect *d, const uint8_t *active, uint32_t count) {
     rbc_clothcontact *cc = d->cc;
     const uint32_t *ebase = cc->ebase.ptr, *be = cc->bedge.ptr;
-    const float inv = cc->inv_cell;
     enum { CAND_MAX = 192 };
     cc_ecand cand[CAND_MAX];
     for (uint32_t bb = 0; bb < count && !d->oom; ++bb) {
@@ -1168,53 +1232,12 @@ static void detect_ee(cc_detect *d, const uint8_t *active, uint32_t count, uint3
                 hi[k] = max2(max2(a0, a1), max2(p0, p1)) + g;
             }
             const float box[6] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]};
-            uint32_t nc = 0;
-            int full = 0;
-            cc_range r;
-            box_range(lo, hi, inv, &r);
-            const cc_hash *h = &cc->th;
-            const uint32_t *start = h->start.ptr, *id = h->id.ptr;
-            const uint32_t *ps = cc->tp.start.ptr, *pbd = cc->tp.body.ptr;
-            const float *pab = cc->tp.box.ptr;
             /* Candidate triangles: from the hash of patches (or all, for a huge box). */
-            const uint64_t cells = range_cells(&r);
-#define CC_EE_PATCH(K)                                                                      \
-    for (uint32_t t_ = ps[K]; t_ < ps[(K) + 1]; ++t_)                                       \
-        if (boxes_overlap(box, d->tbox + 6 * (size_t)t_, 0.0f) &&                          \
-            !add_tri_edges(d, t_, box, cand, &nc, CAND_MAX))                                \
-            full = 1
-            if (cells > CC_BIG_CELLS) {
-                for (uint32_t t = 0; t < nt; ++t) {
-                    const uint32_t bt = d->tbody[t];
-                    if (!active[bt] || !bodies_pair(&d->bodies[bt], B, bt == bb)) continue;
-                    if (!boxes_overlap(box, d->tbox + 6 * (size_t)t, 0.0f)) continue;
-                    if (!add_tri_edges(d, t, box, cand, &nc, CAND_MAX)) full = 1;
-                }
-            } else {
-                int32_t c[3];
-                for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
-                    for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
-                        for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
-                            const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
-                            for (uint32_t q = start[bk]; q < start[bk + 1]; ++q) {
-                                const uint32_t k = id[q], bt = pbd[k];
-                                if (!bodies_pair(&d->bodies[bt], B, bt == bb)) continue;
-                                if (!boxes_overlap(box, pab + 6 * (size_t)k, 0.0f)) continue;
-                                float olo[3], ohi[3];
-                                grown_box(pab, k, cc->tri_grow, olo, ohi);
-                                if (!lower_corner_is(lo, olo, inv, c)) continue; /* once */
-                                CC_EE_PATCH(k);
-                            }
-                        }
-                for (uint32_t m = 0; m < h->big_count; ++m) {
-                    const uint32_t k = ((const uint32_t *)h->big.ptr)[m], bt = pbd[k];
-                    if (!active[bt] || !bodies_pair(&d->bodies[bt], B, bt == bb)) continue;
-                    if (!boxes_overlap(box, pab + 6 * (size_t)k, 0.0f)) continue;
-                    CC_EE_PATCH(k);
-                }
-            }
-#undef CC_EE_PATCH
-            (void)full; /* near more than CAND_MAX / 3 triangles: the first found (in hash order) */
+            cc_eeq eq = {d, active, B, bb, 0, CAND_MAX, box, cand, 0};
+            patches_near(cc, box, eeq_keep, eeq_visit, &eq);
+            const uint32_t nc = eq.nc;
+            /* eq.full: near more than CAND_MAX / 3 triangles, the first found (in hash
+             * order) kept. */
             for (uint32_t k = 0; k < nc && !d->oom; ++k) {
                 /* Not the border edge itself; two border edges once (from the later). */
                 const int64_t o = border_index(cc, cand[k].body, cand[k].u0, cand[k].u1);
@@ -1302,12 +1325,34 @@ static int cmp_ee_near(const void *x, const void *y) {
     return cmp_ee_contact(x, y);
 }
 
+/* Interior edge queries (detect_ee_self): patch P of body b asks the patches Q >= P
+ * of its own body (with self contact) and of the bodies it collides with where either
+ * has self contact. */
+typedef struct cc_eesq {
+    cc_detect *d;
+    const uint8_t *active;
+    const rbc_contact_body *B;
+    uint32_t b, P;
+    float g;
+} cc_eesq;
+
+static int eesq_keep(void *ctx, uint32_t Q) {
+    const cc_eesq *q = ctx;
+    const uint32_t bq = ((const uint32_t *)q->d->cc->tp.body.ptr)[Q];
+    if (Q < q->P) return 0;
+    if (bq == q->b) return q->B->self != 0;
+    return q->active[bq] && (q->B->self || q->d->bodies[bq].self) &&
+           bodies_pair(q->B, &q->d->bodies[bq], 0);
+}
+
+static void eesq_visit(void *ctx, uint32_t Q) {
+    cc_eesq *q = ctx;
+    ees_pair(q->d, q->b, ((const uint32_t *)q->d->cc->tp.body.ptr)[Q], q->P, Q, q->g);
+}
+
 static void detect_ee_self(cc_detect *d, uint32_t tid, uint32_t nth) {
     rbc_clothcontact *cc = d->cc;
     const uint8_t *active = cc->active.ptr;
-    const float inv = cc->inv_cell;
-    const cc_hash *h = &cc->th;
-    const uint32_t *start = h->start.ptr, *id = h->id.ptr, *big = h->big.ptr;
     const uint32_t *pbd = cc->tp.body.ptr;
     const float *pab = cc->tp.box.ptr;
     const uint32_t np = cc->tp.n;
@@ -1317,47 +1362,12 @@ static void detect_ee_self(cc_detect *d, uint32_t tid, uint32_t nth) {
         const rbc_contact_body *B = &d->bodies[b];
         if (!active[b] || !(B->self || B->others)) continue;
         const float g = cc->tri_grow;
-        /* Patches of the same body (with self contact), or of another that collides
-         * with this one where either has self contact. */
-#define EES_PARTNER(BQ)                                                                      \
-    ((BQ) == b ? B->self != 0                                                                \
-               : active[BQ] && (B->self || d->bodies[BQ].self) &&                            \
-                     bodies_pair(B, &d->bodies[BQ], 0))
         float box[6];
         for (int k = 0; k < 3; ++k) box[k] = pab[6 * (size_t)P + k] - g, box[3 + k] = pab[6 * (size_t)P + 3 + k] + g;
         const uint32_t first = *d->n;
         const uint64_t raw0 = *d->raw;
-        cc_range r;
-        box_range(box, box + 3, inv, &r);
-        if (range_cells(&r) > CC_BIG_CELLS) {
-            for (uint32_t Q = P; Q < np; ++Q)
-                if (EES_PARTNER(pbd[Q]) && boxes_overlap(box, pab + 6 * (size_t)Q, 0.0f))
-                    ees_pair(d, b, pbd[Q], P, Q, g);
-        } else {
-            int32_t c[3];
-            for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
-                for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
-                    for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
-                        const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
-                        for (uint32_t q = start[bk]; q < start[bk + 1]; ++q) {
-                            const uint32_t Q = id[q];
-                            /* A patch in two cells of one bucket is there twice, side
-                             * by side (a bucket holds its objects in order). */
-                            if (q > start[bk] && id[q - 1] == Q) continue;
-                            if (Q < P || !EES_PARTNER(pbd[Q]) || !boxes_overlap(box, pab + 6 * (size_t)Q, 0.0f))
-                                continue;
-                            float olo[3], ohi[3];
-                            grown_box(pab, Q, cc->tri_grow, olo, ohi);
-                            if (!lower_corner_is(box, olo, inv, c)) continue; /* once */
-                            ees_pair(d, b, pbd[Q], P, Q, g);
-                        }
-                    }
-            for (uint32_t m = 0; m < h->big_count; ++m) {
-                const uint32_t Q = big[m];
-                if (Q >= P && EES_PARTNER(pbd[Q]) && boxes_overlap(box, pab + 6 * (size_t)Q, 0.0f))
-                    ees_pair(d, b, pbd[Q], P, Q, g);
-            }
-        }
+        cc_eesq eq = {d, active, B, b, P, g};
+        patches_near(cc, box, eesq_keep, eesq_visit, &eq);
         {
             /* What the list needs: this patch's pushes (before the cap), and at most the
              * cap for each edge it owns after. */
@@ -1374,7 +1384,6 @@ static void detect_ee_self(cc_detect *d, uint32_t tid, uint32_t nth) {
             d->part->need_ee += pushed < capped ? pushed : capped;
             if (pushed > d->part->ee_run) d->part->ee_run = (uint32_t)(pushed < UINT32_MAX ? pushed : UINT32_MAX);
         }
-#undef EES_PARTNER
         if (d->oom || d->part->full) continue;
         rbc_contact *c = (rbc_contact *)d->out->ptr;
         /* By asking triangle, asking edge, then partner: patches are runs of
@@ -1780,7 +1789,7 @@ static int32_t detect_finish(rbc_clothcontact *cc, uint32_t nth) {
                    cc->dcap, 0, &cc->contacts, &cc->count, NULL, NULL, NULL, NULL, {0}};
     /* Edge against border edge (the edges were found in detect_prepare). */
     (void)count;
-    if (!d.oom) detect_ee(&d, cc->active.ptr, count, ((const uint32_t *)cc->tbase.ptr)[count]);
+    if (!d.oom) detect_ee(&d, cc->active.ptr, count);
     if (d.over) {
         cc->count = 0;
         return RBC_ERR_UNSTABLE;

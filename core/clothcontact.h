@@ -129,9 +129,10 @@ void rbc_clothcontact_destroy(rbc_clothcontact *cc);
  * bound) rbc_clothcontact_detect returns RBC_ERR_UNSTABLE, list empty. */
 #define RBC_CC_MAX_TOTAL_PER_VERTEX (2u * RBC_CC_MAX_PER_VERTEX + 32u)
 /* An interior edge keeps at most this many interior edge-edge contacts with the
- * later edges it finds, the nearest at p (ties in partner order):
- * two cloths crushed into a 2 cm cube had up to 400 (counted in
- * rbc_clothcontact_capped with the vertices). */
+ * later edges it finds, the nearest at p (ties in partner order; an edge cut counts
+ * in rbc_clothcontact_capped with the vertices). Before it (and its term in the
+ * total above), two self-colliding cloths crushed into a cube (abi_contact) made
+ * more contacts than the total allowed and the step failed (RBC_ERR_UNSTABLE). */
 #define RBC_CC_MAX_EE_PER_EDGE 16u
 
 /* Find the candidate contacts of this substep from x (start) and p (the inertial
