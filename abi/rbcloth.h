@@ -61,7 +61,13 @@
  *    (rbc_cloth_cut, rbc_cloth_get_quads), wind, and triangles of imported meshes.
  *    1.4: the target error mode (RBC_ITERATE_TARGET: rbc_solver_def.target_strain
  *    and max_substeps; what was chosen and reached in stats) and quality presets
- *    (rbc_solver_def_preset, RBC_PRESET_GAME_60HZ).
+ *    (rbc_solver_def_preset, RBC_PRESET_GAME_60HZ). 1.5: the cloth contact
+ *    fail-safe's counts in stats. 1.6: defaults that give cloth at any dt: substeps
+ *    from a rate (rbc_world_def.substeps 0 and substep_rate, 480 Hz by default)
+ *    and red-black SOR (RBC_PRESET_CLOTH, what a 1.6 world def gets with `solver`
+ *    NULL; defs of older sizes keep the paper's 1 substep of 11 RBGS iterations),
+ *    RBC_PRESET_PAPER, and the strain warning (rbc_world_def.strain_warning;
+ *    stats.step_max_strain and strain_warning_steps).
  *  - The ABI version is not the library's release version (rbc_version_string).
  */
 #ifndef RBCLOTH_H
@@ -93,7 +99,7 @@ extern "C" {
 /// Major version of this ABI: incompatible changes bump it.
 #define RBC_ABI_VERSION_MAJOR 1
 /// Minor version of this ABI: appended functions or fields bump it.
-#define RBC_ABI_VERSION_MINOR 5
+#define RBC_ABI_VERSION_MINOR 6
 /// (major << 16) | minor, as returned by rbc_abi_version().
 #define RBC_ABI_VERSION ((RBC_ABI_VERSION_MAJOR << 16) | RBC_ABI_VERSION_MINOR)
 
@@ -386,7 +392,9 @@ enum {
     /// budget, count the step in stats.energy_clamped_steps and log a warning (at
     /// the first clamped step and at every power of two after it). If the excess
     /// is more than the kinetic energy (the positions alone hold more energy than
-    /// the budget), the step fails with RBC_ERR_UNSTABLE and the state is restored.
+    /// the budget), every free vertex is stopped (velocities 0), the positions are
+    /// kept and the budget is raised by what they hold; the step returns RBC_OK,
+    /// counted and logged like any clamp.
     RBC_ENERGY_GUARD_CLAMP = 1,
     /// Fail the step with RBC_ERR_UNSTABLE (state restored) on any excess.
     RBC_ENERGY_GUARD_FAIL = 2,
@@ -428,7 +436,9 @@ typedef struct rbc_solver_def {
     /// end of each step (see RBC_ITERATE_TARGET; 0.05 = springs 5 % off their rest
     /// length, root mean square), finite and > 0. Default 0.05.
     float target_strain;
-    /// RBC_ITERATE_TARGET: most substeps per rbc_world_step, 1..1024. Default 16.
+    /// Most substeps per rbc_world_step: in RBC_ITERATE_TARGET, and (1.6) in a world
+    /// whose substeps follow its substep_rate; 1..1024. Default 16
+    /// (RBC_PRESET_GAME_60HZ and RBC_PRESET_CLOTH: 32).
     uint32_t max_substeps;
 } rbc_solver_def;
 
@@ -440,15 +450,27 @@ typedef struct rbc_solver_def {
 /// Quality presets for rbc_solver_def_preset. (1.4)
 typedef int32_t rbc_preset;
 enum {
-    /// rbc_solver_def_init's defaults: RBGS, fixed counts (the world's 1 substep x
-    /// 11 iterations, the paper's).
-    RBC_PRESET_DEFAULT = 0,
+    /// The paper's solve, and rbc_solver_def_init's values: RBGS with fixed counts
+    /// (the world's substeps and iterations; its defaults are the paper's 1 substep
+    /// x 11 iterations). Fast, and far from converged at game time steps: the
+    /// paper's cloth at 1/60 s stretches springs to 50 times their length. (Named
+    /// RBC_PRESET_DEFAULT before 1.6, when it was also what a world got by default.)
+    RBC_PRESET_PAPER = 0,
+    RBC_PRESET_DEFAULT = RBC_PRESET_PAPER,
     /// Cloth in a game at 60 Hz (rbc_world_step(world, 1/60.f)): RBGS in
     /// RBC_ITERATE_TARGET, target_strain 0.05, max_substeps 32,
     /// max_linear_iterations 8 (at most 256 linear iterations per step), energy
-    /// guard clamp. See README (target mode) for
-    /// what it reaches and costs on the paper's cloth.
+    /// guard clamp. See docs/results/target.md for what it reaches and costs.
     RBC_PRESET_GAME_60HZ = 1,
+    /// The default solve since 1.6 (a world whose 1.6-sized def leaves `solver`
+    /// NULL runs it): red-black SOR (omega = Young's optimum for each substep
+    /// length) with fixed counts, max_substeps 32 (the cap of a world whose
+    /// substeps follow its substep_rate), energy guard clamp. With the world
+    /// def's defaults (480 substeps a second, 11 iterations each) it gives cloth
+    /// at any dt from 1/240 to 1/30 s at a cost proportional to dt;
+    /// docs/results/defaults.md has its strain and cost on the paper's cloth and a
+    /// 64 x 48 grid at 1/240, 1/60 and 1/30 s, beside the other presets. (1.6)
+    RBC_PRESET_CLOTH = 2,
     RBC_PRESET_FORCE32 = 0x7FFFFFFF
 };
 
@@ -458,14 +480,17 @@ typedef struct rbc_world_def {
     uint32_t struct_size;
     /// Gravity, m/s^2. Default (0, -9.81, 0).
     float gravity[3];
-    /// Substeps per rbc_world_step call (each of length dt/substeps). Default 1,
-    /// range 1..1024.
+    /// Substeps per rbc_world_step call (each of length dt/substeps), 1..1024; or
+    /// (1.6) 0: as many as `substep_rate` asks for, ceil(dt * substep_rate) per
+    /// step, at most the solver's max_substeps (later substeps are longer), so the
+    /// substep length and the result do not depend on the dt the host passes.
+    /// Default 0 (for a def of an older struct_size: 1).
     uint32_t substeps;
     /// Non-linear (local/global) iterations per substep, Alg. 1 line 2. Default 1,
     /// range 1..1024.
     uint32_t nonlinear_iterations;
-    /// Linear Red-Black Gauss-Seidel iterations per non-linear iteration, Alg. 1
-    /// line 4. Default 11 (the paper's count), range 1..4096.
+    /// Linear iterations per non-linear iteration, Alg. 1 line 4. Default 11 (the
+    /// paper's count), range 1..4096.
     uint32_t linear_iterations;
     /// Backend, an rbc_backend. Default RBC_BACKEND_AUTO.
     rbc_backend backend;
@@ -483,13 +508,35 @@ typedef struct rbc_world_def {
     rbc_log_fn log;
     void *log_user;
     /* --- 1.1 --- */
-    /// The global solver and iteration control, copied; NULL = the defaults of
-    /// rbc_solver_def_init. Default NULL.
+    /// The global solver and iteration control, copied; NULL = the default solve:
+    /// RBC_PRESET_CLOTH (red-black SOR) for a def of the 1.6 size,
+    /// rbc_solver_def_init's values (RBC_PRESET_PAPER: RBGS) for the 1.1-1.5
+    /// sizes, which is what their headers documented. Default NULL.
     const rbc_solver_def *solver;
+    /* --- 1.6 --- */
+    /// Substeps per second of simulated time when `substeps` is 0, Hz; finite and
+    /// > 0 (ignored when substeps > 0). Default 480: 8 substeps of a 1/60 s step,
+    /// 2 of a 1/240 s one, each about the paper's 2 ms. docs/results/defaults.md
+    /// has the strain and cost of 240, 480 and 960 Hz at 1/240, 1/60 and 1/30 s.
+    float substep_rate;
+    /// The strain warning: a step that leaves some spring with a relative strain
+    /// | |p_a - p_b| / L - 1 | above this is not cloth any more. The step still
+    /// returns RBC_OK; it is counted in stats.strain_warning_steps, its largest
+    /// strain is stats.step_max_strain, and the log hook gets a warning (at the
+    /// first such step and at every power of two after it) naming the cloth, the
+    /// spring and advice that fits the world's solver settings. The check is one
+    /// pass over the springs at the end of each step. 0 turns it off (no pass;
+    /// step_max_strain reads 0); else finite and > 0. Default 2 (a spring at three
+    /// times its rest length): converged solves of the sample scenes stay under
+    /// 1.3 (the paper's cloth at its pins, swinging), while solves too loose for
+    /// their time step reach 4 to 50.
+    float strain_warning;
 } rbc_world_def;
 
 /// sizeof(rbc_world_def) in ABI 1.0 (before `solver`).
 #define RBC_WORLD_DEF_SIZE_V1_0 ((uint32_t)offsetof(rbc_world_def, solver))
+/// sizeof(rbc_world_def) in ABI 1.1 to 1.5 (before `substep_rate`).
+#define RBC_WORLD_DEF_SIZE_V1_1 ((uint32_t)offsetof(rbc_world_def, substep_rate))
 
 /// How a cloth is made. Fill one with rbc_cloth_def_init (or rbc_cloth_def_default).
 /// All arrays are copied.
@@ -741,7 +788,8 @@ typedef struct rbc_world_stats {
     double target_reached;
     uint32_t target_met;
     /// The substeps the next step will use: the controller's choice in
-    /// RBC_ITERATE_TARGET, else the world's count. (The last step's substeps and
+    /// RBC_ITERATE_TARGET, else the world's count (0 when it follows the substep
+    /// rate: then they depend on the next dt). (The last step's substeps and
     /// iterations are `substeps` and `linear_iterations` above.)
     uint32_t next_substeps;
     /// Steps so far in RBC_ITERATE_TARGET whose end strain exceeded the target, and
@@ -759,7 +807,18 @@ typedef struct rbc_world_stats {
     /// vertex keeps contacts with (64, the nearest; as many vertex-vertex contacts):
     /// cloth crushed, or folded through itself (a cloth without self contact).
     uint32_t cloth_contact_capped;
+    /* --- 1.6 --- */
+    /// The largest relative strain | |p_a - p_b| / L - 1 | over the live springs of
+    /// every cloth at the end of the last step, computed by the step (in float: to
+    /// about 1e-5; kept with skip_measures); 0 if rbc_world_def.strain_warning is 0.
+    double step_max_strain;
+    /// Steps so far whose step_max_strain exceeded rbc_world_def.strain_warning (each
+    /// logged at 1, 2, 4, ...).
+    uint64_t strain_warning_steps;
 } rbc_world_stats;
+
+/// sizeof(rbc_world_stats) in ABI 1.5 (before `step_max_strain`).
+#define RBC_WORLD_STATS_SIZE_V1_5 ((uint32_t)offsetof(rbc_world_stats, step_max_strain))
 
 /// sizeof(rbc_world_stats) in ABI 1.4 (before `cloth_contact_frozen`).
 #define RBC_WORLD_STATS_SIZE_V1_4 ((uint32_t)offsetof(rbc_world_stats, cloth_contact_frozen))
@@ -830,7 +889,8 @@ RBC_API rbc_result RBC_CALL rbc_world_destroy(rbc_world_id world);
 /// Advance the world by dt seconds (> 0) in `substeps` substeps. On error the world
 /// is as it was before the call.
 RBC_API rbc_result RBC_CALL rbc_world_step(rbc_world_id world, float dt);
-/// Change the iteration counts used by the next steps (ranges as in rbc_world_def).
+/// Change the iteration counts used by the next steps (ranges as in rbc_world_def;
+/// substeps 0 = from the substep rate, for a world made with a 1.6 def).
 RBC_API rbc_result RBC_CALL rbc_world_set_iterations(rbc_world_id world, uint32_t substeps,
                                                      uint32_t nonlinear_iterations,
                                                      uint32_t linear_iterations);
@@ -889,7 +949,9 @@ RBC_API rbc_result RBC_CALL rbc_cache_finish(rbc_cache_id cache);
 RBC_API rbc_result RBC_CALL rbc_cache_destroy(rbc_cache_id cache);
 
 /* --- 1.1 --- */
-/// Fill a solver def with its defaults (see rbc_world_def_init for struct_size).
+/// Fill a solver def with its field defaults (see rbc_world_def_init for
+/// struct_size): RBGS with the world's fixed counts, RBC_PRESET_PAPER. The default
+/// solve of a world (RBC_PRESET_CLOTH since 1.6) is rbc_solver_def_preset's.
 RBC_API rbc_result RBC_CALL rbc_solver_def_init(rbc_solver_def *def, uint32_t struct_size);
 /// Change the global solver and iteration control for the next steps.
 RBC_API rbc_result RBC_CALL rbc_world_set_solver(rbc_world_id world, const rbc_solver_def *def);
@@ -897,8 +959,9 @@ RBC_API rbc_result RBC_CALL rbc_world_set_solver(rbc_world_id world, const rbc_s
 RBC_API rbc_result RBC_CALL rbc_world_get_solver(rbc_world_id world, rbc_solver_def *def);
 /// Fill a solver def with a quality preset (an rbc_preset): the defaults of
 /// rbc_solver_def_init, then the preset's fields. A 1.1-1.3 struct_size gets the
-/// fields that fit (RBC_PRESET_GAME_60HZ then needs 1.4: refused with
-/// RBC_ERR_INVALID_ARGUMENT, since its mode would run without its target). (1.4)
+/// fields that fit (RBC_PRESET_GAME_60HZ and RBC_PRESET_CLOTH then need 1.4:
+/// refused with RBC_ERR_INVALID_ARGUMENT, since their mode would run without its
+/// target). (1.4)
 RBC_API rbc_result RBC_CALL rbc_solver_def_preset(rbc_solver_def *def, uint32_t struct_size,
                                                   rbc_preset preset);
 /// Sizes of the cloth's color classes: sizes[c] = particles of color c, for

@@ -407,7 +407,7 @@ int rbc_color_graph(const rbc_color_input *g, uint32_t max_colors, const rbc_all
     } else if (seamless) {
         /* A linear form on a lattice without seams or irregular vertices (all spring
          * offsets within 2 steps, as on a grid): the smallest such k is the chromatic
-         * number of the usual patterns (FIELD-NOTES: 4 shear, 5 shear + bend), and its
+         * number of the usual patterns (docs/facts.md: 4 shear, 5 shear + bend), and its
          * classes are even. Nothing to improve. */
         goto done;
     }

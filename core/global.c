@@ -171,6 +171,12 @@ float rbc_chebyshev_omega(uint32_t k, uint32_t delay, float rho) {
  * graph (+-rho), so the norm ratio, not a Rayleigh quotient, is the estimate. */
 float rbc_cloth_state_spectral_radius(rbc_cloth_state *c, float h) {
     if (c->rho_est > 0.0f && c->h_rho == h) return c->rho_est;
+    for (int k = 0; k < RBC_RHO_CACHE; ++k)
+        if (c->rho_cache_h[k] == h && h > 0.0f) {
+            c->rho_est = c->rho_cache_v[k];
+            c->h_rho = h;
+            return c->rho_est;
+        }
     const rbc_topology *t = &c->topo;
     /* e and its image live in the Jacobi scratch (alt) when present, else in y's x
      * and y components: the estimate runs before a step, which rewrites y anyway
@@ -209,5 +215,8 @@ float rbc_cloth_state_spectral_radius(rbc_cloth_state *c, float h) {
     if (rho >= 1.0f) rho = 0.9999f; /* D^-1 N of an SPD, diagonally dominant A: < 1 */
     c->rho_est = rho;
     c->h_rho = h;
+    c->rho_cache_h[c->rho_cache_next] = h;
+    c->rho_cache_v[c->rho_cache_next] = rho;
+    c->rho_cache_next = (c->rho_cache_next + 1) % RBC_RHO_CACHE;
     return rho;
 }

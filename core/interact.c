@@ -87,7 +87,7 @@ void rbc_tear_finish(rbc_solver *s, rbc_cloth_state *c) {
         c->tri_count = 2 * kept;
     }
     c->h_cached = 0.0f;  /* 1 / (m/h^2 + sum s) changed */
-    c->rho_est = 0.0f;   /* the spectral radius too */
+    rbc_cloth_state_rho_invalidate(c);   /* the spectral radius too */
     c->direct_dirty = 1; /* and the matrix */
 }
 

@@ -4,7 +4,7 @@
  * Tearing removes springs (their stiffness becomes 0 everywhere the sweeps read it:
  * the CSR slots, the lattice's per-particle stiffness, the ELLPACK copy) and the quads
  * that have both ends of a removed spring as corners. Removing springs keeps a valid
- * coloring (FIELD-NOTES), so nothing is recolored or reordered; the lattice path
+ * coloring (docs/facts.md), so nothing is recolored or reordered; the lattice path
  * stays (it reads a stiffness of 0 as "no spring"), only its one-stiffness broadcast
  * is turned off.
  */

@@ -99,7 +99,8 @@ void rbc_solver_fini(rbc_solver *s) {
     X(bx, float, n) X(by, float, n) X(bz, float, n)                                      \
     X(w, float, n) X(inv_denom, float, n) X(pinned, uint8_t, n)                          \
     X(e_blk, double, rbc_energy_block_doubles((uint32_t)n, (uint32_t)ns))               \
-    X(strain_blk, double, rbc_strain_block_doubles((uint32_t)ns))
+    X(strain_blk, double, rbc_strain_block_doubles((uint32_t)ns))                       \
+    X(strain_max_blk, float, rbc_strain_block_doubles((uint32_t)ns) / 2)
 
 static void free_pins(rbc_solver *s, rbc_cloth_state *c) {
     rbc_mem_free(&s->alloc, c->pin_idx, sizeof(uint32_t) * c->pin_cap);
@@ -368,7 +369,7 @@ int32_t rbc_cloth_state_set_pin(rbc_solver *s, rbc_cloth_state *c, uint32_t host
         c->pin_idx[m] = c->pin_idx[last];
         memcpy(&c->pin_target[3 * m], &c->pin_target[3 * last], 3 * sizeof(float));
         c->direct_dirty = 1; /* the free set changed: refactor */
-        c->rho_est = 0.0f;
+        rbc_cloth_state_rho_invalidate(c);
         rbc_cloth_state_energy_invalidate(c, 1); /* a free particle more */
         return RBC_OK;
     }
@@ -382,7 +383,7 @@ int32_t rbc_cloth_state_set_pin(rbc_solver *s, rbc_cloth_state *c, uint32_t host
         c->pin_idx[m] = i;
         c->pin_count++;
         c->direct_dirty = 1;
-        c->rho_est = 0.0f;
+        rbc_cloth_state_rho_invalidate(c);
         rbc_cloth_state_energy_invalidate(c, 1); /* a free particle less */
     }
     memcpy(&c->pin_target[3 * m], target, 3 * sizeof(float));
@@ -976,7 +977,7 @@ static void linear_iteration(step_ctx *ctx, uint32_t k, uint32_t tid, uint32_t n
 /* Contacts join the solve: after a whole linear iteration (its barrier passed), each
  * thread projects the collider contacts of its own particles (unary constraints: no
  * race), then thread 0 runs one pass of cloth contact (constraints between particles
- * that may share a color, so not inside the parallel color sweeps: FIELD-NOTES), and
+ * that may share a color, so not inside the parallel color sweeps: docs/facts.md), and
  * the next iteration relaxes the springs around them. alt: the latest iterate is the
  * Jacobi destination buffer. cloth: run the cloth contact pass (every
  * RBC_CC_EVERY-th iteration and the last; it reads four particles per contact at
@@ -1683,10 +1684,15 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
 #undef STAGE_END
 }
 
-/* The final strain of every cloth (RBC_ITERATE_TARGET), block sums on all threads. */
+/* The final strain of every cloth, block sums on all threads: the RMS for the target
+ * mode's decision, the largest for the strain warning. */
 static void strain_spmd(void *arg, uint32_t tid, uint32_t nt) {
     rbc_solver *s = arg;
-    for (uint32_t k = 0; k < s->cloth_count; ++k) rbc_strain_blocks(s->cloths[k], s->cloths[k]->x, tid, nt);
+    const int target = s->settings.mode == RBC_ITERATE_TARGET, warn = s->strain_warning > 0.0f;
+    for (uint32_t k = 0; k < s->cloth_count; ++k) {
+        if (target) rbc_strain_blocks(s->cloths[k], s->cloths[k]->x, tid, nt);
+        if (warn) rbc_strain_max_blocks(s->cloths[k], s->cloths[k]->x, tid, nt);
+    }
 }
 
 /* The target mode's controller, after a successful step of `used` substeps that
@@ -1745,6 +1751,16 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     ctx.s = s;
     const int target = s->settings.mode == RBC_ITERATE_TARGET;
     ctx.substeps = s->substeps;
+    /* Substeps from the rate (world substeps 0, 1.6): the substep length stays near
+     * 1 / rate whatever dt the host passes, up to the cap. The 1e-3 lets a float dt
+     * such as 1/60.f (8.0000006 substeps at 480 Hz) take 8, not 9: substeps at most
+     * 0.1 % longer than 1 / rate. */
+    const int from_rate = !target && s->substeps == 0;
+    if (from_rate) {
+        double want = ceil((double)dt * (double)s->substep_rate - 1e-3);
+        uint32_t cap = s->settings.max_substeps;
+        ctx.substeps = want < 1.0 ? 1u : want > (double)cap ? cap : (uint32_t)want;
+    }
     if (target) {
         /* The controller's choice; the first step of the mode starts at the cap (the
          * most accurate) and the controller lowers it while that pays. */
@@ -1825,13 +1841,13 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     /* With one substep nothing is committed before the check, so the state before the
      * step is intact on failure; with several, earlier substeps are, so keep a copy. */
     int rescale = 0;
-    for (uint32_t k = 0; target && k < s->cloth_count; ++k)
+    for (uint32_t k = 0; (target || from_rate) && k < s->cloth_count; ++k)
         rescale |= s->cloths[k]->h_last > 0.0f && s->cloths[k]->h_last != ctx.h;
     int need_snapshot = ctx.substeps > 1 || rescale;
     if (need_snapshot) snapshot(s, 0);
     if (rescale) {
-        /* The target mode changed the substeps: keep each velocity (x - q) / h by
-         * rescaling q to the new h (Verlet reads the velocity from x - q). */
+        /* The target mode or a new dt changed the substep length: keep each velocity
+         * (x - q) / h by rescaling q to the new h (Verlet reads it from x - q). */
         for (uint32_t k = 0; k < s->cloth_count; ++k) {
             rbc_cloth_state *c = s->cloths[k];
             if (!(c->h_last > 0.0f) || c->h_last == ctx.h) continue;
@@ -1876,13 +1892,33 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     /* Tearing: springs stretched past their limit at the end of the step break. */
     for (uint32_t k = 0; k < s->cloth_count; ++k) rbc_tear_scan(s, s->cloths[k]);
     double reached = 0.0;
-    if (target) {
+    const int warn = s->strain_warning > 0.0f;
+    s->step_max_strain = 0.0;
+    s->strain_warn_last = 0;
+    if (target || warn) {
         /* What the step reached, at the positions the host reads (after tearing). */
         double t0 = now_ms();
         rbc_pool_run(s->pool, strain_spmd, s);
+        float top = 0.0f;
         for (uint32_t k = 0; k < s->cloth_count; ++k) {
-            double r = rbc_strain_sum(s->cloths[k]);
-            if (r > reached) reached = r;
+            if (target) {
+                double r = rbc_strain_sum(s->cloths[k]);
+                if (r > reached) reached = r;
+            }
+            if (!warn) continue;
+            float m = rbc_strain_max(s->cloths[k], s->cloths[k]->x, NULL);
+            if (m > top) {
+                top = m;
+                s->strain_warn_cloth = k;
+            }
+        }
+        s->step_max_strain = top;
+        if (warn && top > s->strain_warning) {
+            /* Past the threshold: find the spring, for the log (one block again). */
+            rbc_cloth_state *c = s->cloths[s->strain_warn_cloth];
+            rbc_strain_max(c, c->x, &s->strain_warn_spring);
+            s->strain_warn_last = 1;
+            s->strain_warn_steps++;
         }
         ctx.t.other += now_ms() - t0;
     }

@@ -75,8 +75,15 @@ typedef struct rbc_cloth_state {
     struct rbc_direct *direct;
     float h_direct;
     int direct_dirty;
-    /* Jacobi spectral radius of the global system for h_rho (0 = not estimated). */
+    /* Jacobi spectral radius of the global system for h_rho (0 = not estimated), and
+     * the last RBC_RHO_CACHE estimates by substep length: the target mode moves
+     * between a few substep counts, and each estimate is 150 sweeps of the matrix
+     * (the same value again: the estimate depends on h, topology and pins only).
+     * rbc_cloth_state_rho_invalidate empties both. */
     float rho_est, h_rho;
+#define RBC_RHO_CACHE 8
+    float rho_cache_h[RBC_RHO_CACHE], rho_cache_v[RBC_RHO_CACHE];
+    uint32_t rho_cache_next;
     /* 1 when y, d and w describe the global system of the last substep (false
      * before the first step and after set_state). */
     int system_valid;
@@ -91,6 +98,7 @@ typedef struct rbc_cloth_state {
     int e_valid, e_keep_slack;
     double *e_blk;              /* [rbc_energy_block_doubles] per-block partial sums */
     double *strain_blk;         /* [rbc_strain_block_doubles] (strain.h) */
+    float *strain_max_blk;      /* [rbc_strain_block_doubles / 2]: largest per block */
     /* Substep length of the last committed substep (0: none since creation or
      * set_state). The target mode keeps velocities when it changes the substeps:
      * q is rescaled so (x - q) / h stays the same. */
@@ -206,6 +214,18 @@ typedef struct rbc_solver {
     double tgt_reached;         /* RMS relative strain at the end of the last step */
     int tgt_met, tgt_capped;    /* the last step met the target; missed it at the cap */
     uint64_t tgt_missed_steps, tgt_capped_steps;
+    /* The strain warning (rbc_world_def.strain_warning, 1.6; 0 = off): the largest
+     * relative strain at the end of the last step, where it was (cloth index,
+     * spring, internal order), whether it was past the threshold, and how many
+     * steps were. */
+    float strain_warning;
+    /* Substeps per second when `substeps` is 0 (rbc_world_def.substep_rate, 1.6;
+     * 0 for worlds made with an older def, whose substeps are >= 1). */
+    float substep_rate;
+    double step_max_strain;
+    uint32_t strain_warn_cloth, strain_warn_spring;
+    int strain_warn_last;
+    uint64_t strain_warn_steps;
 } rbc_solver;
 
 /* Solver life cycle. nthreads >= 1. */
@@ -227,6 +247,11 @@ void rbc_solver_remove_cloth(rbc_solver *s, rbc_cloth_state *c);
 /* Pins (host vertex index; validated by the caller). target NULL releases. */
 int32_t rbc_cloth_state_set_pin(rbc_solver *s, rbc_cloth_state *c, uint32_t host_vertex,
                                 const float *target);
+/* The topology, pins or masses changed: every spectral radius estimate is stale. */
+static inline void rbc_cloth_state_rho_invalidate(rbc_cloth_state *c) {
+    c->rho_est = 0.0f;
+    for (int k = 0; k < RBC_RHO_CACHE; ++k) c->rho_cache_h[k] = 0.0f;
+}
 /* Positions in host order, 3 floats per vertex. */
 void rbc_cloth_state_read(const rbc_cloth_state *c, float *xyz);
 /* Eq. 7 (sum of squared spring violations, m^2) and the largest relative

@@ -29,6 +29,12 @@ static double block_sum(const uint32_t *restrict sa, const uint32_t *restrict sb
     return sum;
 }
 
+/* One spring's relative strain in float, 0 for a spring that does not count (broken,
+ * or L = 0); inlined into the vector loops below. */
+static inline float rel_strain_f(float ex, float ey, float ez, float L, int live) {
+    return live ? sqrtf(ex * ex + ey * ey + ez * ez) / L - 1.0f : 0.0f;
+}
+
 /* The same in float (the squares summed in double): for the checks inside a solve,
  * about an order of magnitude cheaper (the gathers and square roots vectorize in
  * float lanes). Each relative strain is off by at most about 2 sqrt(3) ulp(|p|) / L
@@ -46,7 +52,7 @@ static double block_sum_f(const uint32_t *restrict sa, const uint32_t *restrict 
         float ex = px[i] - px[j], ey = py[i] - py[j], ez = pz[i] - pz[j];
         float L = rest[k];
         int live = L > 0.0f && !(torn && stiff[k] == 0.0f);
-        float r = live ? sqrtf(ex * ex + ey * ey + ez * ez) / L - 1.0f : 0.0f;
+        float r = rel_strain_f(ex, ey, ez, L, live);
         sum += (double)(r * r);
         n += live ? 1.0f : 0.0f;
     }
@@ -95,4 +101,68 @@ double rbc_strain_sum(const rbc_cloth_state *c) {
 double rbc_strain_rms(rbc_cloth_state *c, float *const p[3]) {
     rbc_strain_blocks(c, p, 0, 1);
     return rbc_strain_sum(c);
+}
+
+/* One spring's |relative strain| in float, as block_max_f computes it. */
+static inline float spring_strain_f(const rbc_topology *t, int torn, const float *px,
+                                    const float *py, const float *pz, uint32_t k) {
+    uint32_t i = t->sa[k], j = t->sb[k];
+    float L = t->rest_len[k];
+    int live = L > 0.0f && !(torn && t->stiff[k] == 0.0f);
+    return fabsf(rel_strain_f(px[i] - px[j], py[i] - py[j], pz[i] - pz[j], L, live));
+}
+
+/* The block's largest strain. No index is kept here: the loop then vectorizes like
+ * block_sum_f, and the spring is looked up again only when a warning names it. */
+RBC_VECTOR_CLONES
+static float block_max_f(const uint32_t *restrict sa, const uint32_t *restrict sb,
+                         const float *restrict rest, const float *restrict stiff, int torn,
+                         const float *restrict px, const float *restrict py,
+                         const float *restrict pz, uint32_t b, uint32_t e) {
+    float m = 0.0f;
+    for (uint32_t k = b; k < e; ++k) {
+        uint32_t i = sa[k], j = sb[k];
+        float L = rest[k];
+        int live = L > 0.0f && !(torn && stiff[k] == 0.0f);
+        float r = fabsf(rel_strain_f(px[i] - px[j], py[i] - py[j], pz[i] - pz[j], L, live));
+        m = r > m ? r : m;
+    }
+    return m;
+}
+
+void rbc_strain_max_blocks(rbc_cloth_state *c, float *const p[3], uint32_t tid, uint32_t nt) {
+    const rbc_topology *t = &c->topo;
+    uint32_t nblk = (t->ns + RBC_STRAIN_BLOCK - 1u) / RBC_STRAIN_BLOCK, b, e;
+    rbc_split(nblk, tid, nt, &b, &e);
+    for (uint32_t k = b; k < e; ++k) {
+        uint32_t s0 = k * RBC_STRAIN_BLOCK, s1 = s0 + RBC_STRAIN_BLOCK;
+        if (s1 > t->ns) s1 = t->ns;
+        c->strain_max_blk[k] = block_max_f(t->sa, t->sb, t->rest_len, t->stiff, c->torn != 0,
+                                           p[0], p[1], p[2], s0, s1);
+    }
+}
+
+float rbc_strain_max(const rbc_cloth_state *c, float *const p[3], uint32_t *spring) {
+    const rbc_topology *t = &c->topo;
+    uint32_t nblk = (t->ns + RBC_STRAIN_BLOCK - 1u) / RBC_STRAIN_BLOCK, best = 0;
+    float m = 0.0f;
+    for (uint32_t k = 0; k < nblk; ++k)
+        if (c->strain_max_blk[k] > m) {
+            m = c->strain_max_blk[k];
+            best = k;
+        }
+    if (spring) {
+        *spring = 0;
+        uint32_t s0 = best * RBC_STRAIN_BLOCK, s1 = s0 + RBC_STRAIN_BLOCK;
+        if (s1 > t->ns) s1 = t->ns;
+        float top = -1.0f;
+        for (uint32_t k = s0; k < s1; ++k) {
+            float r = spring_strain_f(t, c->torn != 0, p[0], p[1], p[2], k);
+            if (r > top) {
+                top = r;
+                *spring = k;
+            }
+        }
+    }
+    return m;
 }

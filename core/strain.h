@@ -32,6 +32,15 @@ void rbc_strain_blocks(struct rbc_cloth_state *c, float *const p[3], uint32_t ti
  * (strain.c gives its error bound). */
 void rbc_strain_blocks_fast(struct rbc_cloth_state *c, float *const p[3], uint32_t tid,
                             uint32_t nt);
+/* The largest relative strain | |p_a - p_b| / L - 1 | of this thread's blocks (live
+ * springs with L > 0), in float, into c->strain_max_blk: the strain warning's pass
+ * at the end of a step (rbc_world_def.strain_warning). Call on every thread, then
+ * barrier. */
+void rbc_strain_max_blocks(struct rbc_cloth_state *c, float *const p[3], uint32_t tid,
+                           uint32_t nt);
+/* After the barrier (one thread): the largest of the blocks, and in *spring (if not
+ * NULL) the first spring of the internal order that has it. */
+float rbc_strain_max(const struct rbc_cloth_state *c, float *const p[3], uint32_t *spring);
 /* After the barrier (one thread): the RMS relative strain from the block sums. */
 double rbc_strain_sum(const struct rbc_cloth_state *c);
 /* Both, serially (one thread; the same value as the pair above). */

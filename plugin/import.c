@@ -4,7 +4,7 @@
  * The pipeline, in the order rbc_mesh_import runs it:
  *   1. assimp reads the file with JoinIdenticalVertices | ValidateDataStructure and
  *      nothing else: no triangulation, so quads and n-gons reach us as the file
- *      has them (FIELD-NOTES: quads survive in OBJ, PLY, Collada).
+ *      has them (docs/facts.md: quads survive in OBJ, PLY, Collada).
  *   2. The node hierarchy is walked here (not aiProcess_PreTransformVertices, which
  *      would also merge and reorder meshes): every placement of a selected mesh
  *      contributes its vertices transformed by the product of its nodes' matrices,

@@ -98,12 +98,14 @@ static rbc_world_def world_def_defaults(void) {
     memset(&d, 0, sizeof d);
     d.struct_size = sizeof d;
     d.gravity[1] = -9.81f;
-    d.substeps = 1;
+    d.substeps = 0; /* 1.6: from substep_rate; defs of older sizes get 1 */
     d.nonlinear_iterations = 1;
     d.linear_iterations = 11;
     d.backend = RBC_BACKEND_AUTO;
     d.thread_count = 0;
     d.log_level = RBC_LOG_WARNING;
+    d.substep_rate = 480.0f;
+    d.strain_warning = 2.0f;
     return d;
 }
 
@@ -144,6 +146,11 @@ rbc_result rbc_def_init_common(void *def, uint32_t struct_size, const void *defa
 
 RBC_API rbc_result RBC_CALL rbc_world_def_init(rbc_world_def *def, uint32_t struct_size) {
     rbc_world_def d = world_def_defaults();
+    if (struct_size != sizeof d) d.substeps = 1; /* what the 1.0-1.5 headers document */
+    /* Three released sizes: 1.0, 1.1-1.5 and this one. */
+    if (struct_size == RBC_WORLD_DEF_SIZE_V1_1)
+        return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_WORLD_DEF_SIZE_V1_1,
+                                   "rbc_world_def_init", "rbc_world_def");
     return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_WORLD_DEF_SIZE_V1_0,
                                "rbc_world_def_init",
                                "rbc_world_def");
@@ -184,6 +191,22 @@ static rbc_solver_def solver_def_defaults(void) {
     return d;
 }
 
+/* RBC_PRESET_CLOTH, the default solve since 1.6: red-black SOR at fixed counts,
+ * with the world's default 480 substeps a second of 11 iterations. `rbcloth bench
+ * defaults` (docs/results/defaults.md) measured it beside RBGS at the same counts
+ * (the paper's cloth at 1/60 s: springs at up to 7 times their length against 2.3),
+ * other rates and the target mode (which, aimed below the cloth's physical stretch,
+ * runs at its cap for most frames of a swing). The result depends on the substep
+ * length only, so it is the same at 1/240 s and 1/30 s. */
+static rbc_solver_def solver_def_cloth(void) {
+    rbc_solver_def d = solver_def_defaults();
+    d.solver = RBC_SOLVER_RBGS_SOR;
+    d.mode = RBC_ITERATE_FIXED;
+    d.max_substeps = 32;
+    d.energy_guard = RBC_ENERGY_GUARD_CLAMP;
+    return d;
+}
+
 /* Three released sizes: 1.1, 1.2-1.3 and this one. */
 static rbc_result solver_def_fill(rbc_solver_def *def, uint32_t struct_size,
                                   const rbc_solver_def *d, const char *fn) {
@@ -203,18 +226,23 @@ RBC_API rbc_result RBC_CALL rbc_solver_def_preset(rbc_solver_def *def, uint32_t 
                                                   rbc_preset preset) {
     static const char fn[] = "rbc_solver_def_preset";
     rbc_solver_def d = solver_def_defaults();
+    /* The target presets need the fields a 1.1-1.3 def does not have. */
+    if ((preset == RBC_PRESET_GAME_60HZ || preset == RBC_PRESET_CLOTH) && def &&
+        struct_size != sizeof d)
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                             "%s: %s needs the ABI 1.4 rbc_solver_def (struct_size %zu, got "
+                             "%u): its target_strain and max_substeps do not fit",
+                             fn, preset == RBC_PRESET_CLOTH ? "RBC_PRESET_CLOTH" : "RBC_PRESET_GAME_60HZ",
+                             sizeof d, struct_size);
     switch (preset) {
-    case RBC_PRESET_DEFAULT:
+    case RBC_PRESET_PAPER:
+        break;
+    case RBC_PRESET_CLOTH:
+        d = solver_def_cloth();
         break;
     case RBC_PRESET_GAME_60HZ:
-        /* Measured on the paper's 100 x 100 cloth at dt = 1/60 s (README, target
-         * mode): the figures there are this preset's. */
-        if (struct_size != sizeof d && def)
-            return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
-                                 "%s: RBC_PRESET_GAME_60HZ needs the ABI 1.4 rbc_solver_def "
-                                 "(struct_size %zu, got %u): its target_strain and "
-                                 "max_substeps do not fit",
-                                 fn, sizeof d, struct_size);
+        /* Measured on the paper's 100 x 100 cloth at dt = 1/60 s
+         * (docs/results/target.md): the figures there are this preset's. */
         d.solver = RBC_SOLVER_RBGS;
         d.mode = RBC_ITERATE_TARGET;
         d.target_strain = 0.05f;
@@ -298,10 +326,19 @@ static rbc_result solver_settings_from(rbc_world *w, const char *fn, const rbc_s
 /* World                                                                     */
 /* ------------------------------------------------------------------------- */
 
+/* substep_rate: the world's (> 0 lets substeps be 0: from the rate), or 0 for a world
+ * made with a def older than 1.6. */
 static rbc_result check_iterations(rbc_world *w, const char *fn, uint32_t substeps,
-                                   uint32_t nonlinear, uint32_t linear) {
-    if (substeps < 1 || substeps > 1024)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: substeps is %u; range 1..1024", fn,
+                                   uint32_t nonlinear, uint32_t linear, float substep_rate) {
+    if (substeps == 0 && !(substep_rate > 0.0f))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: substeps is 0, which takes them from the substep rate, but "
+                           "this world has none (substep_rate is a 1.6 field of rbc_world_def); "
+                           "range 1..1024",
+                           fn);
+    if (substeps > 1024)
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                           "%s: substeps is %u; range 1..1024, or 0 for the substep rate", fn,
                            substeps);
     if (nonlinear < 1 || nonlinear > 1024)
         return world_error(w, RBC_ERR_INVALID_ARGUMENT,
@@ -318,14 +355,33 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     if (!out_world) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: out_world is NULL", fn);
     *out_world = 0;
     rbc_world_def def = world_def_defaults();
-    rbc_result rc = read_def(&def, sizeof def, RBC_WORLD_DEF_SIZE_V1_0, user_def, fn, "rbc_world_def");
+    rbc_result rc = read_def2(&def, sizeof def, RBC_WORLD_DEF_SIZE_V1_0, RBC_WORLD_DEF_SIZE_V1_1,
+                              user_def, fn, "rbc_world_def");
     if (rc) return rc;
+    /* A host built against a 1.0-1.5 header was promised the paper's fixed counts
+     * when it leaves the solver NULL, and no strain warning; a 1.6 host gets the
+     * default solve and the warning. */
+    const int def_v16 = def.struct_size == sizeof def;
+    if (!def_v16) {
+        def.substep_rate = 0.0f;
+        def.strain_warning = 0.0f;
+    }
+    if (def_v16 && !(isfinite(def.substep_rate) && def.substep_rate > 0.0f))
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                             "%s: substep_rate is %g Hz; it must be finite and > 0 (substeps "
+                             "per second when substeps is 0; default 480)",
+                             fn, (double)def.substep_rate);
+    if (!(isfinite(def.strain_warning) && def.strain_warning >= 0.0f))
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                             "%s: strain_warning is %g; it must be finite and >= 0 (a relative "
+                             "strain: 2 = a spring at three times its rest length; 0 = no check)",
+                             fn, (double)def.strain_warning);
     if (!finite3(def.gravity))
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: gravity (%g, %g, %g) is not finite",
                              fn, (double)def.gravity[0], (double)def.gravity[1],
                              (double)def.gravity[2]);
     if ((rc = check_iterations(NULL, fn, def.substeps, def.nonlinear_iterations,
-                               def.linear_iterations)))
+                               def.linear_iterations, def.substep_rate)))
         return rc;
     if (def.backend != RBC_BACKEND_AUTO && def.backend != RBC_BACKEND_CPU &&
         def.backend != RBC_BACKEND_CUDA)
@@ -346,7 +402,8 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                              "%s: give both alloc and free hooks, or neither", fn);
 
-    rbc_solver_def sdef = solver_def_defaults();
+    /* A given solver def starts from the field defaults, as rbc_solver_def_init's. */
+    rbc_solver_def sdef = def_v16 && !def.solver ? solver_def_cloth() : solver_def_defaults();
     rbc_solver_settings settings;
     if (def.solver &&
         (rc = read_def2(&sdef, sizeof sdef, RBC_SOLVER_DEF_SIZE_V1_1, RBC_SOLVER_DEF_SIZE_V1_2,
@@ -385,6 +442,8 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     w->solver.nonlinear_iterations = def.nonlinear_iterations;
     w->solver.linear_iterations = def.linear_iterations;
     w->solver.settings = settings; /* no cloth yet: no buffers to allocate */
+    w->solver.strain_warning = def.strain_warning;
+    w->solver.substep_rate = def.substep_rate;
     w->solver.public_world_id = w->id;
     *out_world = w->id;
     char msg[128];
@@ -406,6 +465,66 @@ RBC_API rbc_result RBC_CALL rbc_world_destroy(rbc_world_id id) {
     rbc_solver_fini(sol); /* destroys every cloth and collider */
     rbc_mem_free(&alloc, w, sizeof *w);
     return RBC_OK;
+}
+
+/* What to change when a step is past the strain warning, for the settings in use. */
+static void strain_advice(const rbc_solver *s, char *out, size_t size) {
+    const rbc_solver_settings *st = &s->settings;
+    const char *name = solver_name(st->kind);
+    if (st->kind == RBC_SOLVER_JACOBI || st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV) {
+        snprintf(out, size,
+                 "solver %s converges the slowest per iteration: use rbgs_sor in the target "
+                 "mode (RBC_PRESET_CLOTH, the default solve) or raise its iterations",
+                 name);
+        return;
+    }
+    switch (st->mode) {
+    case RBC_ITERATE_TARGET:
+        if (s->tgt_capped || s->last_substeps >= st->max_substeps)
+            snprintf(out, size,
+                     "the target mode ran at its cap (max_substeps %u x max_linear_iterations "
+                     "%u): raise max_substeps",
+                     st->max_substeps, st->max_linear_iterations);
+        else
+            snprintf(out, size,
+                     "the target (RMS strain %g) was met while a few springs stretched: the "
+                     "load gathers on them (pins, contacts): lower target_strain, stiffen the "
+                     "cloth, or spread the pins",
+                     (double)st->target_strain);
+        return;
+    case RBC_ITERATE_BUDGET:
+        snprintf(out, size,
+                 "the budget of %g ms a step buys too few iterations (%u in the last step): "
+                 "raise budget_ms or substeps, or use the target mode (RBC_PRESET_CLOTH)",
+                 (double)st->budget_ms, s->last_linear);
+        return;
+    case RBC_ITERATE_TOLERANCE:
+        snprintf(out, size,
+                 "a relative residual of %g per global step leaves the springs loose at "
+                 "%u substep(s): raise substeps, or use the target mode (RBC_PRESET_CLOTH)",
+                 (double)st->tolerance, s->last_substeps);
+        return;
+    default:
+        break;
+    }
+    if (st->kind == RBC_SOLVER_DIRECT)
+        snprintf(out, size,
+                 "the global solve is exact: one local/global pass per substep at %u "
+                 "substep(s) is too few for this stiffness and time step: raise substeps or "
+                 "nonlinear_iterations",
+                 s->last_substeps);
+    else if (st->kind == RBC_SOLVER_RBGS_SOR)
+        snprintf(out, size,
+                 "%s at %u substep(s) x %u linear iterations a step is far from converged "
+                 "at this time step: raise the substeps (or the substep rate) or the "
+                 "iterations",
+                 name, s->last_substeps, s->linear_iterations);
+    else
+        snprintf(out, size,
+                 "%s at %u substep(s) x %u linear iterations a step is far from converged "
+                 "at this time step: use rbgs_sor (RBC_PRESET_CLOTH, the default solve), "
+                 "which converges far faster per iteration, or raise the substeps",
+                 name, s->last_substeps, s->linear_iterations);
 }
 
 RBC_API rbc_result RBC_CALL rbc_world_step(rbc_world_id id, float dt) {
@@ -446,6 +565,24 @@ RBC_API rbc_result RBC_CALL rbc_world_step(rbc_world_id id, float dt) {
                  s->nonlinear_iterations, s->settings.max_linear_iterations, s->last_linear);
         world_log(w, RBC_LOG_WARNING, note);
     }
+    uint64_t warned = w->solver.strain_warn_steps;
+    if (w->solver.strain_warn_last && (warned & (warned - 1)) == 0) {
+        const rbc_solver *s = &w->solver;
+        const rbc_cloth_state *c = s->cloths[s->strain_warn_cloth];
+        const rbc_topology *t = &c->topo;
+        uint32_t sp = s->strain_warn_spring;
+        char advice[400], note[800];
+        strain_advice(s, advice, sizeof advice);
+        snprintf(note, sizeof note,
+                 "world 0x%08x step %llu (%llu such steps so far): cloth 0x%08x: the spring "
+                 "between vertices %u and %u is %.3g times its rest length (strain %.3g, over "
+                 "the strain_warning of %g): the result is not cloth; %s",
+                 w->id, (unsigned long long)s->step_count, (unsigned long long)warned,
+                 c->public_id, t->to_host[t->sa[sp]], t->to_host[t->sb[sp]],
+                 1.0 + s->step_max_strain, s->step_max_strain, (double)s->strain_warning,
+                 advice);
+        world_log(w, RBC_LOG_WARNING, note);
+    }
     return RBC_OK;
 }
 
@@ -455,7 +592,8 @@ RBC_API rbc_result RBC_CALL rbc_world_set_iterations(rbc_world_id id, uint32_t s
     rbc_world *w;
     rbc_result rc = lookup_world(id, fn, &w);
     if (rc) return rc;
-    if ((rc = check_iterations(w, fn, substeps, nonlinear, linear))) return rc;
+    if ((rc = check_iterations(w, fn, substeps, nonlinear, linear, w->solver.substep_rate)))
+        return rc;
     w->solver.substeps = substeps;
     w->solver.nonlinear_iterations = nonlinear;
     w->solver.linear_iterations = linear;
@@ -485,6 +623,7 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
     if (rc) return rc;
     if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: stats is NULL", fn);
     if (out->struct_size != sizeof(rbc_world_stats) &&
+        out->struct_size != RBC_WORLD_STATS_SIZE_V1_5 &&
         out->struct_size != RBC_WORLD_STATS_SIZE_V1_4 &&
         out->struct_size != RBC_WORLD_STATS_SIZE_V1_3 &&
         out->struct_size != RBC_WORLD_STATS_SIZE_V1_2 &&
@@ -492,10 +631,10 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
         out->struct_size != RBC_WORLD_STATS_SIZE_V1_0)
         return world_error(w, RBC_ERR_INVALID_ARGUMENT,
                            "%s: stats->struct_size is %u, which matches no released version "
-                           "(this library knows %zu, the 1.4 size %u, the 1.3 size %u, the 1.2 "
-                           "size %u, the 1.1 size %u and the 1.0 size %u)",
+                           "(this library knows %zu, the 1.5 size %u, the 1.4 size %u, the 1.3 "
+                           "size %u, the 1.2 size %u, the 1.1 size %u and the 1.0 size %u)",
                            fn, out->struct_size, sizeof(rbc_world_stats),
-                           RBC_WORLD_STATS_SIZE_V1_4, RBC_WORLD_STATS_SIZE_V1_3,
+                           RBC_WORLD_STATS_SIZE_V1_5, RBC_WORLD_STATS_SIZE_V1_4, RBC_WORLD_STATS_SIZE_V1_3,
                            RBC_WORLD_STATS_SIZE_V1_2,
                            RBC_WORLD_STATS_SIZE_V1_1,
                            RBC_WORLD_STATS_SIZE_V1_0);
@@ -524,7 +663,7 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
             rbc_cloth_state_error(c, &e, &strain);
             st.error_eq7 += e;
             if (strain > st.max_strain) st.max_strain = strain;
-            if (out->struct_size >= sizeof(rbc_world_stats)) {
+            if (out->struct_size > RBC_WORLD_STATS_SIZE_V1_3) { /* strain_rms: 1.4 */
                 double rms = rbc_strain_rms(s->cloths[k], s->cloths[k]->x);
                 if (rms > st.strain_rms) st.strain_rms = rms;
             }
@@ -576,13 +715,15 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
     const int target = s->settings.mode == RBC_ITERATE_TARGET;
     st.target_reached = s->tgt_reached;
     st.target_met = (uint32_t)s->tgt_met;
-    st.next_substeps = !target            ? s->substeps
+    st.next_substeps = !target            ? s->substeps /* 0: from the rate */
                        : s->tgt_substeps ? s->tgt_substeps
                                          : s->settings.max_substeps;
     st.target_missed_steps = s->tgt_missed_steps;
     st.target_capped_steps = s->tgt_capped_steps;
     st.cloth_contact_frozen = s->last_frozen;
     st.cloth_contact_capped = s->last_cloth_capped;
+    st.step_max_strain = s->step_max_strain;
+    st.strain_warning_steps = s->strain_warn_steps;
     memcpy(out, &st, out->struct_size); /* only what the host's struct holds */
     return RBC_OK;
 }

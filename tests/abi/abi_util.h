@@ -21,6 +21,25 @@
 #include "rbcloth.h"
 
 /* ------------------------------------------------------------------------- */
+/* Worlds                                                                    */
+/* ------------------------------------------------------------------------- */
+
+/* The world def of rbc_world_def_default with the paper's fixed counts
+ * (RBC_PRESET_PAPER): most tests check what a step does at given substeps and
+ * iterations, which the default solve (the target mode, ABI 1.6) chooses itself.
+ * The solver def is static, so the def stays valid as the test passes it around. */
+static inline rbc_world_def abi_world_def_fixed(void) {
+    static rbc_solver_def paper;
+    if (rbc_solver_def_preset(&paper, (uint32_t)sizeof paper, RBC_PRESET_PAPER) != RBC_OK) {
+        fprintf(stderr, "abi_world_def_fixed: %s\n", rbc_last_error());
+        exit(2);
+    }
+    rbc_world_def d = rbc_world_def_default();
+    d.solver = &paper;
+    return d;
+}
+
+/* ------------------------------------------------------------------------- */
 /* Meshes                                                                    */
 /* ------------------------------------------------------------------------- */
 
@@ -160,6 +179,39 @@ static inline rbc_world_stats test_stats(rbc_world_id w) {
         fprintf(stderr, "test_stats: get_stats -> %s (%s)\n", rbc_result_string(r),
                 rbc_last_error());
     return s;
+}
+
+/* The host's measure: RMS relative strain of cloth c of world w, and the largest
+ * |relative strain| into *max_r. rest: the creation positions. */
+static inline double test_host_strain(rbc_world_id w, rbc_cloth_id c, const float *rest, double *max_r) {
+    size_t count = 0;
+    CHECK_EQ(rbc_cloth_get_springs(w, c, NULL, 0, &count), RBC_OK);
+    uint32_t *pairs = (uint32_t *)malloc(sizeof(uint32_t) * (count ? count : 1));
+    CHECK_EQ(rbc_cloth_get_springs(w, c, pairs, count, &count), RBC_OK);
+    uint32_t n = 0;
+    float *p = test_read(w, c, &n);
+    double sum = 0.0, m = 0.0, worst = 0.0;
+    for (size_t k = 0; p && k < count / 2; k++) {
+        uint32_t a = pairs[2 * k], b = pairs[2 * k + 1];
+        double L = 0.0, len = 0.0;
+        for (int d = 0; d < 3; d++) {
+            double r = (double)rest[3 * a + d] - rest[3 * b + d];
+            double e = (double)p[3 * a + d] - p[3 * b + d];
+            L += r * r;
+            len += e * e;
+        }
+        L = sqrt(L);
+        len = sqrt(len);
+        if (!(L > 0.0)) continue;
+        double r = len / L - 1.0;
+        sum += r * r;
+        m += 1.0;
+        if (fabs(r) > worst) worst = fabs(r);
+    }
+    free(p);
+    free(pairs);
+    if (max_r) *max_r = worst;
+    return m > 0.0 ? sqrt(sum / m) : 0.0;
 }
 
 /* A snapshot of what a failing call must not change: the counts of the world's

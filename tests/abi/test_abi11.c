@@ -333,7 +333,7 @@ static void test_multicolor_torus(void) {
 
 /* Shear and bend springs through the ABI: counts on a grid ((nx-1)(ny-1) quads with
  * two diagonals each; (nx-2) ny + nx (ny-2) skip-one springs) and the colors a grid
- * needs (FIELD-NOTES: structural 2, + shear 4, + bend 3, + both 5); the colors are
+ * needs (docs/facts.md, Coloring: structural 2, + shear 4, + bend 3, + both 5); the colors are
  * reported with their sizes adding up to the particle count. */
 static void test_shear_bend(void) {
     test_grid g = test_grid_make(12, 9, 0.05f, 0.0f, 0.0f, 0.0f);

@@ -185,8 +185,8 @@ static void *probe_thread(void *arg) {
 
 static void test_last_error_per_thread(void) {
     /* Main thread: make a distinctive error, then let another thread fail. */
-    rbc_world_def d = rbc_world_def_default();
-    d.substeps = 0;
+    rbc_world_def d = abi_world_def_fixed();
+    d.substeps = 1025;
     rbc_world_id w = 0;
     rbc_result r = rbc_world_create(&d, &w);
     CHECK_EQ(r, RBC_ERR_INVALID_ARGUMENT);
@@ -236,7 +236,7 @@ static void test_struct_sizes(void) {
         for (size_t k = 0; k < sizeof sizes / sizeof sizes[0]; k++) {
             big_world_def b;
             memset(&b, 0, sizeof b);
-            b.d = rbc_world_def_default();
+            b.d = abi_world_def_fixed();
             b.d.struct_size = sizes[k];
             TRY_WORLD(&b.d, RBC_ERR_INVALID_ARGUMENT, "world def struct_size");
         }
@@ -335,7 +335,7 @@ static void test_null_pointers(void) {
     rbc_cloth_id c = 0;
     rbc_collider_id k = 0;
     rbc_cache_id h = 0;
-    rbc_world_def wd = rbc_world_def_default();
+    rbc_world_def wd = abi_world_def_fixed();
     rbc_cloth_def cd = test_grid_def(&G, NULL, 0);
     rbc_collider_def kd = rbc_collider_def_default();
     rbc_cache_def hd = rbc_cache_def_default();
@@ -392,26 +392,28 @@ static void test_world_def(void) {
     const float bad[] = {NAN, INFINITY, -INFINITY};
     for (int axis = 0; axis < 3; axis++)
         for (int k = 0; k < 3; k++) {
-            rbc_world_def d = rbc_world_def_default();
+            rbc_world_def d = abi_world_def_fixed();
             d.gravity[axis] = bad[k];
             TRY_WORLD(&d, RBC_ERR_INVALID_ARGUMENT, "non-finite gravity");
         }
     {
-        rbc_world_def d = rbc_world_def_default();
-        d.substeps = 0;
-        TRY_WORLD(&d, RBC_ERR_INVALID_ARGUMENT, "substeps 0");
+        rbc_world_def d = abi_world_def_fixed();
+        d.substeps = 0; /* from the rate (1.6): needs one */
+        d.substep_rate = 0.0f;
+        TRY_WORLD(&d, RBC_ERR_INVALID_ARGUMENT, "substeps 0 without a substep rate");
+        d.substep_rate = 480.0f;
         d.substeps = 1025;
         TRY_WORLD(&d, RBC_ERR_INVALID_ARGUMENT, "substeps 1025");
     }
     {
-        rbc_world_def d = rbc_world_def_default();
+        rbc_world_def d = abi_world_def_fixed();
         d.nonlinear_iterations = 0;
         TRY_WORLD(&d, RBC_ERR_INVALID_ARGUMENT, "nonlinear_iterations 0");
         d.nonlinear_iterations = 1025;
         TRY_WORLD(&d, RBC_ERR_INVALID_ARGUMENT, "nonlinear_iterations 1025");
     }
     {
-        rbc_world_def d = rbc_world_def_default();
+        rbc_world_def d = abi_world_def_fixed();
         d.linear_iterations = 0;
         TRY_WORLD(&d, RBC_ERR_INVALID_ARGUMENT, "linear_iterations 0");
         d.linear_iterations = 4097;
@@ -420,13 +422,13 @@ static void test_world_def(void) {
     {
         const rbc_backend unknown[] = {3, -1, 1000, RBC_BACKEND_FORCE32};
         for (size_t k = 0; k < sizeof unknown / sizeof unknown[0]; k++) {
-            rbc_world_def d = rbc_world_def_default();
+            rbc_world_def d = abi_world_def_fixed();
             d.backend = unknown[k];
             TRY_WORLD(&d, RBC_ERR_INVALID_ARGUMENT, "unknown backend");
         }
     }
     {
-        rbc_world_def d = rbc_world_def_default();
+        rbc_world_def d = abi_world_def_fixed();
         d.alloc = dummy_alloc;
         TRY_WORLD(&d, RBC_ERR_INVALID_ARGUMENT, "alloc without free");
         d.alloc = NULL;
@@ -435,7 +437,7 @@ static void test_world_def(void) {
     }
     /* CUDA is valid: it either works (and says so) or is unavailable. */
     {
-        rbc_world_def d = rbc_world_def_default();
+        rbc_world_def d = abi_world_def_fixed();
         d.backend = RBC_BACKEND_CUDA;
         rbc_world_id w = 0;
         rbc_result r = rbc_world_create(&d, &w);
@@ -456,7 +458,7 @@ static void test_world_def(void) {
 
 /* An 11 x 10 quad torus: periodic in both directions, 11 columns wrapping. The
  * cycle around the 11 columns has odd length, so the spring graph is not
- * bipartite (FIELD-NOTES: "an 11x10 torus ... not bipartite"). Since ABI 1.1 such
+ * bipartite (docs/facts.md, Coloring: an 11 x 10 torus is not bipartite). Since ABI 1.1 such
  * a graph is colored with more colors instead of refused: it is accepted with 3
  * (an odd cycle needs 3; 3 suffice here). Embedded as a real torus (R = 1,
  * r = 0.3) so no quad is degenerate. */
@@ -770,7 +772,8 @@ static void test_world_calls(void) {
     for (size_t k = 0; k < sizeof bad_dt / sizeof bad_dt[0]; k++)
         EXPECT(rbc_world_step(W, bad_dt[k]), RBC_ERR_INVALID_ARGUMENT);
 
-    EXPECT(rbc_world_set_iterations(W, 0, 1, 1), RBC_ERR_INVALID_ARGUMENT);
+    /* substeps 0 (the rate) is valid for W, a 1.6 world: test_defaults.c refuses it
+     * for a world from a 1.5 def. */
     EXPECT(rbc_world_set_iterations(W, 1, 0, 1), RBC_ERR_INVALID_ARGUMENT);
     EXPECT(rbc_world_set_iterations(W, 1, 1, 0), RBC_ERR_INVALID_ARGUMENT);
     EXPECT(rbc_world_set_iterations(W, 1025, 1, 1), RBC_ERR_INVALID_ARGUMENT);
@@ -1004,7 +1007,7 @@ static void stale_world_calls(rbc_world_id w, const char *what, int line) {
  * (e.g. destroys it) is reported once per case, and the reference world W is
  * not involved. */
 static void foreign_case(int kind, int reverse) {
-    rbc_world_def wd = rbc_world_def_default();
+    rbc_world_def wd = abi_world_def_fixed();
     rbc_world_id w[2] = {0, 0};
     rbc_cloth_id c[2] = {0, 0};
     rbc_collider_id k[2] = {0, 0};
@@ -1207,7 +1210,7 @@ static void test_stale_handles(void) {
 
     /* Ids from another world: see test_foreign_ids. W2 for the destroyed-world
      * checks below. */
-    rbc_world_def wd = rbc_world_def_default();
+    rbc_world_def wd = abi_world_def_fixed();
     rbc_world_id W2 = 0;
     CHECK_EQ(rbc_world_create(&wd, &W2), RBC_OK);
     rbc_cloth_def cd2 = test_grid_def(&G, NULL, 0);
@@ -1355,7 +1358,7 @@ static void test_v14(void) {
         d.target_strain = bad_target[k];
         EXPECT(rbc_world_set_solver(W, &d), RBC_ERR_INVALID_ARGUMENT);
         CHECK(strstr(rbc_last_error(), "target_strain") != NULL);
-        rbc_world_def wd = rbc_world_def_default();
+        rbc_world_def wd = abi_world_def_fixed();
         wd.solver = &d;
         TRY_WORLD(&wd, RBC_ERR_INVALID_ARGUMENT, "world with a bad target_strain");
         CHECK(strstr(rbc_last_error(), "target_strain") != NULL);
@@ -1367,7 +1370,7 @@ static void test_v14(void) {
         d.max_substeps = bad_cap[k];
         EXPECT(rbc_world_set_solver(W, &d), RBC_ERR_INVALID_ARGUMENT);
         CHECK(strstr(rbc_last_error(), "max_substeps") != NULL);
-        rbc_world_def wd = rbc_world_def_default();
+        rbc_world_def wd = abi_world_def_fixed();
         wd.solver = &d;
         TRY_WORLD(&wd, RBC_ERR_INVALID_ARGUMENT, "world with a bad max_substeps");
         CHECK(strstr(rbc_last_error(), "max_substeps") != NULL);
@@ -1392,7 +1395,7 @@ static void test_v14(void) {
      * preset into a 1.3 def (its fields would not fit): nothing is written. */
     rbc_solver_def d;
     memset(&d, 0xAB, sizeof d);
-    EXPECT(rbc_solver_def_preset(&d, sizeof d, (rbc_preset)2), RBC_ERR_INVALID_ARGUMENT);
+    EXPECT(rbc_solver_def_preset(&d, sizeof d, (rbc_preset)3), RBC_ERR_INVALID_ARGUMENT);
     CHECK(strstr(rbc_last_error(), "preset") != NULL);
     EXPECT(rbc_solver_def_preset(&d, sizeof d, (rbc_preset)-1), RBC_ERR_INVALID_ARGUMENT);
     EXPECT(rbc_solver_def_preset(NULL, sizeof d, RBC_PRESET_GAME_60HZ), RBC_ERR_INVALID_ARGUMENT);
@@ -1400,6 +1403,9 @@ static void test_v14(void) {
     EXPECT(rbc_solver_def_preset(&d, RBC_SOLVER_DEF_SIZE_V1_2, RBC_PRESET_GAME_60HZ),
            RBC_ERR_INVALID_ARGUMENT);
     CHECK(strstr(rbc_last_error(), "1.4") != NULL);
+    EXPECT(rbc_solver_def_preset(&d, RBC_SOLVER_DEF_SIZE_V1_2, RBC_PRESET_CLOTH),
+           RBC_ERR_INVALID_ARGUMENT);
+    CHECK(strstr(rbc_last_error(), "RBC_PRESET_CLOTH") != NULL);
     const unsigned char *b = (const unsigned char *)&d;
     int untouched = 1;
     for (size_t k = 0; k < sizeof d; k++) untouched &= b[k] == 0xAB;
@@ -1422,7 +1428,7 @@ int main(void) {
 
     /* The reference world: an 8 x 8 cloth (pins 0 and 7) and a plane at y = -10,
      * stepped three times so positions and velocities are non-trivial. */
-    rbc_world_def wd = rbc_world_def_default();
+    rbc_world_def wd = abi_world_def_fixed();
     wd.thread_count = 1;
     if (rbc_world_create(&wd, &W) != RBC_OK) {
         fprintf(stderr, "cannot create the reference world: %s\n", rbc_last_error());

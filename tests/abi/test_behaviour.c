@@ -20,7 +20,7 @@
 static pthread_t MAIN_THREAD;
 
 static rbc_world_id make_world(uint32_t substeps, uint32_t threads) {
-    rbc_world_def d = rbc_world_def_default();
+    rbc_world_def d = abi_world_def_fixed();
     d.substeps = substeps;
     d.thread_count = threads;
     rbc_world_id w = 0;
@@ -74,7 +74,7 @@ static void step_ok(rbc_world_id w, float dt, int line) {
  * scheme (n^2/2 instead of n(n+1)/2, or an explicit-Euler start) is off by
  * g h^2 n / 2 = 2.5e-2 m: the test separates them by 80x. */
 static void test_free_fall(void) {
-    rbc_world_def wd = rbc_world_def_default();
+    rbc_world_def wd = abi_world_def_fixed();
     wd.gravity[0] = 0.0f;
     wd.gravity[1] = -9.81f;
     wd.gravity[2] = 0.0f;
@@ -1078,7 +1078,7 @@ static void alloc_reset(void) {
 }
 
 static rbc_world_def hooked_def(void) {
-    rbc_world_def d = rbc_world_def_default();
+    rbc_world_def d = abi_world_def_fixed();
     d.alloc = count_alloc;
     d.free = count_free;
     d.alloc_user = &AC;
@@ -1238,7 +1238,7 @@ static void log_hook(void *user, rbc_log_level level, const char *message) {
 /* A set of failing and succeeding calls with log hooks, run while stdout and
  * stderr are redirected to files: the library must write nothing to either. */
 static void noisy_calls(log_ctx *quiet, log_ctx *chatty) {
-    rbc_world_def d = rbc_world_def_default();
+    rbc_world_def d = abi_world_def_fixed();
     d.log = log_hook;
     d.log_user = quiet;
     d.log_level = RBC_LOG_ERROR;
@@ -1247,7 +1247,7 @@ static void noisy_calls(log_ctx *quiet, log_ctx *chatty) {
     d.log_user = chatty;
     d.log_level = RBC_LOG_DEBUG;
     rbc_world_create(&d, &w2);
-    rbc_world_def plain = rbc_world_def_default(); /* no log hook at all */
+    rbc_world_def plain = abi_world_def_fixed(); /* no log hook at all */
     rbc_world_create(&plain, &w3);
     test_grid g = test_grid_make(10, 10, 0.05f, 0.0f, 1.0f, 0.0f);
     rbc_world_id ws[3] = {w1, w2, w3};
@@ -1271,11 +1271,11 @@ static void noisy_calls(log_ctx *quiet, log_ctx *chatty) {
         rbc_world_set_gravity(w, huge);
         rbc_world_step(w, 1e30f); /* unstable */
     }
-    rbc_world_def bd = rbc_world_def_default();
+    rbc_world_def bd = abi_world_def_fixed();
     bd.backend = RBC_BACKEND_CUDA;
     rbc_world_id wc = 0;
     if (rbc_world_create(&bd, &wc) == RBC_OK) rbc_world_destroy(wc);
-    bd.substeps = 0;
+    bd.substeps = 1025;
     rbc_world_create(&bd, &wc);
     rbc_write_obj("/nonexistent-dir-rbc/x.obj", g.positions, g.vertex_count, g.quads, g.quad_count);
     rbc_cache_def hd = rbc_cache_def_default();
@@ -1363,7 +1363,7 @@ static int32_t thread_cb(void *user, rbc_world_id world, float dt,
 
 static void run_scene(thread_job *j) {
     j->self = pthread_self();
-    rbc_world_def d = rbc_world_def_default();
+    rbc_world_def d = abi_world_def_fixed();
     d.substeps = 2;
     d.thread_count = 1;
     rbc_world_id w = 0;

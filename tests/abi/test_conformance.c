@@ -125,7 +125,9 @@ int main(int argc, char **argv) {
         for (size_t k = sizeof(rbc_cache_def); k < sizeof uh; k++) overrun |= uh.b[k] != 0xCD;
         CHECK(!overrun);
         /* Documented defaults, spot-checked. */
-        CHECK(uw.d.gravity[1] == -9.81f && uw.d.substeps == 1 && uw.d.linear_iterations == 11);
+        /* 1.6: substeps 0 = from the substep rate, 480 Hz. */
+        CHECK(uw.d.gravity[1] == -9.81f && uw.d.substeps == 0 && uw.d.substep_rate == 480.0f &&
+              uw.d.linear_iterations == 11);
         CHECK(uc.d.stiffness == 1000.0f && uc.d.vertex_mass == 1e-4f && uc.d.damping == 0.0f);
         CHECK(uk.d.shape == RBC_SHAPE_PLANE && uk.d.radius == 0.5f && uk.d.rotation[3] == 1.0f);
         CHECK(uh.d.format == RBC_CACHE_PC2 && uh.d.sample_rate == 1.0f);

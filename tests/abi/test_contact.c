@@ -17,7 +17,7 @@
 #include "rbcloth.h"
 
 static rbc_world_id make_world(uint32_t threads, uint32_t substeps, float gy) {
-    rbc_world_def wd = rbc_world_def_default();
+    rbc_world_def wd = abi_world_def_fixed();
     wd.thread_count = threads;
     wd.substeps = substeps;
     wd.gravity[1] = gy;
@@ -725,7 +725,7 @@ static void hook_free(void *user, void *ptr, size_t size) {
 static void test_alloc_thread(void) {
     hook_owner = pthread_self();
     hook_foreign = hook_calls = 0;
-    rbc_world_def wd = rbc_world_def_default();
+    rbc_world_def wd = abi_world_def_fixed();
     wd.thread_count = 2;
     wd.alloc = hook_alloc;
     wd.free = hook_free;

@@ -41,7 +41,7 @@ static void RBC_CALL count_log(void *user, rbc_log_level level, const char *msg)
 
 static rbc_world_id make_world(rbc_solver_kind kind, uint32_t linear, rbc_energy_guard guard,
                                uint32_t threads, log_count *lc) {
-    rbc_world_def wd = rbc_world_def_default();
+    rbc_world_def wd = abi_world_def_fixed();
     rbc_solver_def sd = rbc_solver_def_default();
     sd.solver = kind;
     sd.energy_guard = guard;
@@ -130,7 +130,7 @@ static void test_abi_sizes(const test_grid *g) {
     int untouched = 1;
     for (size_t k = RBC_SOLVER_DEF_SIZE_V1_1; k < sizeof sbuf; ++k) untouched &= raw[k] == 0xAB;
     CHECK(untouched);
-    rbc_world_def wd = rbc_world_def_default();
+    rbc_world_def wd = abi_world_def_fixed();
     wd.solver = &sbuf.d;
     rbc_world_id w = 0;
     CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);

@@ -213,7 +213,7 @@ static run_result run(int frames, uint32_t threads, int verbose) {
     run_result R;
     memset(&R, 0, sizeof R);
     R.least = INFINITY;
-    rbc_world_def wd = rbc_world_def_default();
+    rbc_world_def wd = abi_world_def_fixed();
     wd.thread_count = threads;
     wd.substeps = 8;
     rbc_world_id w = 0;
