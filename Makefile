@@ -4,12 +4,15 @@ BUILD ?= build
 JOBS ?= $(shell nproc)
 CMAKE_FLAGS ?=
 
-.PHONY: all deps build demo test check-long clean abi-baseline
+.PHONY: all deps deps-build build demo test check-long clean abi-baseline
 
 all: build
 
 deps:
 	@bash .ci/deps.sh
+
+deps-build:
+	@bash .ci/deps.sh build
 
 $(BUILD)/CMakeCache.txt: CMakeLists.txt
 	cmake -S . -B $(BUILD) $(CMAKE_FLAGS)
@@ -17,7 +20,9 @@ $(BUILD)/CMakeCache.txt: CMakeLists.txt
 build: deps $(BUILD)/CMakeCache.txt
 	cmake --build $(BUILD) -j $(JOBS)
 
-demo: build
+# The demo builds only the command line and the plugin it loads (not the tests).
+demo: deps-build $(BUILD)/CMakeCache.txt
+	cmake --build $(BUILD) -j $(JOBS) --target rbcloth_cli
 	$(BUILD)/bin/rbcloth run --out out
 
 test: build

@@ -2,12 +2,24 @@
 # Install the Debian packages rbcloth needs to build and test, if any is missing.
 # Runs as root (CI and a fresh machine); with sudo otherwise.
 set -euo pipefail
+# What `make demo` needs to build (`deps.sh build`), and what `make test` adds (no
+# argument: everything).
 # zlib1g-dev: assimp's CMake config links /usr/lib/x86_64-linux-gnu/libz.so, which
 # libassimp-dev does not pull in (a fresh bookworm root fails to link without it).
+# libpng-dev: the viewer's PNG stills (hosts/cli/viewer.c).
+build_pkgs=(cmake make gcc libc6-dev pkg-config libcjson-dev libsuitesparse-dev binutils
+            libassimp-dev zlib1g-dev libpng-dev)
 # slurm-wlm, munge: tests/slurm starts a one-node Slurm on localhost to run
 # samples/slurm/ (about 12 s to install on bookworm; the test skips without them).
-pkgs=(cmake make gcc libc6-dev pkg-config libcjson-dev libsuitesparse-dev abigail-tools binutils
-      libassimp-dev zlib1g-dev assimp-testmodels valgrind slurm-wlm munge)
+# chromium: tests/viewer loads the player page in headless Chromium (software WebGL)
+# to check that it draws and plays. blender: tests/blender brings a run's cache into
+# Blender with the README's settings.
+test_pkgs=(abigail-tools assimp-testmodels valgrind slurm-wlm munge chromium blender)
+if [ "${1:-}" = build ]; then
+  pkgs=("${build_pkgs[@]}")
+else
+  pkgs=("${build_pkgs[@]}" "${test_pkgs[@]}")
+fi
 missing=()
 for p in "${pkgs[@]}"; do
   status=$(dpkg-query -W -f='${Status}' "$p" 2>/dev/null || true)

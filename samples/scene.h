@@ -26,7 +26,10 @@
 /// The "world" object: the fields of rbc_world_def a scene sets.
 typedef struct rbc_scene_world {
     float gravity[3];
+    /// 0 = from substep_rate (ABI 1.6, the default).
     uint32_t substeps;
+    /// Hz, > 0: substeps per second when substeps is 0. Default 480.
+    float substep_rate;
     uint32_t nonlinear_iterations;
     uint32_t linear_iterations;
     /// 0 = one per available core.
@@ -193,9 +196,16 @@ int rbc_scene_load_file(const char *path, rbc_scene *out, char *err, size_t err_
 /// rbc_solver_kind / rbc_iteration_mode, NULL-terminated.
 extern const char *const rbc_scene_solver_names[];
 extern const char *const rbc_scene_mode_names[];
-/// "default", "game_60hz": rbc_preset values by index (rbc_solver_def_preset, the
-/// CLI's --preset), NULL-terminated.
+/// "paper", "game_60hz", "cloth": rbc_preset values by index (rbc_solver_def_preset,
+/// the CLI's --preset, a scene's world.solver.preset), NULL-terminated.
 extern const char *const rbc_scene_preset_names[];
+/// The entry of `choices` (NULL-terminated) that `word` is likely a typo of (one
+/// edit, two from 6 characters on; or the one choice it begins, from 3 characters),
+/// or NULL: for "did you mean" in messages.
+const char *rbc_scene_nearest(const char *word, const char *const *choices);
+/// Fill *d with what rbc_solver_def_preset(d, sizeof *d, preset) gives (written out,
+/// so that loading a scene needs no library).
+void rbc_scene_solver_preset(rbc_solver_def *d, int preset);
 /// "off", "clamp", "fail": rbc_energy_guard values by index, NULL-terminated.
 extern const char *const rbc_scene_energy_guard_names[];
 
@@ -224,8 +234,13 @@ rbc_scene_drag_state rbc_scene_drag_target(const rbc_scene_drag *drag, double ti
 int rbc_scene_needs_v1_3(const rbc_scene *scene, char *key, size_t key_size);
 
 /// The built-in default scene, identical to samples/scenes/hanging_cloth.json: the
-/// paper's 100 x 100 hanging cloth. Returns 0 or -1 as rbc_scene_parse.
+/// paper's 100 x 100 hanging cloth at 1/60 s with the default solve. Returns 0 or
+/// -1 as rbc_scene_parse.
 int rbc_scene_load_default(rbc_scene *out, char *err, size_t err_size);
+/// The paper's experiment, identical to samples/scenes/hanging_cloth_paper.json: the
+/// same cloth at h = 2 ms, 1 x 11 RBGS iterations (the benches that reproduce the
+/// paper). Returns 0 or -1 as rbc_scene_parse.
+int rbc_scene_load_paper(rbc_scene *out, char *err, size_t err_size);
 
 /// The JSON text of the built-in default scene.
 const char *rbc_scene_default_json(void);

@@ -33,6 +33,7 @@
 
 #include "fsutil.h"
 #include "scene.h"
+#include "viewer.h"
 
 enum { MAX_COLLIDERS = 8, MESSAGE_MAX = 1024 };
 
@@ -630,6 +631,11 @@ typedef struct job_run {
     rbc_world_id world; /* mesh jobs */
     uint32_t cloth_count;
     job_cloth *cloths;
+    /* JOB.png and JOB.html (viewer.h): every cloth, and the colliders the job has
+     * (a scene's mesh colliders from files are left out: the scene keeps no
+     * triangles of them); view_collider[k]: collider k's index in the view or -1. */
+    cli_view *view;
+    int32_t view_collider[1024];
     cJSON *outputs;
     char *err;
     size_t err_size;
@@ -659,6 +665,7 @@ static void job_run_free(job_run *r) {
     if (r->mesh) r->api->mesh_destroy(r->mesh);
     rbc_scene_instance_destroy(r->api, &r->instance);
     rbc_scene_free(&r->scene);
+    cli_view_destroy(r->view);
     cJSON_Delete(r->outputs);
 }
 
@@ -667,8 +674,9 @@ static void fill_solver(const batch_job *j, rbc_solver_def *sd) {
     if (j->energy_guard >= 0) sd->energy_guard = (rbc_energy_guard)j->energy_guard;
 }
 
-/* A mesh job: import, one world with the defaults of the sample scenes (60 frames
- * at 60 Hz, 8 substeps x 11 iterations, 0.1 g per vertex, 1000 N/m). */
+/* A mesh job: import, one world with the library's default solve (RBC_PRESET_CLOTH:
+ * red-black SOR, 480 substeps a second of 11 iterations) unless the job says
+ * otherwise, 60 frames at 60 Hz, 0.1 g per vertex, 1000 N/m. */
 static int setup_mesh_job(job_run *r) {
     const rbc_api_v1 *api = r->api;
     batch_job *j = r->job;
@@ -676,11 +684,11 @@ static int setup_mesh_job(job_run *r) {
     rbc_result rc = api->mesh_import(j->mesh, &j->import, &r->mesh);
     if (rc != RBC_OK) return api_fail(r, rc, "import");
     rbc_solver_def sd;
-    api->solver_def_init(&sd, (uint32_t)sizeof sd);
+    api->solver_def_preset(&sd, (uint32_t)sizeof sd, RBC_PRESET_CLOTH);
     fill_solver(j, &sd);
     rbc_world_def wd;
     api->world_def_init(&wd, (uint32_t)sizeof wd);
-    wd.substeps = j->substeps > 0 ? (uint32_t)j->substeps : 8;
+    wd.substeps = j->substeps > 0 ? (uint32_t)j->substeps : 0; /* 0: the substep rate */
     wd.linear_iterations = j->iterations > 0 ? (uint32_t)j->iterations : 11;
     wd.nonlinear_iterations = j->nonlinear > 0 ? (uint32_t)j->nonlinear : 1;
     wd.thread_count = (uint32_t)j->threads;
@@ -821,6 +829,117 @@ static int start_outputs(job_run *r) {
     return 0;
 }
 
+static int view_colliders(job_run *r, double time);
+
+/* Cloth i's positions of this frame into the viewer, after the quads torn so far
+ * (scene cloths with tear_strain). */
+static int view_cloth(job_run *r, uint32_t i, const float *xyz) {
+    const rbc_api_v1 *api = r->api;
+    if (!r->job->mesh && r->scene.cloths[i].tear_strain > 0.0f) {
+        rbc_world_id world = r->world ? r->world : r->instance.world;
+        size_t count = 0;
+        rbc_result rc = api->cloth_get_quads(world, r->cloths[i].id, NULL, 0, &count);
+        uint32_t *quads = rc == RBC_OK ? malloc((count ? count : 1) * sizeof *quads) : NULL;
+        if (rc == RBC_OK && !quads) return oom(r);
+        if (rc == RBC_OK) rc = api->cloth_get_quads(world, r->cloths[i].id, quads, count, &count);
+        int bad = rc == RBC_OK &&
+                  cli_view_set_remaining_quads(r->view, i, quads, count / 4, r->err, r->err_size);
+        free(quads);
+        if (rc != RBC_OK) return api_fail(r, rc, "torn quads");
+        if (bad) return -1;
+    }
+    if (cli_view_frame_cloth(r->view, i, xyz)) {
+        snprintf(r->err, r->err_size, "viewer: %s", cli_view_last_error(r->view));
+        return -1;
+    }
+    return 0;
+}
+
+/* The viewer of a job: its cloths (rest meshes) and colliders, and frame 0. */
+static int start_view(job_run *r) {
+    batch_job *j = r->job;
+    const rbc_scene *sc = j->mesh ? NULL : &r->scene;
+    if (cli_view_create(&r->view, j->name, j->dt, (uint32_t)j->frames + 1, r->err, r->err_size))
+        return -1;
+    for (uint32_t i = 0; i < r->cloth_count; ++i) {
+        const job_cloth *c = &r->cloths[i];
+        cli_view_cloth_def d = {c->stem, c->vertex_count, c->rest, c->quad_count, c->quads, 0, NULL};
+        if (cli_view_add_cloth(r->view, &d, r->err, r->err_size)) return -1;
+    }
+    uint32_t count = sc ? sc->collider_count : j->collider_count;
+    if (count > sizeof r->view_collider / sizeof r->view_collider[0])
+        count = sizeof r->view_collider / sizeof r->view_collider[0];
+    int32_t shown = 0;
+    for (uint32_t k = 0; k < count; ++k) {
+        r->view_collider[k] = -1;
+        cli_view_collider_def d;
+        memset(&d, 0, sizeof d);
+        if (sc) {
+            const rbc_scene_collider *c = &sc->colliders[k];
+            if (c->shape == RBC_SHAPE_TRIANGLE_MESH && !c->mesh_positions) continue;
+            d.shape = c->shape;
+            d.radius = c->radius;
+            memcpy(d.half_extents, c->half_extents, sizeof d.half_extents);
+            d.mesh_vertex_count = c->mesh_vertex_count;
+            d.mesh_positions = c->mesh_positions;
+            d.mesh_triangle_count = c->mesh_triangle_count;
+            d.mesh_triangles = c->mesh_triangles;
+        } else {
+            d.shape = j->colliders[k].shape;
+            d.radius = j->colliders[k].radius;
+            memcpy(d.half_extents, j->colliders[k].half_extents, sizeof d.half_extents);
+        }
+        if (cli_view_add_collider(r->view, &d, r->err, r->err_size)) return -1;
+        r->view_collider[k] = shown++;
+    }
+    for (uint32_t i = 0; i < r->cloth_count; ++i)
+        if (cli_view_frame_cloth(r->view, i, r->cloths[i].rest)) goto fail;
+    return view_colliders(r, 0.0);
+fail:
+    snprintf(r->err, r->err_size, "viewer: %s", cli_view_last_error(r->view));
+    return -1;
+}
+
+/* Every collider's pose at `time` into the viewer. */
+static int view_colliders(job_run *r, double time) {
+    batch_job *j = r->job;
+    const rbc_scene *sc = j->mesh ? NULL : &r->scene;
+    uint32_t count = sc ? sc->collider_count : j->collider_count;
+    if (count > sizeof r->view_collider / sizeof r->view_collider[0])
+        count = sizeof r->view_collider / sizeof r->view_collider[0];
+    for (uint32_t k = 0; k < count; ++k) {
+        if (r->view_collider[k] < 0) continue;
+        float p[3], q[4];
+        if (sc) {
+            rbc_scene_collider_pose(&sc->colliders[k], time, p, q);
+        } else {
+            memcpy(p, j->colliders[k].position, sizeof p);
+            memcpy(q, j->colliders[k].rotation, sizeof q);
+        }
+        if (cli_view_frame_collider(r->view, (uint32_t)r->view_collider[k], p, q)) {
+            snprintf(r->err, r->err_size, "viewer: %s", cli_view_last_error(r->view));
+            return -1;
+        }
+    }
+    return 0;
+}
+
+/* JOB.png (the last frame) and JOB.html, listed with the outputs. */
+static int finish_view(job_run *r) {
+    batch_job *j = r->job;
+    char *png = job_file(j, j->name, ".png"), *html = job_file(j, j->name, ".html");
+    uint32_t total = cli_view_frame_total(r->view);
+    int rc = !png || !html ? oom(r)
+             : cli_view_write_png(r->view, png, total ? total - 1 : 0, 0, 0, r->err, r->err_size) ||
+                     cli_view_write_html(r->view, html, r->err, r->err_size)
+                 ? -1
+                 : 0;
+    if (rc == 0) rc = add_output(r, png) || add_output(r, html) ? -1 : 0;
+    free(png);
+    free(html);
+    return rc;
+}
+
 /* Returns 0 done, -1 failed (message in r->err), 1 stopped by a signal. */
 static int simulate(job_run *r, rbc_world_stats *last, double *ms_per_frame) {
     const rbc_api_v1 *api = r->api;
@@ -837,6 +956,15 @@ static int simulate(job_run *r, rbc_world_stats *last, double *ms_per_frame) {
         if (g_stop) {
             free(xyz);
             return 1;
+        }
+        if (!j->mesh) {
+            /* A scene's moving colliders and drags, as `rbcloth run` moves them. */
+            rbc_result ac = rbc_scene_apply_frame(api, &r->scene, &r->instance, (uint32_t)f, r->err,
+                                                  r->err_size);
+            if (ac != RBC_OK) {
+                free(xyz);
+                return -1;
+            }
         }
         rbc_result rc = api->world_step(world, dt);
         memset(last, 0, sizeof *last);
@@ -859,6 +987,14 @@ static int simulate(job_run *r, rbc_world_stats *last, double *ms_per_frame) {
                 free(xyz);
                 return api_fail(r, rc, "writing a frame");
             }
+            if (r->view && view_cloth(r, i, xyz)) {
+                free(xyz);
+                return -1;
+            }
+        }
+        if (r->view && view_colliders(r, (double)(f + 1) * j->dt)) {
+            free(xyz);
+            return -1;
         }
     }
     free(xyz);
@@ -943,11 +1079,13 @@ static int run_job(const rbc_api_v1 *api, batch_job *j, char *err, size_t err_si
         if (j->frames < 0) j->frames = j->mesh ? 60 : (long)r.scene.frames;
         if (j->dt < 0) j->dt = j->mesh ? 1.0 / 60.0 : (double)r.scene.dt;
         rc = start_outputs(&r);
+        if (rc == 0) rc = start_view(&r);
     }
     rbc_world_stats st;
     memset(&st, 0, sizeof st);
     double ms = 0.0;
     if (rc == 0) rc = simulate(&r, &st, &ms);
+    if (rc == 0) rc = finish_view(&r);
     if (rc == 0) rc = write_result(&r, &st, ms, now_seconds() - start);
     job_run_free(&r); /* destroys unfinished caches: their temporary files go */
     return rc == 0 ? 0 : rc == 1 ? 3 : 1;
@@ -1073,6 +1211,38 @@ static cJSON *report_entry(const batch_job *j) {
     return o;
 }
 
+/* DIR/index.html: a still per job, each linking to the job's player page. */
+static int write_index(const batch *b, char *err, size_t err_size) {
+    cli_view_index_entry *e = calloc(b->job_count ? b->job_count : 1, sizeof *e);
+    char (*hrefs)[2][300] = calloc(b->job_count ? b->job_count : 1, sizeof *hrefs);
+    char *path = fs_path(b->options->out_dir, "index", ".html");
+    int rc = -1;
+    if (!e || !hrefs || !path) {
+        snprintf(err, err_size, "out of memory");
+        goto done;
+    }
+    for (size_t k = 0; k < b->job_count; ++k) {
+        const batch_job *j = &b->jobs[k];
+        e[k].name = j->name;
+        e[k].status = status_names[j->status];
+        if (j->status == JOB_OK || j->status == JOB_SKIPPED) {
+            snprintf(hrefs[k][0], sizeof hrefs[k][0], "%s/%s.html", j->name, j->name);
+            snprintf(hrefs[k][1], sizeof hrefs[k][1], "%s/%s.png", j->name, j->name);
+            e[k].page_href = hrefs[k][0];
+            e[k].png_href = hrefs[k][1];
+        }
+    }
+    char title[300];
+    const char *m = b->options->manifest_path;
+    snprintf(title, sizeof title, "rbcloth batch: %s", strrchr(m, '/') ? strrchr(m, '/') + 1 : m);
+    rc = cli_view_write_index(path, title, e, (uint32_t)b->job_count, err, err_size);
+done:
+    free(e);
+    free(hrefs);
+    free(path);
+    return rc;
+}
+
 static int write_reports(const batch *b, double wall, char *err, size_t err_size) {
     cJSON *root = cJSON_CreateObject();
     cJSON *list = cJSON_CreateArray();
@@ -1162,6 +1332,7 @@ static int write_reports(const batch *b, double wall, char *err, size_t err_size
     }
     free(json_path);
     free(md_path);
+    if (rc == 0) rc = write_index(b, err, err_size);
     return rc;
 }
 
@@ -1360,7 +1531,7 @@ report:;
         rc = 1;
     }
     printf("rbcloth batch: %zu ok, %zu skipped, %zu failed, %zu interrupted, %zu not run in %.2f s "
-           "(-j %ld); report in %s/batch_report.md\n",
+           "(-j %ld); report in %s/batch_report.md, stills in index.html\n",
            counts[JOB_OK], counts[JOB_SKIPPED], counts[JOB_FAILED], counts[JOB_INTERRUPTED],
            counts[JOB_NOT_RUN], wall, options->jobs, options->out_dir);
     if (counts[JOB_FAILED] + counts[JOB_INTERRUPTED] + counts[JOB_NOT_RUN] > 0) {

@@ -55,10 +55,22 @@ int cli_bench_scenes(const cli_plugin *plugin, const cli_bench_options *options)
 
 /// `rbcloth bench peers`: rbcloth's configurations (solver, substeps, non-linear and
 /// linear iterations, SOR omega, Chebyshev rho, energy guard) on the peer scene of
-/// FIELD-NOTES, their Pareto front of ms per frame against Eq. 7 at the last frame,
+/// docs/facts.md, their Pareto front of ms per frame against Eq. 7 at the last frame,
 /// beside the peers' published figures (issue 7). One thread unless --threads says
 /// otherwise. Returns 0, or 1 after a message on stderr.
 int cli_bench_peers(const cli_plugin *plugin, const cli_bench_options *options);
+
+/// `rbcloth bench defaults`: the default solve beside the presets and other substep
+/// rates on the paper's cloth and a 64 x 48 grid at 1/240, 1/60 and 1/30 s: largest
+/// and RMS strain, sag, ms per frame (issue 16). One thread unless --threads says
+/// otherwise. Returns 0, or 1 after a message on stderr.
+int cli_bench_defaults(const cli_plugin *plugin, const cli_bench_options *options);
+
+/// The head of a results page (docs/results/): the command that regenerates it, and
+/// the date (UTC), the commit of the source tree this binary was built from (with
+/// "+ uncommitted changes" when the tree differs; "unknown" without git) and the
+/// machine (CPU model, cores, memory, OS, load average) of this run.
+void bench_write_provenance(FILE *md, const char *command);
 
 /* ------------------------------------------------------------------------- */
 /* Solvers                                                                   */

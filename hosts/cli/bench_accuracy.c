@@ -37,7 +37,7 @@ typedef struct acc_scene {
     float dt;
     /// Start positions (3n floats), NULL = the rest positions.
     float *start;
-    /// Only the gap at 11 iterations is measured (the FIELD-NOTES cross-check).
+    /// Only the gap at 11 iterations is measured (the cross-check of docs/facts.md, Convergence).
     int gap_only;
     uint32_t frames;
     /// Sum of squared rest lengths, m^2: Eq. 7 above it means an rms strain above 1
@@ -118,7 +118,7 @@ static int out_of_memory(void) {
 static int build_scenes(acc_ctx *ctx) {
     rbc_scene sc;
     char err[RBC_SCENE_ERROR_MAX];
-    if (rbc_scene_load_default(&sc, err, sizeof err)) {
+    if (rbc_scene_load_paper(&sc, err, sizeof err)) {
         fprintf(stderr, "rbcloth: %s\n", err);
         return 1;
     }
@@ -165,7 +165,7 @@ static int build_scenes(acc_ctx *ctx) {
         s->frames = ctx->frames;
     }
 
-    /* FIELD-NOTES' convergence experiment: the hanging cloth at h = 1/60 with
+    /* The convergence experiment of docs/facts.md: the hanging cloth at h = 1/60 with
      * k h^2/m = 10 and 100 (gap after 11 iterations only). */
     static const double ratios[2] = {10.0, 100.0};
     for (int k = 0; !rc && !ctx->opt->quick && k < 2; ++k) {
@@ -896,7 +896,7 @@ static void print_summary(const acc_ctx *ctx) {
         extra |= ctx->scenes[sc].gap_only;
     if (extra) {
         printf("\nFraction of the PD objective gap left after 11 iterations, hanging cloth at "
-               "h = 1/60 s (FIELD-NOTES cross-check)\n");
+               "h = 1/60 s (cross-check of docs/facts.md)\n");
         printf("  %-17s", "solver");
         for (uint32_t sc = 0; sc < ctx->scene_count; ++sc)
             if (ctx->scenes[sc].gap_only)

@@ -596,3 +596,63 @@ const char *bench_result_text(const rbc_api_v1 *api, rbc_result r, char *buf, si
     snprintf(buf, size, "%s: %s", api->result_string(r), api->last_error());
     return buf;
 }
+
+/* ------------------------------------------------------------------------- */
+/* Provenance of a results page                                              */
+/* ------------------------------------------------------------------------- */
+
+/* The first line a shell command prints, without its newline ("" if none). */
+static void first_line_of(const char *command, char *out, size_t size) {
+    out[0] = '\0';
+    FILE *p = popen(command, "r");
+    if (!p) return;
+    if (fgets(out, (int)size, p)) out[strcspn(out, "\r\n")] = '\0';
+    pclose(p);
+}
+
+/* The value of "key: value" or key=value in a text file ("" if absent). */
+static void field_of(const char *path, const char *key, char sep, char *out, size_t size) {
+    out[0] = '\0';
+    FILE *f = fopen(path, "r");
+    if (!f) return;
+    char line[512];
+    size_t klen = strlen(key);
+    while (fgets(line, sizeof line, f)) {
+        if (strncmp(line, key, klen) != 0) continue;
+        char *v = strchr(line + klen, sep);
+        if (!v) continue;
+        v++;
+        while (*v == ' ' || *v == '\t' || *v == '"') v++;
+        v[strcspn(v, "\"\r\n")] = '\0';
+        snprintf(out, size, "%s", v);
+        break;
+    }
+    fclose(f);
+}
+
+void bench_write_provenance(FILE *md, const char *command) {
+    char when[64], commit[64], dirty[64], cpu[256], os[256];
+    time_t t = time(NULL);
+    struct tm tm;
+    gmtime_r(&t, &tm);
+    strftime(when, sizeof when, "%Y-%m-%d %H:%M UTC", &tm);
+#ifdef RBC_SOURCE_DIR
+    first_line_of("git -C '" RBC_SOURCE_DIR "' rev-parse --short HEAD 2>/dev/null", commit,
+                  sizeof commit);
+    first_line_of("git -C '" RBC_SOURCE_DIR "' status --porcelain --untracked-files=no "
+                  "2>/dev/null",
+                  dirty, sizeof dirty);
+#else
+    commit[0] = dirty[0] = '\0';
+#endif
+    field_of("/proc/cpuinfo", "model name", ':', cpu, sizeof cpu);
+    field_of("/etc/os-release", "PRETTY_NAME", '=', os, sizeof os);
+    long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    double gib = (double)sysconf(_SC_PHYS_PAGES) * (double)sysconf(_SC_PAGESIZE) / 1073741824.0;
+    fprintf(md, "Regenerate: `%s`\n\n", command);
+    fprintf(md, "Measured: %s; commit %s%s; %s, %ld cores, %.0f GiB, %s; load average %.2f at "
+                "the start.\n\n",
+            when, commit[0] ? commit : "unknown", dirty[0] ? " + uncommitted changes" : "",
+            cpu[0] ? cpu : "unknown CPU", cores, gib, os[0] ? os : "unknown OS",
+            bench_load_average());
+}

@@ -1,5 +1,5 @@
 /* bench_peers.c -- `rbcloth bench peers`: rbcloth's configurations on the peer scene
- * of FIELD-NOTES ("Peers and their published numbers"), against the peers' figures
+ * of docs/facts.md ("The peer scene"), against the peers' figures
  * (issue 7).
  *
  * The peer scene is the built-in default scene (samples/scene.c): 100 x 100
@@ -51,7 +51,7 @@
 #define PEERS_REFINE_MS 1.5
 enum { PEERS_MAX_ROUNDS = 4 };
 
-/* The peers, as FIELD-NOTES gives them (built and run elsewhere, one thread,
+/* The peers, as docs/facts.md gives them (built and run elsewhere, one thread,
  * ranges over 3 runs). */
 typedef struct peer_figure {
     const char *name;
@@ -784,7 +784,7 @@ static int write_md(peers_ctx *ctx) {
     size_t n = front_order(ctx, order), valid = 0;
     for (size_t i = 0; i < ctx->row_count; ++i)
         valid += (size_t)row_valid(&ctx->rows[i], ctx->frames);
-    fprintf(f, "# rbcloth on the peer scene (FIELD-NOTES), against the peers\n\n");
+    fprintf(f, "# rbcloth on the peer scene (docs/facts.md), against the peers\n\n");
     fprintf(f,
             "100 x 100 hanging cloth, L = 1/99 m, 1e-4 kg per vertex, k = 1000 N/m, h = 2 ms, no "
             "damping, pins 0 and 99, %u frames; E = Eq. 7 over the 19,800 springs at the last "
@@ -839,7 +839,7 @@ static int write_md(peers_ctx *ctx) {
                 (unsigned long long)r->clamps,
                 r->eq7_host <= PEERS_TARGET_E ? "yes" : "");
     }
-    fprintf(f, "\n## The peers (measured elsewhere, FIELD-NOTES)\n\n");
+    fprintf(f, "\n## The peers (measured elsewhere, docs/facts.md)\n\n");
     fprintf(f, "| peer | configuration | ms/frame | E (m^2) | source |\n|---|---|---:|---:|---|\n");
     for (int k = 0; k < PEER_FIGURE_COUNT; ++k) {
         const peer_figure *p = &peer_figures[k];
@@ -848,7 +848,7 @@ static int write_md(peers_ctx *ctx) {
             snprintf(ms, sizeof ms, "%g", p->ms_lo);
         else
             snprintf(ms, sizeof ms, "%g-%g", p->ms_lo, p->ms_hi);
-        fprintf(f, "| %s | %s | %s | %.3g | measured elsewhere, FIELD-NOTES |\n", p->name,
+        fprintf(f, "| %s | %s | %s | %.3g | measured elsewhere, docs/facts.md |\n", p->name,
                 p->config, ms, p->eq7);
     }
 
@@ -953,7 +953,7 @@ static int write_plot(peers_ctx *ctx) {
     fprintf(f, "set ylabel 'E = Eq. 7 at frame %u (m^2)'\n", ctx->frames);
     fprintf(f, "set title \"Peer scene: 100 x 100 hanging cloth, h = 2 ms, %u frames\\nrbcloth: "
                "every configuration that held and its Pareto front; peers: measured elsewhere "
-               "(FIELD-NOTES)\"\n",
+               "(docs/facts.md)\"\n",
             ctx->frames);
     fprintf(f, "set key inside right top opaque box lc rgb '#bbbbbb' font ',9'\n");
     fprintf(f, "set xrange [0.03:40]\nset yrange [3e-6:0.2]\n");
@@ -978,7 +978,7 @@ static int write_plot(peers_ctx *ctx) {
     fprintf(f, "'peers_front.csv' every ::1 using 3:4 with linespoints lw 2 pt 7 ps 0.9 lc rgb "
                "'#2ca02c' title 'rbcloth Pareto front', \\\n     ");
     fprintf(f, "$peers using 1:4:2:3 with xerrorbars pt 5 ps 1.2 lc rgb '#555555' title 'peers "
-               "(measured elsewhere, FIELD-NOTES)', \\\n     ");
+               "(measured elsewhere, docs/facts.md)', \\\n     ");
     fprintf(f, "$peers using 1:4:5 with labels offset 0.8,0.6 left font ',9' tc rgb '#333333' "
                "notitle noenhanced\n");
     if (bench_close(f, ctx->dir, "peers.gp"))
@@ -1065,7 +1065,7 @@ int cli_bench_peers(const cli_plugin *plugin, const cli_bench_options *options) 
     double start = bench_now();
     ctx.load_start = bench_load_average();
     rbc_scene sc;
-    if (rbc_scene_load_default(&sc, err, sizeof err)) {
+    if (rbc_scene_load_paper(&sc, err, sizeof err)) {
         fprintf(stderr, "rbcloth: %s\n", err);
         return 1;
     }

@@ -18,118 +18,173 @@
 
 enum { EXIT_OK = 0, EXIT_RUNTIME = 1, EXIT_USAGE = 2 };
 
-static const char usage_text[] =
+/* The overview (rbcloth --help) and one page per command (rbcloth COMMAND --help). */
+static const char main_usage[] =
     "Usage: rbcloth COMMAND [ARGS]\n"
     "\n"
     "A real-time quad mass-spring cloth solver (librbcloth) on the command line.\n"
     "\n"
     "Commands:\n"
-    "  run [SCENE.json] [OPTIONS]  simulate a scene (the built-in 100 x 100 hanging\n"
-    "                              cloth when SCENE is omitted) and write into DIR:\n"
-    "                              NAME.obj (rest mesh), NAME.pc2 (point cache of every\n"
-    "                              frame) and NAME.json (summary); with several cloths\n"
-    "                              NAME_CLOTH.obj and NAME_CLOTH.pc2 per cloth\n"
-    "  batch MANIFEST.json [-j N] [--out DIR] [--quiet]\n"
-    "                              simulate every job of a manifest (mesh files read\n"
-    "                              with assimp, or scenes) in N worker processes:\n"
-    "                              DIR/JOB/ holds JOB.obj (rest mesh) and the caches\n"
-    "                              asked for (pc2, mdd, objseq: frames/JOB_0001.obj..);\n"
-    "                              finished jobs are skipped on a rerun; SIGINT/SIGTERM\n"
-    "                              stop it without half-written files; closes with\n"
-    "                              DIR/batch_report.json and .md (default -j 2, DIR\n"
-    "                              out/batch); exit 1 if any job failed\n"
-    "  batch MESHDIR --template T.json [-j N] [--out DIR] [--quiet]\n"
-    "                              folder mode: every mesh file in MESHDIR (.obj .ply\n"
-    "                              .off .stl .dae .gltf .glb .fbx .3ds ...) is a job\n"
-    "                              named after its file, with T's settings (the keys\n"
-    "                              of a manifest's \"defaults\": frames, dt, solver,\n"
-    "                              pins, colliders, outputs ...)\n"
-    "    --only I                  run job I only (0-based, manifest or file-name\n"
-    "                              order) and write no report: one Slurm array task\n"
-    "    --report-only             run nothing; build DIR/batch_report.json and .md\n"
-    "                              from the results in DIR (the Slurm merge step)\n"
-    "    --count                   print the number of jobs and exit\n"
-    "                              (samples/slurm/ runs a batch as a Slurm job array)\n"
-    "  bench accuracy [OPTIONS]    the paper's convergence experiments (Figs. 3, 4)\n"
-    "                              for every solver: Eq. 7 per frame at 11 iterations\n"
-    "                              and within 2 ms, a budget sweep, the PD objective\n"
-    "                              gap; CSVs, pareto.md and PNG plots (gnuplot) in DIR\n"
-    "  bench stability [OPTIONS]   a stability map of every solver over stiffness, dt,\n"
-    "                              mass ratio, size, degenerate springs, stretch, pins\n"
-    "                              and a moving sphere: stability.csv, stability.md\n"
-    "  bench perf [OPTIONS]        what a frame costs: ms per frame and per stage,\n"
-    "                              particle updates/s, setup time and memory of RBGS\n"
-    "                              on 1K .. 1M particle grids with 1 and N threads, an\n"
-    "                              irregular quad mesh against the grid, Jacobi and\n"
-    "                              serial Gauss-Seidel at equal iterations: perf.csv,\n"
-    "                              perf.md, perf_scaling.png\n"
-    "  bench scenes [OPTIONS]      the paper's scenes (samples/scenes: cloth on a chair,\n"
-    "                              four layers and a sphere, funnel, cannonballs and\n"
-    "                              tearing; two reference scenes) with 1 and N threads,\n"
-    "                              collisions included: ms per step and substep (median,\n"
-    "                              p90), stages, contacts, torn springs, penetration,\n"
-    "                              beside the paper's GTX 970 figures: scenes.csv,\n"
-    "                              scenes.md, scenes.png (scenes from $RBC_SCENES_DIR,\n"
-    "                              else ./samples/scenes, else the source tree's)\n"
-    "  bench peers [OPTIONS]       rbcloth on the peer scene of FIELD-NOTES (the default\n"
-    "                              scene, 500 frames, 1 thread): solver x substeps x\n"
-    "                              non-linear x linear iterations (SOR omega, Chebyshev\n"
-    "                              rho, energy guard), the Pareto front of ms per frame\n"
-    "                              against Eq. 7 beside the peers' figures: peers.csv,\n"
-    "                              peers.md, peers.png (a few minutes; --quick: seconds)\n"
-    "  info                        print the plugin's path, ABI version and version\n"
+    "  run [SCENE.json]   simulate a scene (default: the built-in hanging cloth) into\n"
+    "                     point caches, a PNG still and an HTML player\n"
+    "  batch MANIFEST     simulate many meshes or scenes in worker processes\n"
+    "  bench NAME         measure: defaults, accuracy, stability, perf, scenes, peers\n"
+    "  info               the plugin's path, ABI version and version\n"
+    "  help [COMMAND]     this page, or a command's options with their defaults\n"
     "\n"
-    "Options of run:\n"
-    "  --out DIR         output directory, created if missing (default: out)\n"
-    "  --frames N        frames to simulate (one step of the scene's dt each)\n"
-    "  --threads N       worker threads; 0 = one per core\n"
-    "  --substeps N      substeps per frame (1..1024)\n"
-    "  --iterations N    linear iterations per non-linear iteration (1..4096)\n"
-    "  --nonlinear N     non-linear (local/global) iterations per substep (1..1024)\n"
-    "  --solver NAME     global solver: rbgs (default), jacobi, jacobi_chebyshev,\n"
-    "                    gauss_seidel, rbgs_sor, rbgs_chebyshev, multicolor_gs, direct\n"
-    "  --mode NAME       when linear iterations stop: fixed (the count), tolerance\n"
-    "                    (relative residual), budget (milliseconds per frame), target\n"
-    "                    (substeps and iterations chosen per frame to reach a strain)\n"
-    "  --target-strain X RMS relative strain for --mode target (default 0.05)\n"
-    "  --max-substeps N  most substeps per frame in --mode target (1..1024, default 16)\n"
-    "  --max-iterations N  most linear iterations per non-linear iteration in the\n"
-    "                    tolerance, budget and target modes (default 1000)\n"
-    "  --preset NAME     solver preset applied before the options: default, game_60hz\n"
-    "                    (target mode, strain 0.05, 32 substeps x 8 iterations at most)\n"
-    "  --tolerance X     relative residual for --mode tolerance (default 1e-3)\n"
-    "  --budget-ms X     milliseconds per frame for --mode budget (default 2)\n"
-    "  --omega X         SOR factor for rbgs_sor, in (0, 2); 0 = optimal (default)\n"
-    "  --energy-guard G  when a step adds energy the cloth was not given: clamp\n"
-    "                    (default: scale velocities, log, count), fail (error, state\n"
-    "                    restored) or off\n"
-    "  --frame-stats F   write F, a CSV of every frame: step and collision ms,\n"
-    "                    kinetic, potential and guard energies, contacts, strain,\n"
-    "                    vertices the cloth contact fail-safe froze or capped\n"
-    "  --quiet           no progress bar and no table of timings\n"
-    "\n"
-    "Options of bench:\n"
-    "  --out DIR         output directory, created if missing (default: out/bench)\n"
-    "  --frames N        frames per run (accuracy: default 240; stability: 200;\n"
-    "                    perf: 200 up to 10K particles, fewer above, 20 at 1M;\n"
-    "                    scenes: the scene's, measured after 2 warm-up frames;\n"
-    "                    peers: 500, --quick 60)\n"
-    "  --threads N       worker threads of every world; 0 = one per core (perf,\n"
-    "                    scenes: measure 1 thread and N threads, default N = 2;\n"
-    "                    peers: default 1)\n"
-    "  --quick           fewer frames, budgets and cases (a smoke run, for tests;\n"
-    "                    perf: only cloths up to 10K particles)\n"
-    "\n"
-    "  -h, --help        show this help\n"
+    "  -h, --help         this page; rbcloth COMMAND --help for a command's options\n"
+    "  -V, --version      the versions of this program, the plugin and its ABI\n"
     "\n"
     "The plugin is $RBC_PLUGIN if set, else ../lib/librbcloth.so next to this\n"
     "executable, else librbcloth.so from the library search path.\n"
     "Exit status: 0 success, 1 runtime failure, 2 usage error.\n";
 
+static const char run_usage[] =
+    "Usage: rbcloth run [SCENE.json] [OPTIONS]\n"
+    "\n"
+    "Simulate a scene (samples/scenes/README.md has the format; without SCENE the\n"
+    "built-in hanging cloth: the paper's 100 x 100 cloth, 1/60 s frames, 240 frames)\n"
+    "and write into DIR: NAME.obj (rest mesh), NAME.pc2 (a point cache of every\n"
+    "frame), NAME.json (summary), NAME.png (the last frame, strain as colour) and\n"
+    "NAME.html (a player that opens in any browser); with several cloths\n"
+    "NAME_CLOTH.obj and NAME_CLOTH.pc2 per cloth. Options win over the scene.\n"
+    "\n"
+    "Output:\n"
+    "  --out DIR            output directory, created if missing (default: out)\n"
+    "  --frames N           frames to simulate, one step of the scene's dt each\n"
+    "                       (default: the scene's)\n"
+    "  --frame-stats F      also write F, a CSV row per frame: step and collision ms,\n"
+    "                       energies, contacts, strain, fail-safe counts\n"
+    "  --no-view            write no NAME.png and NAME.html\n"
+    "  -q, --quiet          no progress bar and no table of timings\n"
+    "\n"
+    "The solve (default: the scene's world, else the library's default solve:\n"
+    "red-black SOR, 480 substeps a second, 11 iterations each):\n"
+    "  --threads N          worker threads; 0 = one per core (default: 0)\n"
+    "  --substeps N         substeps per frame, 1..1024; 0 = from --substep-rate\n"
+    "                       (default: 0)\n"
+    "  --substep-rate HZ    substeps per second when --substeps is 0 (default: 480)\n"
+    "  --iterations N       linear iterations per global step, 1..4096 (default: 11)\n"
+    "  --nonlinear N        local/global iterations per substep, 1..1024 (default: 1)\n"
+    "  --preset NAME        start from a solver preset: cloth (the default solve),\n"
+    "                       paper (the paper's RBGS; with --substeps 1 its\n"
+    "                       experiment), game_60hz (target mode: RMS strain 0.05\n"
+    "                       within 32 substeps x 8 iterations)\n"
+    "  --solver NAME        rbgs_sor (default), rbgs, jacobi, jacobi_chebyshev,\n"
+    "                       gauss_seidel, rbgs_chebyshev, multicolor_gs, direct\n"
+    "  --mode NAME          when the iterations of a global step stop: fixed (the\n"
+    "                       count; default), tolerance, budget, target (substeps and\n"
+    "                       iterations chosen per frame to reach a strain)\n"
+    "  --tolerance X        relative residual for --mode tolerance (default: 1e-3)\n"
+    "  --budget-ms X        milliseconds per frame for --mode budget (default: 2)\n"
+    "  --target-strain X    RMS relative strain for --mode target (default: 0.05)\n"
+    "  --max-substeps N     most substeps per frame, in --mode target and with\n"
+    "                       --substeps 0, 1..1024 (default: 32)\n"
+    "  --max-iterations N   most linear iterations per global step in the tolerance,\n"
+    "                       budget and target modes (default: 1000)\n"
+    "  --omega X            SOR factor in (0, 2); 0 = the optimum for each substep\n"
+    "                       length (default: 0)\n"
+    "  --energy-guard G     when a step adds energy the cloth was not given: clamp\n"
+    "                       (scale velocities, log, count; default), fail (error, state\n"
+    "                       restored) or off\n"
+    "\n"
+    "Example: rbcloth run samples/scenes/cloth_on_sphere.json --out out/sphere\n";
+
+static const char batch_usage[] =
+    "Usage: rbcloth batch MANIFEST.json [OPTIONS]\n"
+    "       rbcloth batch MESHDIR --template T.json [OPTIONS]\n"
+    "\n"
+    "Simulate every job of a manifest (mesh files read with assimp, or scenes) in\n"
+    "worker processes. DIR/JOB/ holds JOB.obj (rest mesh), the caches asked for (pc2,\n"
+    "mdd, objseq: frames/JOB_0001.obj ..), JOB.png and JOB.html; DIR/index.html shows\n"
+    "every job's still. Finished jobs are skipped on a rerun; SIGINT/SIGTERM stop it\n"
+    "without half-written files; it closes with DIR/batch_report.json and .md.\n"
+    "Folder mode: every mesh file in MESHDIR (.obj .ply .off .stl .dae .gltf .glb .fbx\n"
+    ".3ds ...) is a job named after its file, with T's settings (the keys of a\n"
+    "manifest's \"defaults\"). Formats: docs/formats.md.\n"
+    "\n"
+    "  -j, --jobs N         worker processes, 1..256 (default: 2)\n"
+    "  --out DIR            output directory (default: out/batch)\n"
+    "  --template T.json    settings of every job in folder mode\n"
+    "  --only I             run job I only (0-based, manifest or file-name order) and\n"
+    "                       write no report: one Slurm array task\n"
+    "  --report-only        run nothing; build the report from the results in DIR\n"
+    "                       (the Slurm merge step; samples/slurm/)\n"
+    "  --count              print the number of jobs and exit\n"
+    "  -q, --quiet          no progress lines\n"
+    "\n"
+    "Exit status: 0 all jobs ok, 1 a job failed or the batch could not run, 2 usage.\n";
+
+static const char bench_usage[] =
+    "Usage: rbcloth bench NAME [OPTIONS]\n"
+    "\n"
+    "Benches print figures and write CSV, Markdown and PNG plots (gnuplot) into DIR;\n"
+    "docs/results/ holds one page per bench from the command it names.\n"
+    "\n"
+    "  defaults     the default solve against the presets on the paper's cloth and a\n"
+    "               64 x 48 grid at 1/240, 1/60 and 1/30 s: largest and RMS strain,\n"
+    "               ms per frame (defaults.csv, defaults.md; about 3 minutes)\n"
+    "  accuracy     the paper's convergence experiments (Figs. 3, 4) for every\n"
+    "               solver: Eq. 7 per frame at 11 iterations and within 2 ms, a\n"
+    "               budget sweep, the PD objective gap (about 5 minutes)\n"
+    "  stability    every solver over stiffness, dt, mass ratio, size, degenerate\n"
+    "               springs, stretch, pins and a moving sphere (about 1 minute)\n"
+    "  perf         ms per frame and stage, updates per second, setup time and\n"
+    "               memory on 1K .. 1M particle grids, 1 and N threads\n"
+    "  scenes       the paper's scenes (samples/scenes) beside its GTX 970 figures\n"
+    "  peers        solver x substeps x iterations on the paper's cloth for 500\n"
+    "               frames: the Pareto front of ms per frame against Eq. 7 beside\n"
+    "               published peer figures (a few minutes; --quick: seconds)\n"
+    "\n"
+    "  --out DIR            output directory (default: out/bench)\n"
+    "  --frames N           frames per run (default: the bench's; accuracy 240,\n"
+    "                       stability 200, peers 500, scenes the scene's)\n"
+    "  --threads N          worker threads of every world; 0 = one per core (perf,\n"
+    "                       scenes: 1 thread and N, default 2; peers, defaults: 1)\n"
+    "  --quick              fewer frames, budgets and cases (the tests' smoke runs)\n";
+
+static const char info_usage[] =
+    "Usage: rbcloth info\n"
+    "\n"
+    "Print the plugin's path and how it was found, its ABI version beside this\n"
+    "program's, and its release version.\n";
+
+/* Names a command line may give, for "did you mean" (rbc_scene_nearest). */
+static const char *const command_names[] = {"run", "batch", "bench", "info", "help", NULL};
+static const char *const bench_names[] = {"defaults", "accuracy", "stability", "perf",
+                                          "scenes", "peers", NULL};
+static const char *const run_option_names[] = {
+    "--out", "--frames", "--frame-stats", "--no-view", "--quiet", "--threads", "--substeps",
+    "--substep-rate", "--iterations", "--nonlinear", "--preset", "--solver", "--mode",
+    "--tolerance", "--budget-ms", "--target-strain", "--max-substeps", "--max-iterations",
+    "--omega", "--energy-guard", "--help", NULL};
+static const char *const batch_option_names[] = {"--jobs", "--out", "--template", "--only",
+                                                 "--report-only", "--count", "--quiet",
+                                                 "--help", NULL};
+static const char *const bench_option_names[] = {"--out", "--frames", "--threads", "--quick",
+                                                 "--help", NULL};
+
+/* "rbcloth: unknown WHAT 'ARG'WHERE[; did you mean 'X'?]", exit code 2. */
+static int unknown(const char *what, const char *arg, const char *where,
+                   const char *const *choices, const char *help) {
+    const char *eq = strchr(arg, '=');
+    char name[128];
+    snprintf(name, sizeof name, "%.*s", eq ? (int)(eq - arg) : (int)strlen(arg), arg);
+    const char *near = rbc_scene_nearest(name, choices);
+    fprintf(stderr, "rbcloth: unknown %s '%s'%s", what, name, where);
+    if (near) fprintf(stderr, "; did you mean '%s'?", near);
+    fprintf(stderr, "\nTry 'rbcloth %s'.\n", help);
+    return 2;
+}
+
+/* The help page a usage error points to: "--help", or "run --help" once the command
+ * is known. */
+static const char *help_hint = "--help";
+
 static int usage_error(const char *fmt, const char *arg) {
     fputs("rbcloth: ", stderr);
     fprintf(stderr, fmt, arg);
-    fputs("\nTry 'rbcloth --help'.\n", stderr);
+    fprintf(stderr, "\nTry 'rbcloth %s'.\n", help_hint);
     return EXIT_USAGE;
 }
 
@@ -182,7 +237,7 @@ static int take_int_option(const int_option *ints, size_t n, const char *arg, si
         if (parse_long(*value, ints[k].min, ints[k].max, ints[k].target)) {
             fprintf(stderr, "rbcloth: %s needs an integer in [%ld, %ld], got '%s'\n",
                     ints[k].name, ints[k].min, ints[k].max, *value ? *value : "");
-            fputs("Try 'rbcloth --help'.\n", stderr);
+            fprintf(stderr, "Try 'rbcloth %s'.\n", help_hint);
             return EXIT_USAGE;
         }
     }
@@ -193,7 +248,7 @@ static int parse_run_args(int argc, char **argv, cli_run_options *o) {
     int_option ints[] = {
         {"--frames", 1, 10000000, &o->frames},
         {"--threads", 0, 1024, &o->threads},
-        {"--substeps", 1, 1024, &o->substeps},
+        {"--substeps", 0, 1024, &o->substeps},
         {"--iterations", 1, 4096, &o->iterations},
         {"--nonlinear", 1, 1024, &o->nonlinear},
         {"--max-substeps", 1, 1024, &o->max_substeps},
@@ -203,7 +258,8 @@ static int parse_run_args(int argc, char **argv, cli_run_options *o) {
         const char *name;
         double *target;
     } reals[] = {{"--tolerance", &o->tolerance}, {"--budget-ms", &o->budget_ms},
-                 {"--omega", &o->omega}, {"--target-strain", &o->target_strain}};
+                 {"--omega", &o->omega}, {"--target-strain", &o->target_strain},
+                 {"--substep-rate", &o->substep_rate}};
     struct {
         const char *name;
         const char *const *choices;
@@ -216,6 +272,10 @@ static int parse_run_args(int argc, char **argv, cli_run_options *o) {
         const char *arg = argv[i];
         if (strcmp(arg, "--quiet") == 0 || strcmp(arg, "-q") == 0) {
             o->quiet = 1;
+            continue;
+        }
+        if (strcmp(arg, "--no-view") == 0) {
+            o->no_view = 1;
             continue;
         }
         if (arg[0] != '-') {
@@ -252,7 +312,7 @@ static int parse_run_args(int argc, char **argv, cli_run_options *o) {
             if (!value || !value[0] || *end || !(v >= 0.0) || v > 1e9) {
                 fprintf(stderr, "rbcloth: %s needs a number >= 0, got '%s'\n", reals[k].name,
                         value ? value : "");
-                fputs("Try 'rbcloth --help'.\n", stderr);
+                fprintf(stderr, "Try 'rbcloth %s'.\n", help_hint);
                 return EXIT_USAGE;
             }
             *reals[k].target = v;
@@ -269,8 +329,10 @@ static int parse_run_args(int argc, char **argv, cli_run_options *o) {
             if (!found) {
                 fprintf(stderr, "rbcloth: %s needs one of:", names[k].name);
                 for (int c = 0; names[k].choices[c]; ++c) fprintf(stderr, " %s", names[k].choices[c]);
-                fprintf(stderr, "; got '%s'\n", value ? value : "");
-                fputs("Try 'rbcloth --help'.\n", stderr);
+                fprintf(stderr, "; got '%s'", value ? value : "");
+                const char *near = value ? rbc_scene_nearest(value, names[k].choices) : NULL;
+                if (near) fprintf(stderr, "; did you mean '%s'?", near);
+                fprintf(stderr, "\nTry 'rbcloth %s'.\n", help_hint);
                 return EXIT_USAGE;
             }
             *names[k].target = value;
@@ -279,7 +341,7 @@ static int parse_run_args(int argc, char **argv, cli_run_options *o) {
                             &i, &matched))
             return EXIT_USAGE;
         if (!matched)
-            return usage_error("unknown option '%s' for run", arg);
+            return unknown("option", arg, " for run", run_option_names, help_hint);
     }
     return EXIT_OK;
 }
@@ -303,11 +365,13 @@ static int command_run(int argc, char **argv) {
         .target_strain = -1.0,
         .max_substeps = -1,
         .max_linear = -1,
+        .substep_rate = -1.0,
         .quiet = 0,
     };
+    help_hint = "run --help";
     for (int i = 0; i < argc; ++i) {
         if (is_help(argv[i])) {
-            fputs(usage_text, stdout);
+            fputs(run_usage, stdout);
             return EXIT_OK;
         }
     }
@@ -332,10 +396,11 @@ static int command_batch(int argc, char **argv) {
     int_option ints[] = {{"-j", 1, 256, &options.jobs},
                          {"--jobs", 1, 256, &options.jobs},
                          {"--only", 0, 100000000, &options.only}};
+    help_hint = "batch --help";
     for (int i = 0; i < argc; ++i) {
         const char *arg = argv[i];
         if (is_help(arg)) {
-            fputs(usage_text, stdout);
+            fputs(batch_usage, stdout);
             return EXIT_OK;
         }
         if (strcmp(arg, "--quiet") == 0 || strcmp(arg, "-q") == 0) {
@@ -381,7 +446,7 @@ static int command_batch(int argc, char **argv) {
                             &i, &matched))
             return EXIT_USAGE;
         if (!matched)
-            return usage_error("unknown option '%s' for batch", arg);
+            return unknown("option", arg, " for batch", batch_option_names, help_hint);
     }
     if (!options.manifest_path)
         return usage_error("%s", "batch needs a manifest file or a folder of meshes");
@@ -425,7 +490,7 @@ static int parse_bench_args(int argc, char **argv, cli_bench_options *o) {
                             &i, &matched))
             return EXIT_USAGE;
         if (!matched)
-            return usage_error("unknown option '%s' for bench", arg);
+            return unknown("option", arg, " for bench", bench_option_names, help_hint);
     }
     return EXIT_OK;
 }
@@ -437,20 +502,22 @@ static int command_bench(int argc, char **argv) {
         .threads = -1,
         .quick = 0,
     };
+    help_hint = "bench --help";
     for (int i = 0; i < argc; ++i) {
         if (is_help(argv[i])) {
-            fputs(usage_text, stdout);
+            fputs(bench_usage, stdout);
             return EXIT_OK;
         }
     }
     if (argc < 1)
-        return usage_error("%s",
-                           "bench needs 'accuracy', 'stability', 'perf', 'scenes' or 'peers'");
+        return usage_error("%s", "bench needs a name: 'defaults', 'accuracy', 'stability', "
+                                 "'perf', 'scenes' or 'peers'");
     typedef int (*bench_fn)(const cli_plugin *, const cli_bench_options *);
     static const struct {
         const char *name;
         bench_fn run;
-    } benches[] = {{"accuracy", cli_bench_accuracy},
+    } benches[] = {{"defaults", cli_bench_defaults},
+                   {"accuracy", cli_bench_accuracy},
                    {"stability", cli_bench_stability},
                    {"perf", cli_bench_perf},
                    {"scenes", cli_bench_scenes},
@@ -461,8 +528,7 @@ static int command_bench(int argc, char **argv) {
         if (strcmp(which, benches[k].name) == 0)
             run = benches[k].run;
     if (!run)
-        return usage_error("unknown bench '%s' (accuracy, stability, perf, scenes or peers)",
-                           which);
+        return unknown("bench", which, "", bench_names, help_hint);
     int rc = parse_bench_args(argc - 1, argv + 1, &options);
     if (rc != EXIT_OK)
         return rc;
@@ -479,8 +545,9 @@ static int command_bench(int argc, char **argv) {
 }
 
 static int command_info(int argc, char **argv) {
+    help_hint = "info --help";
     if (argc > 0)
-        return is_help(argv[0]) ? (fputs(usage_text, stdout), EXIT_OK)
+        return is_help(argv[0]) ? (fputs(info_usage, stdout), EXIT_OK)
                                 : usage_error("info takes no arguments, got '%s'", argv[0]);
     cli_plugin plugin;
     char err[4096 + 512];
@@ -498,16 +565,57 @@ static int command_info(int argc, char **argv) {
     return EXIT_OK;
 }
 
+/* rbcloth --version: this program's version and ABI, and the plugin's if it loads. */
+static int command_version(void) {
+    printf("rbcloth %s (built against ABI %d.%d)\n", RBC_CLI_VERSION, RBC_ABI_VERSION_MAJOR,
+           RBC_ABI_VERSION_MINOR);
+    cli_plugin plugin;
+    char err[4096 + 512];
+    if (cli_plugin_open(&plugin, err, sizeof err)) {
+        fprintf(stderr, "rbcloth: %s\n", err);
+        return EXIT_RUNTIME;
+    }
+    uint32_t abi = plugin.api->abi_version_fn();
+    printf("librbcloth %s, ABI %u.%u (%s)\n", plugin.api->version_string(), abi >> 16,
+           abi & 0xFFFFu, plugin.path);
+    cli_plugin_close(&plugin);
+    return EXIT_OK;
+}
+
+/* rbcloth help [COMMAND]. */
+static int command_help(int argc, char **argv) {
+    if (argc < 1) {
+        fputs(main_usage, stdout);
+        return EXIT_OK;
+    }
+    static const struct {
+        const char *name;
+        const char *text;
+    } pages[] = {{"run", run_usage}, {"batch", batch_usage}, {"bench", bench_usage},
+                 {"info", info_usage}, {"help", main_usage}};
+    for (size_t k = 0; k < sizeof pages / sizeof pages[0]; ++k)
+        if (strcmp(argv[0], pages[k].name) == 0) {
+            fputs(pages[k].text, stdout);
+            return EXIT_OK;
+        }
+    return unknown("command", argv[0], "", command_names, "--help");
+}
+
 int main(int argc, char **argv) {
     if (argc < 2) {
-        fputs(usage_text, stderr);
+        fputs(main_usage, stderr);
         return EXIT_USAGE;
     }
     const char *command = argv[1];
-    if (is_help(command) || strcmp(command, "help") == 0) {
-        fputs(usage_text, stdout);
+    if (is_help(command)) {
+        fputs(main_usage, stdout);
         return EXIT_OK;
     }
+    if (strcmp(command, "--version") == 0 || strcmp(command, "-V") == 0 ||
+        strcmp(command, "version") == 0)
+        return command_version();
+    if (strcmp(command, "help") == 0)
+        return command_help(argc - 2, argv + 2);
     if (strcmp(command, "run") == 0)
         return command_run(argc - 2, argv + 2);
     if (strcmp(command, "batch") == 0)
@@ -516,5 +624,5 @@ int main(int argc, char **argv) {
         return command_bench(argc - 2, argv + 2);
     if (strcmp(command, "info") == 0)
         return command_info(argc - 2, argv + 2);
-    return usage_error("unknown command '%s'", command);
+    return unknown("command", command, "", command_names, "--help");
 }

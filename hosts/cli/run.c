@@ -17,6 +17,7 @@
 #include "fsutil.h"
 #include "scene.h"
 #include "timings.h"
+#include "viewer.h"
 
 /* ------------------------------------------------------------------------- */
 /* Messages and progress                                                     */
@@ -119,6 +120,12 @@ typedef struct run_state {
     rbc_scene_instance instance;
     cloth_output *outputs;
     char *summary_path;
+    /// The still and the player (viewer.h): NAME.png and NAME.html of every cloth
+    /// and collider; NULL with --no-view. view_collider[j]: scene collider j's index
+    /// in the view, or -1 (a mesh read from a file: the scene keeps no triangles).
+    char *png_path, *html_path;
+    cli_view *view;
+    int32_t *view_collider;
     float *positions;
     size_t positions_capacity;
     cli_timings timings;
@@ -144,6 +151,10 @@ static void run_state_free(run_state *s) {
     }
     free(s->outputs);
     free(s->summary_path);
+    free(s->png_path);
+    free(s->html_path);
+    cli_view_destroy(s->view);
+    free(s->view_collider);
     free(s->positions);
     cli_timings_free(&s->timings);
     rbc_scene_instance_destroy(s->api, &s->instance);
@@ -178,6 +189,8 @@ static int load_scene(run_state *s) {
         s->scene.world.linear_iterations = (uint32_t)o->iterations;
     if (o->nonlinear >= 0)
         s->scene.world.nonlinear_iterations = (uint32_t)o->nonlinear;
+    if (o->substep_rate > 0.0)
+        s->scene.world.substep_rate = (float)o->substep_rate;
     rbc_solver_def *sd = &s->scene.world.solver;
     for (int k = 0; o->preset && rbc_scene_preset_names[k]; ++k)
         if (strcmp(o->preset, rbc_scene_preset_names[k]) == 0) {
@@ -212,6 +225,10 @@ static int plan_outputs(run_state *s) {
     s->outputs = calloc(s->scene.cloth_count, sizeof *s->outputs);
     s->summary_path = fs_path(dir, s->scene.name, ".json");
     if (!s->outputs || !s->summary_path)
+        return out_of_memory(s);
+    if (!s->options->no_view &&
+        (!(s->png_path = fs_path(dir, s->scene.name, ".png")) ||
+         !(s->html_path = fs_path(dir, s->scene.name, ".html"))))
         return out_of_memory(s);
     for (uint32_t i = 0; i < s->scene.cloth_count; ++i) {
         char *stem;
@@ -308,6 +325,114 @@ static int start_outputs(run_state *s) {
         r = api->cache_create(&cd, &o->cache);
         if (r != RBC_OK)
             return report_api(api, r);
+    }
+    return 0;
+}
+
+/* The still and the player: every cloth (rest mesh) and collider, and frame 0, the
+ * rest pose (the caches start at frame 1). */
+static int start_view(run_state *s) {
+    const rbc_scene *sc = &s->scene;
+    char err[512];
+    if (!s->png_path) return 0;
+    s->view_collider = malloc((sc->collider_count ? sc->collider_count : 1) * sizeof(int32_t));
+    if (!s->view_collider) return out_of_memory(s);
+    if (cli_view_create(&s->view, sc->name, sc->dt, sc->frames + 1, err, sizeof err))
+        goto fail;
+    for (uint32_t i = 0; i < sc->cloth_count; ++i) {
+        const rbc_scene_cloth *c = &sc->cloths[i];
+        cli_view_cloth_def d = {c->name, c->vertex_count, c->positions, c->quad_count,
+                                c->quads, 0, NULL};
+        if (cli_view_add_cloth(s->view, &d, err, sizeof err)) goto fail;
+    }
+    int32_t shown = 0;
+    for (uint32_t j = 0; j < sc->collider_count; ++j) {
+        const rbc_scene_collider *k = &sc->colliders[j];
+        s->view_collider[j] = -1;
+        if (k->shape == RBC_SHAPE_TRIANGLE_MESH && !k->mesh_positions) continue;
+        cli_view_collider_def d = {k->shape,
+                                   k->radius,
+                                   {k->half_extents[0], k->half_extents[1], k->half_extents[2]},
+                                   k->mesh_vertex_count,
+                                   k->mesh_positions,
+                                   k->mesh_triangle_count,
+                                   k->mesh_triangles};
+        if (cli_view_add_collider(s->view, &d, err, sizeof err)) goto fail;
+        s->view_collider[j] = shown++;
+    }
+    for (uint32_t i = 0; i < sc->cloth_count; ++i)
+        if (cli_view_frame_cloth(s->view, i, sc->cloths[i].positions)) goto fail_frame;
+    for (uint32_t j = 0; j < sc->collider_count; ++j) {
+        float p[3], q[4];
+        if (s->view_collider[j] < 0) continue;
+        rbc_scene_collider_pose(&sc->colliders[j], 0.0, p, q);
+        if (cli_view_frame_collider(s->view, (uint32_t)s->view_collider[j], p, q))
+            goto fail_frame;
+    }
+    return 0;
+fail_frame:
+    snprintf(err, sizeof err, "%s", cli_view_last_error(s->view));
+fail:
+    progress_clear();
+    fprintf(stderr, "rbcloth: the viewer of %s: %s\n", sc->name, err);
+    return 1;
+}
+
+/* One frame of the viewer: cloth i's positions (in s->positions), after its torn
+ * quads; or, with cloth == UINT32_MAX, the colliders' poses at `time`. */
+static int view_frame(run_state *s, uint32_t cloth, double time) {
+    if (!s->view) return 0;
+    const rbc_scene *sc = &s->scene;
+    int bad = 0;
+    if (cloth == UINT32_MAX) {
+        for (uint32_t j = 0; j < sc->collider_count && !bad; ++j) {
+            float p[3], q[4];
+            if (s->view_collider[j] < 0) continue;
+            rbc_scene_collider_pose(&sc->colliders[j], time, p, q);
+            bad = cli_view_frame_collider(s->view, (uint32_t)s->view_collider[j], p, q);
+        }
+    } else {
+        if (s->outputs[cloth].torn_obj_path) {
+            /* A cloth that tears: the quads that remain, so holes show as they open. */
+            const rbc_api_v1 *api = s->api;
+            size_t count = 0;
+            rbc_result r = api->cloth_get_quads(s->instance.world, s->instance.cloths[cloth],
+                                                NULL, 0, &count);
+            uint32_t *quads = r == RBC_OK ? malloc((count ? count : 1) * sizeof *quads) : NULL;
+            if (r == RBC_OK && !quads) return out_of_memory(s);
+            if (r == RBC_OK)
+                r = api->cloth_get_quads(s->instance.world, s->instance.cloths[cloth], quads,
+                                         count, &count);
+            char err[512];
+            int failed = r == RBC_OK && cli_view_set_remaining_quads(s->view, cloth, quads,
+                                                                      count / 4, err, sizeof err);
+            free(quads);
+            if (r != RBC_OK) return report_api(api, r);
+            if (failed) {
+                progress_clear();
+                fprintf(stderr, "rbcloth: the viewer of %s: %s\n", sc->name, err);
+                return 1;
+            }
+        }
+        bad = cli_view_frame_cloth(s->view, cloth, s->positions);
+    }
+    if (bad) {
+        progress_clear();
+        fprintf(stderr, "rbcloth: the viewer of %s: %s\n", sc->name, cli_view_last_error(s->view));
+        return 1;
+    }
+    return 0;
+}
+
+/* NAME.png (the last frame) and NAME.html. */
+static int finish_view(run_state *s) {
+    if (!s->view) return 0;
+    char err[512];
+    uint32_t total = cli_view_frame_total(s->view);
+    if (cli_view_write_png(s->view, s->png_path, total ? total - 1 : 0, 0, 0, err, sizeof err) ||
+        cli_view_write_html(s->view, s->html_path, err, sizeof err)) {
+        fprintf(stderr, "rbcloth: %s\n", err);
+        return 1;
     }
     return 0;
 }
@@ -435,7 +560,11 @@ static int simulate_frames(run_state *s, uint32_t frames, int show_progress, dou
             r = api->cache_write_frame(s->outputs[i].cache, s->positions);
             if (r != RBC_OK)
                 return report_api(api, r);
+            if (view_frame(s, i, 0.0))
+                return 1;
         }
+        if (view_frame(s, UINT32_MAX, (double)(frame + 1) * s->scene.dt))
+            return 1;
         s->frames_done = frame + 1;
 
         double now = now_seconds();
@@ -456,7 +585,7 @@ static int simulate_frames(run_state *s, uint32_t frames, int show_progress, dou
         if (r != RBC_OK)
             return report_api(api, r);
     }
-    return 0;
+    return finish_view(s);
 }
 
 /* ------------------------------------------------------------------------- */
@@ -599,6 +728,10 @@ static cJSON *build_summary(const run_state *s, json_builder *b) {
         jarray_str(b, pc2s, s->outputs[i].pc2_path);
     }
     jstr(b, outputs, "summary", s->summary_path);
+    if (s->png_path) {
+        jstr(b, outputs, "png", s->png_path);
+        jstr(b, outputs, "html", s->html_path);
+    }
     return root;
 }
 
@@ -671,6 +804,9 @@ static void print_table(const run_state *s) {
                    sc->cloths[i].quad_count);
     }
     printf("  wrote %s\n", s->summary_path);
+    if (s->png_path)
+        printf("  wrote %s (the last frame) and %s (open it in a browser)\n", s->png_path,
+               s->html_path);
 }
 
 /* ------------------------------------------------------------------------- */
@@ -689,6 +825,8 @@ int cli_run(const cli_plugin *plugin, const cli_run_options *options) {
         rc = create_world(&s);
     if (!rc)
         rc = start_outputs(&s);
+    if (!rc)
+        rc = start_view(&s);
     if (!rc)
         rc = simulate(&s);
     if (!rc)

@@ -25,7 +25,7 @@ typedef struct cli_run_options {
     const char *energy_guard;
     /// Mode parameters and SOR omega; < 0 = keep the scene's.
     double tolerance, budget_ms, omega;
-    /// A quality preset by name ("default", "game_60hz": rbc_solver_def_preset),
+    /// A solver preset by name ("paper", "game_60hz", "cloth": rbc_solver_def_preset),
     /// applied to the scene's solver before the options above; NULL = none.
     const char *preset;
     /// --mode target: the RMS relative strain to reach (< 0 = the scene's), and the
@@ -34,6 +34,10 @@ typedef struct cli_run_options {
     long max_substeps, max_linear;
     /// A CSV file of per-frame figures (time, energies, contacts, strain), or NULL.
     const char *frame_stats;
+    /// Substeps per second when the substeps are 0 (< 0 = the scene's).
+    double substep_rate;
+    /// 1: write no PNG still and no HTML player.
+    int no_view;
     /// No progress bar and no table on stdout.
     int quiet;
 } cli_run_options;

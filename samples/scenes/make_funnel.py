@@ -104,7 +104,8 @@ def scene():
         "frames": 250,
         "dt": 0.016,
         "world": {"gravity": [0, -9.81, 0], "substeps": 8, "nonlinear_iterations": 1,
-                  "linear_iterations": 11, "threads": 0, "backend": "auto"},
+                  "linear_iterations": 11, "threads": 0, "backend": "auto",
+                  "solver": {"preset": "paper"}},
         "cloths": cloths,
         "colliders": [
             {"shape": "mesh", "vertices": vertices, "triangles": triangles,

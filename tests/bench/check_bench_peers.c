@@ -185,7 +185,7 @@ int main(int argc, char **argv) {
     CHECK(md != NULL);
     if (md) {
         CHECK(strstr(md, "## Pareto front") != NULL);
-        CHECK(strstr(md, "measured elsewhere, FIELD-NOTES") != NULL);
+        CHECK(strstr(md, "measured elsewhere, docs/facts.md") != NULL);
         CHECK(strstr(md, "XPBD 11x1") != NULL);
     }
     free(md);

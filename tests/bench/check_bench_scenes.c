@@ -52,7 +52,7 @@ static const struct {
     {"funnel", 30000, 59400, 8, 3, 1000.0 / 35.0 / 8.0, 1000.0 / 35.0},
     {"cannonballs_tearing", 4096, 8064, 8, 4, NAN, 1000.0 / 60.0},
     {"cloth_on_sphere", 3600, 7080, 8, 2, NAN, NAN},
-    {"hanging_cloth", 10000, 19800, 1, 0, NAN, NAN},
+    {"hanging_cloth_paper", 10000, 19800, 1, 0, NAN, NAN},
 };
 enum { SCENE_COUNT = sizeof scenes / sizeof scenes[0] };
 

@@ -5,7 +5,7 @@
  *  - spring counts: structural 2 nx ny - nx - ny, shear 2 (nx-1)(ny-1), bend
  *    (nx-2) ny + nx (ny-2) on an nx x ny grid; bend 2 (V - 8) on a cube surface
  *    (valence-3 corners give none);
- *  - colors on grids (FIELD-NOTES): structural 2, + shear 4, + bend 3, + both 5;
+ *  - colors on grids (docs/facts.md, Coloring): structural 2, + shear 4, + bend 3, + both 5;
  *  - an 11x10 torus (odd loop) takes 3 colors; duplicates merge with the largest
  *    stiffness; more than RBC_MAX_COLORS colors is refused naming a vertex;
  *  - the set-up time of a 1000 x 1000 grid with shear and bend is printed. */

@@ -108,22 +108,31 @@ static void test_grid(void) {
     }
 }
 
-static void test_hanging_cloth_file(void) {
+/* The demo scene, hanging_cloth.json: the paper's cloth at 1/60 s with the default
+ * solve (no counts, no solver object); and the paper's experiment,
+ * hanging_cloth_paper.json: 2 ms, 1 x 11 RBGS iterations, fixed. Same cloth. */
+static void test_hanging_cloth_file(int paper) {
     rbc_scene s;
     char err[RBC_SCENE_ERROR_MAX];
-    int rc = load_sample("hanging_cloth.json", &s, err, sizeof err);
+    int rc = load_sample(paper ? "hanging_cloth_paper.json" : "hanging_cloth.json", &s, err,
+                         sizeof err);
     CHECK_EQ(rc, 0);
     if (rc) {
         fprintf(stderr, "%s\n", err);
         return;
     }
-    CHECK(strcmp(s.name, "hanging_cloth") == 0);
+    CHECK(strcmp(s.name, paper ? "hanging_cloth_paper" : "hanging_cloth") == 0);
     CHECK_EQ(s.frames, 240);
-    CHECK(s.dt == 0.002f);
+    CHECK(s.dt == (paper ? 0.002f : (float)(1.0 / 60.0)));
     CHECK(s.world.gravity[0] == 0.0f && s.world.gravity[1] == -9.81f && s.world.gravity[2] == 0.0f);
-    CHECK_EQ(s.world.substeps, 1);
+    CHECK_EQ(s.world.substeps, paper ? 1 : 0);
+    CHECK(s.world.substep_rate == 480.0f);
     CHECK_EQ(s.world.nonlinear_iterations, 1);
     CHECK_EQ(s.world.linear_iterations, 11);
+    rbc_solver_def want;
+    rbc_scene_solver_preset(&want, paper ? RBC_PRESET_PAPER : RBC_PRESET_CLOTH);
+    CHECK(memcmp(&s.world.solver, &want, sizeof want) == 0);
+    CHECK_EQ(s.world.solver.solver, paper ? RBC_SOLVER_RBGS : RBC_SOLVER_RBGS_SOR);
     CHECK_EQ(s.world.thread_count, 0);
     CHECK_EQ(s.world.backend, RBC_BACKEND_AUTO);
     CHECK_EQ(s.cloth_count, 1);
@@ -175,6 +184,14 @@ static void test_default_equals_file(void) {
     CHECK_EQ(rc_builtin, 0);
     if (rc_builtin)
         fprintf(stderr, "%s\n", err);
+    CHECK(rc_file == 0 && rc_builtin == 0 && scenes_equal(&file, &builtin));
+    rbc_scene_free(&file);
+    rbc_scene_free(&builtin);
+    /* The built-in paper scene is hanging_cloth_paper.json. */
+    rc_file = load_sample("hanging_cloth_paper.json", &file, err, sizeof err);
+    CHECK_EQ(rc_file, 0);
+    rc_builtin = rbc_scene_load_paper(&builtin, err, sizeof err);
+    CHECK_EQ(rc_builtin, 0);
     CHECK(rc_file == 0 && rc_builtin == 0 && scenes_equal(&file, &builtin));
     rbc_scene_free(&file);
     rbc_scene_free(&builtin);
@@ -239,7 +256,8 @@ static void test_inline_mesh(void) {
     CHECK(c->vertex_mass == 1e-4f && c->stiffness == 1000.0f && c->damping == 0.5f);
     /* World defaults are rbc_world_def's. */
     CHECK(s.world.gravity[1] == -9.81f);
-    CHECK_EQ(s.world.substeps, 1);
+    CHECK_EQ(s.world.substeps, 0); /* ABI 1.6: from the substep rate */
+    CHECK(s.world.substep_rate == 480.0f);
     CHECK_EQ(s.world.linear_iterations, 11);
     /* The rotation is normalised exactly. */
     const float *r = s.colliders[0].rotation;
@@ -298,8 +316,8 @@ static void test_malformed(void) {
          "cloths[0].damping: must be a number >= 0, got -1"},
         {BASE_HEAD "\"cloths\":[{\"grid\":{\"nx\":65536,\"ny\":65536,\"spacing\":0.1}}]}",
          "cloths[0].grid: nx * ny = 4294967296 vertices, more than the limit of 16777216"},
-        {BASE_HEAD "\"cloths\":[" GRID_CLOTH "],\"world\":{\"substeps\":0}}",
-         "world.substeps: must be an integer in [1, 1024], got 0"},
+        {BASE_HEAD "\"cloths\":[" GRID_CLOTH "],\"world\":{\"substeps\":-1}}",
+         "world.substeps: must be an integer in [0, 1024], got -1"},
         /* bad choices and names */
         {BASE_HEAD "\"cloths\":[" GRID_CLOTH "],\"world\":{\"backend\":\"gpu\"}}",
          "world.backend: must be one of \"auto\", \"cpu\", \"cuda\", got \"gpu\""},
@@ -312,7 +330,8 @@ static void test_malformed(void) {
          "cloths[1]: cloth name \"a\" is already used by cloths[0]"},
         /* unknown and duplicate keys */
         {BASE_HEAD "\"cloths\":[" GRID_CLOTH "],\"world\":{\"substep\":2}}",
-         "bad.json: world.substep: unknown key (expected one of: gravity, substeps,"},
+         "bad.json: world.substep: unknown key; did you mean \"substeps\"? (expected one of: "
+         "gravity, substeps,"},
         {BASE_HEAD "\"frames\":2,\"cloths\":[" GRID_CLOTH "]}", "bad.json: frames: key given twice"},
         /* meshes */
         {BASE_HEAD "\"cloths\":[{\"grid\":{\"nx\":2,\"ny\":2,\"spacing\":1},\"vertices\":[[0,0,0]],\"quads\":[[0,0,0,0]]}]}",
@@ -367,6 +386,83 @@ static void test_malformed(void) {
 #define KEYS(body) COLLIDER("\"shape\":\"sphere\",\"radius\":1,\"keyframes\":[" body "]")
 #define WIND(body) BASE_HEAD C3 "\"world\":{\"wind\":" body "}}"
 #define TRI "\"shape\":\"mesh\",\"vertices\":[[0,0,0],[1,0,0],[0,0,1]],"
+
+/* How a scene chooses its solve: without a solver object the default solve
+ * (RBC_PRESET_CLOTH) with substeps from the substep rate; a preset replaces the
+ * default and the other keys change it; world counts are the world's. */
+static void test_solver_rules(void) {
+    static const struct {
+        const char *world; /* the "world" object, or NULL for none */
+        int preset;        /* what the solver must equal, before `kind`/`mode` edits */
+        rbc_solver_kind kind;
+        rbc_iteration_mode mode;
+        uint32_t substeps;
+        float rate;
+    } cases[] = {
+        {NULL, RBC_PRESET_CLOTH, RBC_SOLVER_RBGS_SOR, RBC_ITERATE_FIXED, 0, 480.0f},
+        {"{\"threads\":1}", RBC_PRESET_CLOTH, RBC_SOLVER_RBGS_SOR, RBC_ITERATE_FIXED, 0, 480.0f},
+        {"{\"substeps\":4}", RBC_PRESET_CLOTH, RBC_SOLVER_RBGS_SOR, RBC_ITERATE_FIXED, 4, 480.0f},
+        {"{\"substep_rate\":960}", RBC_PRESET_CLOTH, RBC_SOLVER_RBGS_SOR, RBC_ITERATE_FIXED, 0,
+         960.0f},
+        {"{\"substeps\":4,\"solver\":{\"mode\":\"target\"}}", RBC_PRESET_CLOTH,
+         RBC_SOLVER_RBGS_SOR, RBC_ITERATE_TARGET, 4, 480.0f},
+        {"{\"solver\":{\"kind\":\"direct\"}}", RBC_PRESET_CLOTH, RBC_SOLVER_DIRECT,
+         RBC_ITERATE_FIXED, 0, 480.0f},
+        {"{\"substeps\":1,\"solver\":{\"preset\":\"paper\"}}", RBC_PRESET_PAPER,
+         RBC_SOLVER_RBGS, RBC_ITERATE_FIXED, 1, 480.0f},
+        {"{\"solver\":{\"preset\":\"game_60hz\"}}", RBC_PRESET_GAME_60HZ, RBC_SOLVER_RBGS,
+         RBC_ITERATE_TARGET, 0, 480.0f},
+        {"{\"solver\":{\"kind\":\"jacobi\",\"preset\":\"paper\"}}", RBC_PRESET_PAPER,
+         RBC_SOLVER_JACOBI, RBC_ITERATE_FIXED, 0, 480.0f},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
+        char text[512];
+        snprintf(text, sizeof text, BASE_HEAD "%s%s%s\"cloths\":[" GRID_CLOTH "]}",
+                 cases[i].world ? "\"world\":" : "", cases[i].world ? cases[i].world : "",
+                 cases[i].world ? "," : "");
+        rbc_scene s;
+        char err[RBC_SCENE_ERROR_MAX];
+        int rc = rbc_scene_parse(text, strlen(text), "rules.json", &s, err, sizeof err);
+        CHECK_EQ(rc, 0);
+        if (rc) {
+            fprintf(stderr, "  case %zu: %s\n", i, err);
+            continue;
+        }
+        rbc_solver_def want;
+        rbc_scene_solver_preset(&want, cases[i].preset);
+        want.solver = cases[i].kind;
+        want.mode = cases[i].mode;
+        CHECK(memcmp(&s.world.solver, &want, sizeof want) == 0);
+        CHECK_EQ(s.world.substeps, cases[i].substeps);
+        CHECK(s.world.substep_rate == cases[i].rate);
+        if (memcmp(&s.world.solver, &want, sizeof want) != 0)
+            fprintf(stderr, "  case %zu (%s): kind %d mode %d\n", i, text,
+                    (int)s.world.solver.solver, (int)s.world.solver.mode);
+        rbc_scene_free(&s);
+    }
+    /* An unknown preset names the choices and the likely one; so does a typo in a
+     * key. */
+    static const struct {
+        const char *world, *expect;
+    } bad[] = {
+        {"{\"solver\":{\"preset\":\"fast\"}}", "world.solver.preset: must be one of \"paper\""},
+        {"{\"solver\":{\"preset\":\"papr\"}}", "did you mean \"paper\"?"},
+        {"{\"substep\":4}", "world.substep: unknown key; did you mean \"substeps\"?"},
+        {"{\"substep_rate\":0}", "world.substep_rate"},
+        {"{\"substeps\":1025}", "world.substeps"},
+    };
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; ++i) {
+        char text[512];
+        snprintf(text, sizeof text, BASE_HEAD "\"world\":%s,\"cloths\":[" GRID_CLOTH "]}",
+                 bad[i].world);
+        rbc_scene s;
+        char err[RBC_SCENE_ERROR_MAX];
+        CHECK(rbc_scene_parse(text, strlen(text), "rules.json", &s, err, sizeof err) != 0);
+        CHECK(strstr(err, bad[i].expect) != NULL);
+        if (!strstr(err, bad[i].expect))
+            fprintf(stderr, "  bad case %zu: got \"%s\", want \"%s\"\n", i, err, bad[i].expect);
+    }
+}
 
 static void test_malformed_v1_3(void) {
     static const bad_case cases[] = {
@@ -1232,7 +1328,9 @@ int main(int argc, char **argv) {
     if (argc > 1)
         scenes_dir = argv[1];
     test_grid();
-    test_hanging_cloth_file();
+    test_hanging_cloth_file(0);
+    test_hanging_cloth_file(1);
+    test_solver_rules();
     test_default_equals_file();
     test_cloth_on_sphere();
     test_inline_mesh();

@@ -32,6 +32,34 @@ static int load(const char *dir, const char *file, rbc_scene *scene) {
     return 0;
 }
 
+/* The loader writes the presets out (it needs no library to parse a scene); they
+ * must be the library's, field for field, and the world the default scene makes
+ * must run the default solve. */
+static void test_presets(void) {
+    for (int k = 0; rbc_scene_preset_names[k]; ++k) {
+        rbc_solver_def lib, loader;
+        memset(&lib, 0, sizeof lib);
+        CHECK_EQ(api->solver_def_preset(&lib, sizeof lib, (rbc_preset)k), RBC_OK);
+        rbc_scene_solver_preset(&loader, k);
+        CHECK(memcmp(&lib, &loader, sizeof lib) == 0);
+        if (memcmp(&lib, &loader, sizeof lib) != 0)
+            fprintf(stderr, "  preset %s differs between the loader and the library\n",
+                    rbc_scene_preset_names[k]);
+    }
+    rbc_scene s;
+    char err[RBC_SCENE_ERROR_MAX];
+    CHECK_EQ(rbc_scene_load_default(&s, err, sizeof err), 0);
+    rbc_scene_instance inst;
+    CHECK_EQ(rbc_scene_instantiate(api, &s, NULL, NULL, &inst, err, sizeof err), RBC_OK);
+    rbc_solver_def used, cloth;
+    used.struct_size = sizeof used;
+    CHECK_EQ(api->world_get_solver(inst.world, &used), RBC_OK);
+    CHECK_EQ(api->solver_def_preset(&cloth, sizeof cloth, RBC_PRESET_CLOTH), RBC_OK);
+    CHECK(memcmp(&used, &cloth, sizeof used) == 0);
+    rbc_scene_instance_destroy(api, &inst);
+    rbc_scene_free(&s);
+}
+
 /* The paper's hanging cloth: 10,000 particles, 19,800 springs, 2 colors; created
  * with the exact rest positions; pins hold while it falls. */
 static void test_hanging_cloth(void) {
@@ -284,6 +312,7 @@ int main(int argc, char **argv) {
     CHECK(api != NULL);
     if (api) {
         CHECK(api->struct_size >= sizeof(rbc_api_v1));
+        test_presets();
         test_hanging_cloth();
         test_cloth_on_sphere(dir);
         test_moving_collider();
