@@ -217,7 +217,9 @@ static void run_one(const rbc_api_v1 *api, int cfg, const bench_mesh *m, double 
             mean -= (double)xyz[3 * i + 1] / m->n;
         }
         row->sag = low;
-        if (m->pin_count == 0 && done == frames) {
+        row->fall_error = NAN;
+        /* The closed form needs a constant substep: not the target modes. */
+        if (m->pin_count == 0 && done == frames && cfg != CFG_GAME && cfg != CFG_SOR_TARGET) {
             /* Verlet from rest with a constant substep h falls g h^2 n (n + 1) / 2
              * after n substeps: g (T^2 + T h) / 2. */
             double T = dt * done, h = st.substeps ? dt / st.substeps : dt;
@@ -342,7 +344,9 @@ int cli_bench_defaults(const cli_plugin *plugin, const cli_bench_options *o) {
                 "strain is the cloth's own, what a converged solve shows. For the free grid "
                 "*fall* is how far its mean drop is from the exact Verlet drop of its "
                 "substep length, g (T^2 + T h) / 2 (78 m after 4 s): what float positions "
-                "far from the origin cost each solver.\n\n",
+                "far from the origin cost each solver (at 78 m a float position moves in "
+                "steps of 7.6e-6 m, and the gravity a substep adds, g h^2, is 4.3e-5 m at "
+                "480 Hz and 2.7e-6 m at 1920 Hz).\n\n",
             seconds > 0.0 ? seconds : (double)o->frames * steps[1].dt, threads);
     for (int c = 0; c < CLOTH_COUNT; ++c) {
         fprintf(md, "## %s (%u particles)\n\n", cloths[c].name, cloths[c].nx * cloths[c].ny);
@@ -367,6 +371,8 @@ int cli_bench_defaults(const cli_plugin *plugin, const cli_bench_options *o) {
                 }
                 if (!row->ok)
                     fprintf(md, " failed at frame %u: %s | |", row->frames + 1, row->error);
+                else if (free_fall && isnan(row->fall_error))
+                    fprintf(md, " %.2f / (substeps vary) | %.3f |", row->max_strain, row->ms_median);
                 else if (free_fall)
                     fprintf(md, " %.2f / %+.2f %% | %.3f |", row->max_strain, 100.0 * row->fall_error,
                             row->ms_median);
