@@ -123,7 +123,7 @@ static const char bench_usage[] =
     "\n"
     "  defaults     the default solve against the presets on the paper's cloth and a\n"
     "               64 x 48 grid at 1/240, 1/60 and 1/30 s: largest and RMS strain,\n"
-    "               ms per frame (defaults.csv, defaults.md; about 3 minutes)\n"
+    "               ms per frame (defaults.csv, defaults.md; about 2 minutes)\n"
     "  accuracy     the paper's convergence experiments (Figs. 3, 4) for every\n"
     "               solver: Eq. 7 per frame at 11 iterations and within 2 ms, a\n"
     "               budget sweep, the PD objective gap (about 5 minutes)\n"

@@ -716,6 +716,7 @@ static cJSON *build_summary(const run_state *s, json_builder *b) {
     jnum(b, final, "potential_energy", st->potential_energy);
     jnum(b, final, "energy_budget", st->energy_budget);
     jnum(b, final, "energy_clamped_steps", (double)st->energy_clamped_steps);
+    jnum(b, final, "strain_warning_steps", (double)st->strain_warning_steps);
     jnum(b, final, "memory_bytes", (double)st->memory_bytes);
     if (any_torn_output(s))
         jnum(b, final, "torn_springs", (double)st->torn_springs);
@@ -792,6 +793,9 @@ static void print_table(const run_state *s) {
            "steps clamped by the energy guard: %llu\n",
            st->kinetic_energy, st->potential_energy, st->energy_budget,
            (unsigned long long)st->energy_clamped_steps);
+    if (st->strain_warning_steps)
+        printf("  steps with a spring past the strain warning (not cloth): %llu of %u\n",
+               (unsigned long long)st->strain_warning_steps, s->frames_done);
     printf("  memory %.2f MB (%.0f bytes per particle)\n", (double)st->memory_bytes / 1e6,
            st->particle_count ? (double)st->memory_bytes / st->particle_count : 0.0);
     if (any_torn_output(s))

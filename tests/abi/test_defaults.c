@@ -19,6 +19,9 @@
  *  - The strain warning: counted in stats, logged at the 1st, 2nd, 4th, ... step
  *    past the threshold, naming the cloth, the spring and advice for the settings
  *    in use; 0 turns it off without changing the motion.
+ *  - The default solve at the extremes (stiffness 1e-2 and 1e7 N/m, dt 1e-5 and
+ *    0.5 s, mass ratios of 1e6, a start stretched 10x): RBC_OK or RBC_ERR_UNSTABLE
+ *    with the state restored, never a non-finite position.
  *  - Bad values (strain_warning, substep_rate, substeps 0 without a rate) are
  *    refused and named.
  */
@@ -314,6 +317,77 @@ static void test_strain_warning(void) {
     test_grid_free(&g);
 }
 
+/* The default solve at the extremes (a 20 x 20 cloth, 1 m, pinned at two corners):
+ * every step returns RBC_OK, or RBC_ERR_UNSTABLE with the world as it was before
+ * the step, and no position is ever non-finite. Where the physics keeps springs near
+ * their length (stiff cloth, the long 0.5 s steps the cap stretches to 16 ms
+ * substeps, mass ratios of 1e6), the last frame is cloth too: no spring past the
+ * warning. */
+static void test_extremes(void) {
+    test_grid g = test_grid_make(20, 20, 1.0f / 19.0f, 0.0f, 0.0f, 0.0f);
+    const uint32_t pins[2] = {0, 19};
+    static const struct {
+        const char *what;
+        float stiffness, dt;
+        int frames, masses, stretched, cloth_at_end;
+    } cases[] = {
+        {"stiffness 1e7 N/m", 1e7f, 1.0f / 60.0f, 60, 0, 0, 1},
+        {"stiffness 1e-2 N/m", 1e-2f, 1.0f / 60.0f, 60, 0, 0, 0},
+        {"dt 1e-5 s", 1000.0f, 1e-5f, 200, 0, 0, 1},
+        {"dt 0.5 s (32 substeps of 16 ms)", 1000.0f, 0.5f, 10, 0, 0, 1},
+        {"mass ratio 1e6", 1000.0f, 1.0f / 60.0f, 60, 1, 0, 1},
+        {"started stretched 10x", 1000.0f, 1.0f / 60.0f, 60, 0, 1, 0},
+    };
+    float *masses = (float *)malloc(sizeof(float) * g.vertex_count);
+    /* Every other vertex a millionth of the default mass: the load stays the cloth's. */
+    for (uint32_t i = 0; i < g.vertex_count; i++) masses[i] = (i % 2) ? 1e-4f : 1e-10f;
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        rbc_world_def wd = rbc_world_def_default();
+        rbc_world_id w;
+        CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
+        rbc_cloth_def cd = test_grid_def(&g, pins, 2);
+        cd.stiffness = cases[k].stiffness;
+        if (cases[k].masses) cd.masses = masses;
+        rbc_cloth_id c;
+        CHECK_EQ(rbc_cloth_create(w, &cd, &c), RBC_OK);
+        if (cases[k].stretched) {
+            float *p = test_read(w, c, NULL);
+            for (uint32_t i = 0; p && i < 3 * g.vertex_count; i++) p[i] *= 10.0f;
+            CHECK_EQ(rbc_cloth_set_state(w, c, p, NULL), RBC_OK);
+            free(p);
+        }
+        int ok = 0, unstable = 0, finite = 1, restored = 1;
+        for (int f = 0; f < cases[k].frames; f++) {
+            float *before = test_read(w, c, NULL);
+            rbc_result r = rbc_world_step(w, cases[k].dt);
+            float *after = test_read(w, c, NULL);
+            if (r == RBC_OK) ok++;
+            else if (r == RBC_ERR_UNSTABLE) {
+                unstable++;
+                restored &= before && after &&
+                            memcmp(before, after, sizeof(float) * 3 * g.vertex_count) == 0;
+            } else {
+                CHECK_EQ(r, RBC_OK);
+            }
+            finite &= after && test_all_finite(after, 3 * (size_t)g.vertex_count);
+            free(before);
+            free(after);
+        }
+        CHECK(finite);
+        CHECK(restored);
+        CHECK_EQ(ok + unstable, cases[k].frames);
+        double end = host_max_strain(w, c, g.positions);
+        if (cases[k].cloth_at_end) CHECK(end < 2.0);
+        printf("  extremes, %s: %d steps ok, %d unstable (restored), largest strain at the end "
+               "%.3g, %llu clamped\n",
+               cases[k].what, ok, unstable, end,
+               (unsigned long long)test_stats(w).energy_clamped_steps);
+        rbc_world_destroy(w);
+    }
+    free(masses);
+    test_grid_free(&g);
+}
+
 static void test_bad_values(void) {
     rbc_world_def wd = rbc_world_def_default();
     rbc_world_id w = 0;
@@ -369,6 +443,7 @@ int main(void) {
     test_substeps_follow_the_rate();
     test_defaults_give_cloth();
     test_strain_warning();
+    test_extremes();
     test_bad_values();
     return check_report("abi_defaults");
 }
