@@ -495,6 +495,30 @@ static cJSON *folder_manifest(const char *dir, const char *template_path, char *
     return root;
 }
 
+/* The keys a job or "defaults" may hold (a template is "defaults"), and the
+ * manifest's own. A key outside them is refused with the nearest one: a mistyped
+ * key silently ignored would run the job with settings nobody asked for. */
+static const char *const job_keys[] = {"name",  "mesh",      "scene",       "frames",
+                                       "dt",    "substeps",  "iterations",  "nonlinear",
+                                       "threads", "stiffness", "vertex_mass", "damping",
+                                       "solver", "energy_guard", "scale",   "pins",
+                                       "colliders", "outputs", "description", NULL};
+static const char *const manifest_keys[] = {"jobs", "defaults", "description", NULL};
+
+static int check_keys(const cJSON *obj, const char *const *allowed, const char *source,
+                      const char *where, char *err, size_t err_size) {
+    for (const cJSON *c = obj ? obj->child : NULL; c; c = c->next) {
+        int known = 0;
+        for (int k = 0; allowed[k]; ++k) known |= strcmp(c->string, allowed[k]) == 0;
+        if (known) continue;
+        const char *near = rbc_scene_nearest(c->string, allowed);
+        snprintf(err, err_size, "%s: %s%s: unknown key%s%s%s", source, where, c->string,
+                 near ? "; did you mean \"" : "", near ? near : "", near ? "\"?" : "");
+        return -1;
+    }
+    return 0;
+}
+
 static int is_dir(const char *path) {
     struct stat st;
     return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
@@ -519,7 +543,12 @@ static int load_manifest(batch *b, char *err, size_t err_size) {
     const cJSON *jobs = cJSON_GetObjectItemCaseSensitive(root, "jobs");
     const cJSON *defaults = cJSON_GetObjectItemCaseSensitive(root, "defaults");
     int rc = 0;
-    if (!cJSON_IsArray(jobs) || cJSON_GetArraySize(jobs) == 0) {
+    if (!folder && check_keys(root, manifest_keys, path, "", err, err_size)) {
+        rc = -1;
+    } else if (defaults && check_keys(defaults, job_keys, p.source, folder ? "" : "defaults.", err,
+                                      err_size)) {
+        rc = -1;
+    } else if (!cJSON_IsArray(jobs) || cJSON_GetArraySize(jobs) == 0) {
         snprintf(err, err_size, "%s: jobs: must be a non-empty array", path);
         rc = -1;
     } else if (defaults && !cJSON_IsObject(defaults)) {
@@ -530,8 +559,12 @@ static int load_manifest(batch *b, char *err, size_t err_size) {
         b->jobs = calloc(b->job_count, sizeof *b->jobs);
         if (!b->jobs) rc = -1, snprintf(err, err_size, "out of memory");
         for (size_t k = 0; rc == 0 && k < b->job_count; ++k) {
-            rc = parse_job(&p, b->api, base ? base : "", cJSON_GetArrayItem(jobs, (int)k),
-                           defaults, k, &b->jobs[k]);
+            char where[48];
+            snprintf(where, sizeof where, "jobs[%zu].", k);
+            const cJSON *jo = cJSON_GetArrayItem(jobs, (int)k);
+            rc = cJSON_IsObject(jo) ? check_keys(jo, job_keys, path, where, err, err_size) : 0;
+            if (rc == 0)
+                rc = parse_job(&p, b->api, base ? base : "", jo, defaults, k, &b->jobs[k]);
             for (size_t i = 0; rc == 0 && i < k; ++i)
                 if (strcmp(b->jobs[i].name, b->jobs[k].name) == 0) {
                     snprintf(err, err_size, "%s: jobs[%zu].name: '%s' is also the name of jobs[%zu]",
