@@ -60,34 +60,6 @@ static double block_sum_f(const uint32_t *restrict sa, const uint32_t *restrict 
     return sum;
 }
 
-void rbc_strain_blocks_fast(rbc_cloth_state *c, float *const p[3], uint32_t tid, uint32_t nt) {
-    const rbc_topology *t = &c->topo;
-    uint32_t nblk = (t->ns + RBC_STRAIN_BLOCK - 1u) / RBC_STRAIN_BLOCK, b, e;
-    rbc_split(nblk, tid, nt, &b, &e);
-    for (uint32_t k = b; k < e; ++k) {
-        uint32_t s0 = k * RBC_STRAIN_BLOCK, s1 = s0 + RBC_STRAIN_BLOCK;
-        if (s1 > t->ns) s1 = t->ns;
-        double n = 0.0;
-        c->strain_blk[2 * (size_t)k] = block_sum_f(t->sa, t->sb, t->rest_len, t->stiff,
-                                                   c->torn != 0, p[0], p[1], p[2], s0, s1, &n);
-        c->strain_blk[2 * (size_t)k + 1] = n;
-    }
-}
-
-void rbc_strain_blocks(rbc_cloth_state *c, float *const p[3], uint32_t tid, uint32_t nt) {
-    const rbc_topology *t = &c->topo;
-    uint32_t nblk = (t->ns + RBC_STRAIN_BLOCK - 1u) / RBC_STRAIN_BLOCK, b, e;
-    rbc_split(nblk, tid, nt, &b, &e);
-    for (uint32_t k = b; k < e; ++k) {
-        uint32_t s0 = k * RBC_STRAIN_BLOCK, s1 = s0 + RBC_STRAIN_BLOCK;
-        if (s1 > t->ns) s1 = t->ns;
-        double n = 0.0;
-        c->strain_blk[2 * (size_t)k] = block_sum(t->sa, t->sb, t->rest_len, t->stiff, c->torn != 0,
-                                                 p[0], p[1], p[2], s0, s1, &n);
-        c->strain_blk[2 * (size_t)k + 1] = n;
-    }
-}
-
 double rbc_strain_sum(const rbc_cloth_state *c) {
     uint32_t nblk = (c->topo.ns + RBC_STRAIN_BLOCK - 1u) / RBC_STRAIN_BLOCK;
     double sum = 0.0, n = 0.0;
@@ -133,16 +105,41 @@ static float block_max_f(const uint32_t *restrict sa, const uint32_t *restrict s
     return m;
 }
 
-void rbc_strain_max_blocks(rbc_cloth_state *c, float *const p[3], uint32_t tid, uint32_t nt) {
+/* This thread's blocks of cloth c, by kind: the squared-strain sums in double or
+ * in float (into strain_blk), or the largest strain (into strain_max_blk). */
+enum { SUM_DOUBLE, SUM_FLOAT, MAX_FLOAT };
+static void blocks(rbc_cloth_state *c, float *const p[3], uint32_t tid, uint32_t nt, int kind) {
     const rbc_topology *t = &c->topo;
     uint32_t nblk = (t->ns + RBC_STRAIN_BLOCK - 1u) / RBC_STRAIN_BLOCK, b, e;
     rbc_split(nblk, tid, nt, &b, &e);
+    const int torn = c->torn != 0;
     for (uint32_t k = b; k < e; ++k) {
         uint32_t s0 = k * RBC_STRAIN_BLOCK, s1 = s0 + RBC_STRAIN_BLOCK;
         if (s1 > t->ns) s1 = t->ns;
-        c->strain_max_blk[k] = block_max_f(t->sa, t->sb, t->rest_len, t->stiff, c->torn != 0,
-                                           p[0], p[1], p[2], s0, s1);
+        if (kind == MAX_FLOAT) {
+            c->strain_max_blk[k] =
+                block_max_f(t->sa, t->sb, t->rest_len, t->stiff, torn, p[0], p[1], p[2], s0, s1);
+            continue;
+        }
+        double n = 0.0;
+        c->strain_blk[2 * (size_t)k] =
+            kind == SUM_FLOAT
+                ? block_sum_f(t->sa, t->sb, t->rest_len, t->stiff, torn, p[0], p[1], p[2], s0, s1, &n)
+                : block_sum(t->sa, t->sb, t->rest_len, t->stiff, torn, p[0], p[1], p[2], s0, s1, &n);
+        c->strain_blk[2 * (size_t)k + 1] = n;
     }
+}
+
+void rbc_strain_blocks(rbc_cloth_state *c, float *const p[3], uint32_t tid, uint32_t nt) {
+    blocks(c, p, tid, nt, SUM_DOUBLE);
+}
+
+void rbc_strain_blocks_fast(rbc_cloth_state *c, float *const p[3], uint32_t tid, uint32_t nt) {
+    blocks(c, p, tid, nt, SUM_FLOAT);
+}
+
+void rbc_strain_max_blocks(rbc_cloth_state *c, float *const p[3], uint32_t tid, uint32_t nt) {
+    blocks(c, p, tid, nt, MAX_FLOAT);
 }
 
 float rbc_strain_max(const rbc_cloth_state *c, float *const p[3], uint32_t *spring) {
