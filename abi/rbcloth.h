@@ -452,8 +452,9 @@ typedef int32_t rbc_preset;
 enum {
     /// The paper's solve, and rbc_solver_def_init's values: RBGS with fixed counts
     /// (the world's substeps and iterations; its defaults are the paper's 1 substep
-    /// x 11 iterations). Fast, and far from converged at game time steps: the
-    /// paper's cloth at 1/60 s stretches springs to 50 times their length. (Named
+    /// x 11 iterations). Fast, and far from converged at game time steps: at 1/60 s
+    /// it stretches springs of the paper's cloth to 246 times their length, of a
+    /// 64 x 48 grid to 52 times (docs/results/defaults.md). (Named
     /// RBC_PRESET_DEFAULT before 1.6, when it was also what a world got by default.)
     RBC_PRESET_PAPER = 0,
     RBC_PRESET_DEFAULT = RBC_PRESET_PAPER,
@@ -527,9 +528,9 @@ typedef struct rbc_world_def {
     /// spring and advice that fits the world's solver settings. The check is one
     /// pass over the springs at the end of each step. 0 turns it off (no pass;
     /// step_max_strain reads 0); else finite and > 0. Default 2 (a spring at three
-    /// times its rest length): converged solves of the sample scenes stay under
-    /// 1.3 (the paper's cloth at its pins, swinging), while solves too loose for
-    /// their time step reach 4 to 50.
+    /// times its rest length): the converged motion of the paper's cloth peaks at
+    /// 1.23 (at its pins, swinging) and the default solve at 1.29, while the
+    /// paper's step at 1/240 to 1/30 s reaches 4 to 850 (docs/results/defaults.md).
     float strain_warning;
 } rbc_world_def;
 
@@ -960,8 +961,9 @@ RBC_API rbc_result RBC_CALL rbc_world_get_solver(rbc_world_id world, rbc_solver_
 /// Fill a solver def with a quality preset (an rbc_preset): the defaults of
 /// rbc_solver_def_init, then the preset's fields. A 1.1-1.3 struct_size gets the
 /// fields that fit (RBC_PRESET_GAME_60HZ and RBC_PRESET_CLOTH then need 1.4:
-/// refused with RBC_ERR_INVALID_ARGUMENT, since their mode would run without its
-/// target). (1.4)
+/// refused with RBC_ERR_INVALID_ARGUMENT, since the game preset's mode would run
+/// without its target and the cloth preset's cap, max_substeps, would not fit).
+/// (1.4)
 RBC_API rbc_result RBC_CALL rbc_solver_def_preset(rbc_solver_def *def, uint32_t struct_size,
                                                   rbc_preset preset);
 /// Sizes of the cloth's color classes: sizes[c] = particles of color c, for

@@ -226,12 +226,13 @@ RBC_API rbc_result RBC_CALL rbc_solver_def_preset(rbc_solver_def *def, uint32_t 
                                                   rbc_preset preset) {
     static const char fn[] = "rbc_solver_def_preset";
     rbc_solver_def d = solver_def_defaults();
-    /* The target presets need the fields a 1.1-1.3 def does not have. */
+    /* These presets need fields a 1.1-1.3 def does not have: the game preset its
+     * target, the cloth preset its cap (max_substeps). */
     if ((preset == RBC_PRESET_GAME_60HZ || preset == RBC_PRESET_CLOTH) && def &&
         struct_size != sizeof d)
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                              "%s: %s needs the ABI 1.4 rbc_solver_def (struct_size %zu, got "
-                             "%u): its target_strain and max_substeps do not fit",
+                             "%u): its fields from target_strain on do not fit",
                              fn, preset == RBC_PRESET_CLOTH ? "RBC_PRESET_CLOTH" : "RBC_PRESET_GAME_60HZ",
                              sizeof d, struct_size);
     switch (preset) {
@@ -473,8 +474,8 @@ static void strain_advice(const rbc_solver *s, char *out, size_t size) {
     const char *name = solver_name(st->kind);
     if (st->kind == RBC_SOLVER_JACOBI || st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV) {
         snprintf(out, size,
-                 "solver %s converges the slowest per iteration: use rbgs_sor in the target "
-                 "mode (RBC_PRESET_CLOTH, the default solve) or raise its iterations",
+                 "solver %s converges the slowest per iteration: use rbgs_sor "
+                 "(RBC_PRESET_CLOTH, the default solve) or raise its iterations",
                  name);
         return;
     }
@@ -495,13 +496,13 @@ static void strain_advice(const rbc_solver *s, char *out, size_t size) {
     case RBC_ITERATE_BUDGET:
         snprintf(out, size,
                  "the budget of %g ms a step buys too few iterations (%u in the last step): "
-                 "raise budget_ms or substeps, or use the target mode (RBC_PRESET_CLOTH)",
+                 "raise budget_ms or substeps, or use the default solve (RBC_PRESET_CLOTH)",
                  (double)st->budget_ms, s->last_linear);
         return;
     case RBC_ITERATE_TOLERANCE:
         snprintf(out, size,
                  "a relative residual of %g per global step leaves the springs loose at "
-                 "%u substep(s): raise substeps, or use the target mode (RBC_PRESET_CLOTH)",
+                 "%u substep(s): raise substeps, or use the default solve (RBC_PRESET_CLOTH)",
                  (double)st->tolerance, s->last_substeps);
         return;
     default:

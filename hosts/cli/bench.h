@@ -209,6 +209,10 @@ typedef struct bench_world_config {
 /// iterations, the library's thread default and solver def (RBGS, FIXED).
 int bench_world_config_init(const rbc_api_v1 *api, bench_world_config *c);
 
+/// A cloth def of the library's defaults with `m`'s mesh, masses, stiffness, damping
+/// and pins (the arrays point into m).
+rbc_result bench_cloth_def(const rbc_api_v1 *api, const bench_mesh *m, rbc_cloth_def *cd);
+
 /// A world with one cloth made from `m`. Returns the library's result (message in
 /// api->last_error()); nothing is left created on failure.
 rbc_result bench_world_create(const rbc_api_v1 *api, const bench_mesh *m,

@@ -407,6 +407,24 @@ int bench_world_config_init(const rbc_api_v1 *api, bench_world_config *c) {
     return api->solver_def_init(&c->solver, (uint32_t)sizeof c->solver) == RBC_OK ? 0 : -1;
 }
 
+rbc_result bench_cloth_def(const rbc_api_v1 *api, const bench_mesh *m, rbc_cloth_def *cd) {
+    rbc_result r = api->cloth_def_init(cd, (uint32_t)sizeof *cd);
+    if (r != RBC_OK) return r;
+    cd->vertex_count = m->n;
+    cd->positions = m->rest;
+    cd->quad_count = m->quad_count;
+    cd->quads = m->quads;
+    cd->spring_count = m->extra_count;
+    cd->springs = m->extra;
+    cd->masses = m->masses;
+    cd->vertex_mass = m->vertex_mass;
+    cd->stiffness = m->stiffness;
+    cd->damping = m->damping;
+    cd->pin_count = m->pin_count;
+    cd->pins = m->pins;
+    return RBC_OK;
+}
+
 rbc_result bench_world_create(const rbc_api_v1 *api, const bench_mesh *m,
                               const bench_world_config *c, rbc_world_id *out_world,
                               rbc_cloth_id *out_cloth) {
@@ -428,22 +446,7 @@ rbc_result bench_world_create(const rbc_api_v1 *api, const bench_mesh *m,
         return r;
 
     rbc_cloth_def cd;
-    r = api->cloth_def_init(&cd, (uint32_t)sizeof cd);
-    if (r == RBC_OK) {
-        cd.vertex_count = m->n;
-        cd.positions = m->rest;
-        cd.quad_count = m->quad_count;
-        cd.quads = m->quads;
-        cd.spring_count = m->extra_count;
-        cd.springs = m->extra;
-        cd.masses = m->masses;
-        cd.vertex_mass = m->vertex_mass;
-        cd.stiffness = m->stiffness;
-        cd.damping = m->damping;
-        cd.pin_count = m->pin_count;
-        cd.pins = m->pins;
-        r = api->cloth_create(world, &cd, out_cloth);
-    }
+    if ((r = bench_cloth_def(api, m, &cd)) == RBC_OK) r = api->cloth_create(world, &cd, out_cloth);
     if (r != RBC_OK) {
         /* last_error() keeps cloth_create's message: it changes only on a failing
          * call, and destroying the world succeeds. */

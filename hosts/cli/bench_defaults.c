@@ -147,16 +147,8 @@ static rbc_result make_world(const rbc_api_v1 *api, int cfg, uint32_t threads,
     }
     if ((r = api->world_create(&wd, world)) != RBC_OK) return r;
     rbc_cloth_def cd;
-    api->cloth_def_init(&cd, (uint32_t)sizeof cd);
-    cd.vertex_count = m->n;
-    cd.positions = m->rest;
-    cd.quad_count = m->quad_count;
-    cd.quads = m->quads;
-    cd.vertex_mass = m->vertex_mass;
-    cd.stiffness = m->stiffness;
-    cd.pin_count = m->pin_count;
-    cd.pins = m->pins;
-    if ((r = api->cloth_create(*world, &cd, cloth)) != RBC_OK) {
+    if ((r = bench_cloth_def(api, m, &cd)) == RBC_OK) r = api->cloth_create(*world, &cd, cloth);
+    if (r != RBC_OK) {
         api->world_destroy(*world);
         *world = 0;
     }

@@ -546,17 +546,7 @@ static rbc_result perf_world_create(const perf_ctx *ctx, const bench_mesh *m, ui
     if ((r = api->world_create(&wd, &world)) != RBC_OK)
         return r;
     rbc_cloth_def cd;
-    r = api->cloth_def_init(&cd, (uint32_t)sizeof cd);
-    if (r == RBC_OK) {
-        cd.vertex_count = m->n;
-        cd.positions = m->rest;
-        cd.quad_count = m->quad_count;
-        cd.quads = m->quads;
-        cd.vertex_mass = m->vertex_mass;
-        cd.stiffness = m->stiffness;
-        cd.damping = m->damping;
-        cd.pin_count = m->pin_count;
-        cd.pins = m->pins;
+    if ((r = bench_cloth_def(api, m, &cd)) == RBC_OK) {
         double t0 = bench_now();
         r = api->cloth_create(world, &cd, out_cloth);
         *setup_ms = 1e3 * (bench_now() - t0);
