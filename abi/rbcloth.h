@@ -67,7 +67,8 @@
  *    and red-black SOR (RBC_PRESET_CLOTH, what a 1.6 world def gets with `solver`
  *    NULL; defs of older sizes keep the paper's 1 substep of 11 RBGS iterations),
  *    RBC_PRESET_PAPER, and the strain warning (rbc_world_def.strain_warning;
- *    stats.step_max_strain and strain_warning_steps).
+ *    stats.step_max_strain and strain_warning_steps). 1.7: rbc_world_stats_init;
+ *    the default thread count probes whether its threads pay.
  *  - The ABI version is not the library's release version (rbc_version_string).
  */
 #ifndef RBCLOTH_H
@@ -99,7 +100,7 @@ extern "C" {
 /// Major version of this ABI: incompatible changes bump it.
 #define RBC_ABI_VERSION_MAJOR 1
 /// Minor version of this ABI: appended functions or fields bump it.
-#define RBC_ABI_VERSION_MINOR 6
+#define RBC_ABI_VERSION_MINOR 7
 /// (major << 16) | minor, as returned by rbc_abi_version().
 #define RBC_ABI_VERSION ((RBC_ABI_VERSION_MAJOR << 16) | RBC_ABI_VERSION_MINOR)
 
@@ -496,7 +497,11 @@ typedef struct rbc_world_def {
     /// Backend, an rbc_backend. Default RBC_BACKEND_AUTO.
     rbc_backend backend;
     /// Worker threads including the caller's, for the CPU backend; 0 = one per
-    /// available core (at most 64). Default 0.
+    /// available core (at most 64), and each step runs on all of them or on the
+    /// caller's alone, whichever its probes measure faster (one step in 8 to 256
+    /// tries the other): a machine whose cores other work holds gets one thread, so
+    /// a step is not slowed by waiting for descheduled workers. Results are the same
+    /// bits either way. A count > 0 is used as given. Default 0.
     uint32_t thread_count;
     /// Log threshold: messages of this level and more severe reach `log`.
     /// Default RBC_LOG_WARNING.
@@ -703,7 +708,8 @@ typedef struct rbc_world_stats {
     uint32_t spring_count;
     /// Largest number of colors used by any cloth (2 for a quad grid).
     uint32_t color_count;
-    /// Worker threads including the caller's.
+    /// Worker threads including the caller's that the last step ran on (before the
+    /// first step: the pool's size).
     uint32_t thread_count;
     /// Backend in use, an rbc_backend (never AUTO).
     rbc_backend backend;
@@ -769,6 +775,8 @@ typedef struct rbc_world_stats {
     /// potential_energy read 0); counts, timings, iterations, the energy budget and
     /// clamps stay. For a host that reads stats every frame for timings: a full
     /// reading costs about as much as a step of 11 RBGS iterations. Kept as given.
+    /// Any value but 0 skips (hosts of 1.2 to 1.6 that left it unset keep what they
+    /// got): fill the struct with rbc_world_stats_init (1.7) so that it is 0.
     uint32_t skip_measures;
     uint32_t reserved1;
     /* --- 1.3 --- */
@@ -898,7 +906,13 @@ RBC_API rbc_result RBC_CALL rbc_world_set_iterations(rbc_world_id world, uint32_
 /// Change gravity, m/s^2.
 RBC_API rbc_result RBC_CALL rbc_world_set_gravity(rbc_world_id world, const float gravity[3]);
 /// Fill *stats (set stats->struct_size first). Computes Eq. 7 at call time.
+/// skip_measures is read from *stats: start from rbc_world_stats_init (or zero the
+/// struct) so that it is not whatever the memory held.
 RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id world, rbc_world_stats *stats);
+/// Zero *stats and set its struct_size (sizeof(rbc_world_stats) as the host compiled
+/// it, at least RBC_WORLD_STATS_SIZE_V1_0): every input (skip_measures) then has its
+/// default. (1.7)
+RBC_API rbc_result RBC_CALL rbc_world_stats_init(rbc_world_stats *stats, uint32_t struct_size);
 /// Install (or, with fn NULL, remove) the host collision callback.
 RBC_API rbc_result RBC_CALL rbc_world_set_collision_callback(rbc_world_id world,
                                                              rbc_collision_fn fn, void *user);
@@ -1328,6 +1342,8 @@ typedef struct rbc_api_v1 {
     /* --- 1.4 --- */
     rbc_result (RBC_CALL *solver_def_preset)(rbc_solver_def *def, uint32_t struct_size,
                                              rbc_preset preset);
+    /* --- 1.7 --- */
+    rbc_result (RBC_CALL *world_stats_init)(rbc_world_stats *stats, uint32_t struct_size);
 } rbc_api_v1;
 
 /// sizeof(rbc_api_v1) in ABI 1.0 (a host built against 1.0 checks struct_size >= it).
@@ -1338,6 +1354,8 @@ typedef struct rbc_api_v1 {
 #define RBC_API_V1_SIZE_V1_2 ((uint32_t)offsetof(rbc_api_v1, world_set_contact_callback))
 /// sizeof(rbc_api_v1) in ABI 1.3 (before the 1.4 entries).
 #define RBC_API_V1_SIZE_V1_3 ((uint32_t)offsetof(rbc_api_v1, solver_def_preset))
+/// sizeof(rbc_api_v1) in ABI 1.4 to 1.6 (before the 1.7 entries).
+#define RBC_API_V1_SIZE_V1_6 ((uint32_t)offsetof(rbc_api_v1, world_stats_init))
 
 /// The function table of ABI major `abi_major`, or NULL if this library does not
 /// implement that major. The table is static: never free it.

@@ -910,7 +910,7 @@ static int border_edges(rbc_clothcontact *cc, const rbc_contact_body *bodies, ui
                 uint32_t u = B->tris[3 * (size_t)t + e], v = B->tris[3 * (size_t)t + (e + 1) % 3];
                 key[3 * (size_t)t + e] = u < v ? (uint64_t)u << 32 | v : (uint64_t)v << 32 | u;
             }
-        qsort(key, m, sizeof(uint64_t), cmp_u64);
+        if (m > 1) qsort(key, m, sizeof(uint64_t), cmp_u64);
         for (size_t i = 0; i < m;) {
             size_t j = i + 1;
             while (j < m && key[j] == key[i]) ++j;
@@ -1389,7 +1389,8 @@ static void detect_ee_self(cc_detect *d, uint32_t tid, uint32_t nth) {
         /* By asking triangle, asking edge, then partner: patches are runs of
          * consecutive triangles, so the list (and which edge's cap a pair counts
          * against) does not depend on how the triangles were cut into patches. */
-        qsort(c + first, *d->n - first, sizeof(rbc_contact), cmp_ee_contact);
+        /* c is NULL while the list is empty: qsort (and c + first) need a real array. */
+        if (*d->n > first + 1) qsort(c + first, *d->n - first, sizeof(rbc_contact), cmp_ee_contact);
         /* Each edge's run (by its query edge b, b2): the nearest RBC_CC_MAX_EE_PER_EDGE
          * at p, in partner order. */
         uint32_t out = first;
@@ -2443,7 +2444,7 @@ static uint32_t failsafe_apply(rbc_clothcontact *cc, rbc_contact_body *bodies, u
     /* The zones' vertices in index order: the mean motions below are sums in this
      * order, and the order vertices joined depends on how the round's scan was split
      * over the threads (later rounds scan edges, then triangles, per thread). */
-    qsort(zl, cc->zcount, sizeof(uint32_t), cmp_u32);
+    if (cc->zcount > 1) qsort(zl, cc->zcount, sizeof(uint32_t), cmp_u32);
     /* Flags to the roots; a zone crossing again that neither gained a vertex nor
      * merged in this round stops. Decided per zone after all the round's hits, not
      * per hit: two triangles that pass through each other give two or more hits on

@@ -179,7 +179,8 @@ void rbc_cloth_state_destroy(rbc_solver *s, rbc_cloth_state *c) {
     rbc_ell_free(c->ell, &s->alloc);
     rbc_mem_free(&s->alloc, c->pin_springs, sizeof(uint32_t) * c->pin_spring_cap);
     free_cb_buffers(s, c);
-    rbc_mem_free(&s->alloc, c->quads, sizeof(uint32_t) * 4 * (size_t)c->quad_count);
+    /* quad_count0: cuts and tearing shrink quad_count, not the array. */
+    rbc_mem_free(&s->alloc, c->quads, sizeof(uint32_t) * 4 * (size_t)c->quad_count0);
     rbc_mem_free(&s->alloc, c->tris, sizeof(uint32_t) * 3 * (size_t)c->tri_cap);
     rbc_mem_free(&s->alloc, c->att_vertex, sizeof(uint32_t) * c->att_cap);
     rbc_mem_free(&s->alloc, c->att_collider, sizeof(uint32_t) * c->att_cap);
@@ -1222,6 +1223,9 @@ static void budget_add_guarded(step_ctx *ctx, double sign, uint32_t tid, uint32_
         for (uint32_t k = 0; k < s->cloth_count; ++k)
             s->cloths[k]->e_step_budget +=
                 sign * rbc_energy_sum(s->cloths[k], ctx->h, s->gravity, 0).guarded;
+    /* Thread 0 reads every thread's energy blocks above; the next pass that writes
+     * them (phase_check, or the callback's budget pass) must wait for it. */
+    rbc_pool_barrier(s->pool);
 }
 
 /* Thread 0, after the last substep's check: compare each cloth's energy with its
@@ -1744,6 +1748,78 @@ static void target_decide(rbc_solver *s, uint32_t used, int hit_cap, double reac
     s->tgt_substeps = next;
 }
 
+/* ------------------------------------------------------------------------- */
+/* Threads per step (threads_auto)                                            */
+/* ------------------------------------------------------------------------- */
+
+/* Results do not depend on the thread count (every reduction is over fixed blocks,
+ * every partition is checked bitwise on 1 and 2 threads), so the count may change
+ * from one step to the next. A probe runs one step on the other count every
+ * probe_every steps (two steps, the faster counts): 8 after a change, doubling to
+ * 256 while the choice holds. */
+enum { PROBE_FIRST = 8, PROBE_MAX = 256, PROBE_STEPS = 2 };
+
+static uint32_t threads_for_step(rbc_solver *s) {
+    const uint32_t all = rbc_pool_size(s->pool);
+    if (!s->threads_auto || all == 1) return all;
+    if (!s->threads_now) {
+        /* First step: a small cloth's phases take microseconds, less than waking a
+         * worker; start on one thread there, on all above 4096 particles per thread. */
+        uint64_t n = 0;
+        for (uint32_t k = 0; k < s->cloth_count; ++k) n += s->cloths[k]->topo.n;
+        s->threads_now = n >= 4096ull * all ? all : 1;
+        s->probe_every = PROBE_FIRST;
+        s->probe_in = 2; /* the other count after two steps */
+        s->probe_nrecent = 0;
+        s->probe_left = 0;
+    }
+    const uint32_t other = s->threads_now == 1 ? all : 1;
+    if (s->probe_left) return other;
+    if (s->probe_in == 0 && s->probe_nrecent > 0) {
+        /* A probe is two steps, the faster one counts: the first step on all threads
+         * after a while on one wakes sleeping workers and warms their caches. */
+        s->probe_left = PROBE_STEPS;
+        s->probe_best = INFINITY;
+        return other;
+    }
+    return s->threads_now;
+}
+
+static double median3(const double *v, uint32_t n) {
+    if (n == 1) return v[0];
+    if (n == 2) return v[0] < v[1] ? v[0] : v[1];
+    double a = v[0], b = v[1], c = v[2];
+    return a > b ? (b > c ? b : (a > c ? c : a)) : (a > c ? a : (b > c ? c : b));
+}
+
+static void threads_record(rbc_solver *s, uint32_t used, double ms_per_substep) {
+    if (!s->threads_auto || rbc_pool_size(s->pool) == 1) return;
+    if (used != s->threads_now) {
+        if (ms_per_substep < s->probe_best) s->probe_best = ms_per_substep;
+        if (s->probe_left) s->probe_left--;
+        if (s->probe_left) return;
+        /* Switch when the probe beat the recent steps by 10 %. */
+        double base = median3(s->probe_recent, s->probe_nrecent);
+        if (s->probe_best < 0.9 * base) {
+            s->threads_now = used;
+            s->probe_recent[0] = s->probe_best;
+            s->probe_nrecent = 1;
+            s->probe_every = PROBE_FIRST;
+        } else if (s->probe_every < PROBE_MAX) {
+            s->probe_every *= 2;
+        }
+        s->probe_in = s->probe_every;
+        return;
+    }
+    if (s->probe_nrecent < 3) s->probe_recent[s->probe_nrecent++] = ms_per_substep;
+    else {
+        s->probe_recent[0] = s->probe_recent[1];
+        s->probe_recent[1] = s->probe_recent[2];
+        s->probe_recent[2] = ms_per_substep;
+    }
+    if (s->probe_in) s->probe_in--;
+}
+
 int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     double start = now_ms();
     step_ctx ctx;
@@ -1858,12 +1934,17 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
         }
     }
 
-    rbc_pool_run(s->pool, step_spmd, &ctx);
+    const uint32_t threads = threads_for_step(s);
+    const double run_t0 = now_ms();
+    rbc_pool_run_n(s->pool, threads, step_spmd, &ctx);
+    const double run_ms = now_ms() - run_t0;
+    s->threads_last = threads;
 
     if (ctx.result != RBC_OK) {
         if (need_snapshot) snapshot(s, 1);
         return ctx.result;
     }
+    threads_record(s, threads, run_ms / (ctx.substeps ? ctx.substeps : 1));
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         s->cloths[k]->system_valid = 1;
         s->cloths[k]->h_last = ctx.h;
@@ -1898,7 +1979,7 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     if (target || warn) {
         /* What the step reached, at the positions the host reads (after tearing). */
         double t0 = now_ms();
-        rbc_pool_run(s->pool, strain_spmd, s);
+        rbc_pool_run_n(s->pool, threads, strain_spmd, s);
         float top = 0.0f;
         for (uint32_t k = 0; k < s->cloth_count; ++k) {
             if (target) {

@@ -191,6 +191,18 @@ typedef struct rbc_solver {
 
     rbc_step_times last;        /* of the last successful step */
     uint32_t last_substeps, last_nonlinear, last_linear; /* done by it (totals) */
+    /* Threads per step when the host left the count to the library (thread_count 0):
+     * the pool's size or 1, whichever the last probes measured faster. On a machine
+     * whose cores other work holds (an engine's job system), every barrier waits for
+     * a descheduled thread and one thread is faster; on an idle one, the pool is. */
+    uint32_t threads_auto;      /* 1: choose; 0: always the pool's size */
+    uint32_t threads_now;       /* for the next step */
+    uint32_t threads_last;      /* used by the last step (stats.thread_count) */
+    uint32_t probe_in, probe_every; /* steps until the other count is tried once */
+    double probe_recent[3];     /* ms per substep of the last steps at threads_now */
+    uint32_t probe_nrecent;
+    uint32_t probe_left;        /* steps of the running probe still to go */
+    double probe_best;          /* its fastest step, ms per substep */
     uint64_t step_count;
     /* Energy guard: steps whose velocities it scaled, and energy it removed in the
      * last step (J). */

@@ -68,6 +68,7 @@ static const rbc_api_v1 g_api_v1 = {
     rbc_world_set_wind,
     rbc_mesh_get_triangles,
     rbc_solver_def_preset,
+    rbc_world_stats_init,
 };
 
 RBC_API const void *RBC_CALL rbc_get_api(uint32_t abi_major) {

@@ -433,6 +433,9 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
         return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: could not start %u worker threads", fn,
                              threads);
     }
+    /* thread_count 0: the step measures whether its threads pay (core/solver.c,
+     * threads_for_step); a count the host gives is used as given. */
+    w->solver.threads_auto = def.thread_count == 0;
     if (rbc_reg_add(&g_worlds, w, 0, &w->id) != RBC_OK) {
         rbc_solver_fini(&w->solver);
         rbc_mem_free(&alloc, w, sizeof *w);
@@ -617,28 +620,42 @@ RBC_API rbc_result RBC_CALL rbc_world_set_gravity(rbc_world_id id, const float g
     return RBC_OK;
 }
 
+static int stats_size_known(uint32_t size) {
+    return size == sizeof(rbc_world_stats) || size == RBC_WORLD_STATS_SIZE_V1_5 ||
+           size == RBC_WORLD_STATS_SIZE_V1_4 || size == RBC_WORLD_STATS_SIZE_V1_3 ||
+           size == RBC_WORLD_STATS_SIZE_V1_2 || size == RBC_WORLD_STATS_SIZE_V1_1 ||
+           size == RBC_WORLD_STATS_SIZE_V1_0;
+}
+
+#define STATS_SIZES_MESSAGE                                                                \
+    "%s: stats->struct_size is %u, which matches no released version (this library knows " \
+    "%zu, the 1.5 size %u, the 1.4 size %u, the 1.3 size %u, the 1.2 size %u, the 1.1 size " \
+    "%u and the 1.0 size %u)"
+#define STATS_SIZES_ARGS(fn, size)                                                          \
+    fn, size, sizeof(rbc_world_stats), RBC_WORLD_STATS_SIZE_V1_5, RBC_WORLD_STATS_SIZE_V1_4, \
+        RBC_WORLD_STATS_SIZE_V1_3, RBC_WORLD_STATS_SIZE_V1_2, RBC_WORLD_STATS_SIZE_V1_1,     \
+        RBC_WORLD_STATS_SIZE_V1_0
+
+RBC_API rbc_result RBC_CALL rbc_world_stats_init(rbc_world_stats *stats, uint32_t struct_size) {
+    static const char fn[] = "rbc_world_stats_init";
+    if (!stats) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: stats is NULL", fn);
+    if (!stats_size_known(struct_size))
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, STATS_SIZES_MESSAGE,
+                             STATS_SIZES_ARGS(fn, struct_size));
+    memset(stats, 0, struct_size);
+    stats->struct_size = struct_size;
+    return RBC_OK;
+}
+
 RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats *out) {
     static const char fn[] = "rbc_world_get_stats";
     rbc_world *w;
     rbc_result rc = lookup_world(id, fn, &w);
     if (rc) return rc;
     if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: stats is NULL", fn);
-    if (out->struct_size != sizeof(rbc_world_stats) &&
-        out->struct_size != RBC_WORLD_STATS_SIZE_V1_5 &&
-        out->struct_size != RBC_WORLD_STATS_SIZE_V1_4 &&
-        out->struct_size != RBC_WORLD_STATS_SIZE_V1_3 &&
-        out->struct_size != RBC_WORLD_STATS_SIZE_V1_2 &&
-        out->struct_size != RBC_WORLD_STATS_SIZE_V1_1 &&
-        out->struct_size != RBC_WORLD_STATS_SIZE_V1_0)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: stats->struct_size is %u, which matches no released version "
-                           "(this library knows %zu, the 1.5 size %u, the 1.4 size %u, the 1.3 "
-                           "size %u, the 1.2 size %u, the 1.1 size %u and the 1.0 size %u)",
-                           fn, out->struct_size, sizeof(rbc_world_stats),
-                           RBC_WORLD_STATS_SIZE_V1_5, RBC_WORLD_STATS_SIZE_V1_4, RBC_WORLD_STATS_SIZE_V1_3,
-                           RBC_WORLD_STATS_SIZE_V1_2,
-                           RBC_WORLD_STATS_SIZE_V1_1,
-                           RBC_WORLD_STATS_SIZE_V1_0);
+    if (!stats_size_known(out->struct_size))
+        return world_error(w, RBC_ERR_INVALID_ARGUMENT, STATS_SIZES_MESSAGE,
+                           STATS_SIZES_ARGS(fn, out->struct_size));
     rbc_solver *s = &w->solver;
     double res_num = 0.0, res_den = 0.0;
     /* 1.2 and later hold the energy fields and skip_measures. */
@@ -651,7 +668,7 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
     if (full) st.skip_measures = out->skip_measures;
     st.cloth_count = s->cloth_count;
     st.collider_count = s->collider_count;
-    st.thread_count = rbc_pool_size(s->pool);
+    st.thread_count = s->threads_last ? s->threads_last : rbc_pool_size(s->pool);
     st.backend = RBC_BACKEND_CPU;
     st.step_count = s->step_count;
     for (uint32_t k = 0; k < s->cloth_count; ++k) {

@@ -99,6 +99,9 @@ const char *rbc_scene_default_json(void) { return default_scene_json; }
 #define SCENE_MAX_CLOTHS 1024u
 #define SCENE_MAX_COLLIDERS 1024u
 #define SCENE_MAX_GRID_SIDE 65536u
+/* All grids of a scene together: one grid's limit (RBC_GRID_MAX_VERTICES), about
+ * 0.9 GB of world state, whatever the number of cloths. */
+#define SCENE_MAX_GRID_VERTICES (1u << 24)
 #define SCENE_MAX_THREADS 1024u
 /* Iteration ranges of rbc_world_def. */
 #define SCENE_MAX_SUBSTEPS 1024u
@@ -119,6 +122,9 @@ typedef struct parser {
     const char *source;
     char *err;
     size_t err_size;
+    /* Vertices of the grids generated so far: a grid is a few bytes of JSON that
+     * allocate nx * ny vertices, so the whole scene's grids share one cap. */
+    uint64_t grid_vertices;
 } parser;
 
 static void vformat(char *dst, size_t size, const char *fmt, va_list ap) {
@@ -661,6 +667,14 @@ static int parse_grid(parser *p, const cJSON *obj, const char *key, rbc_scene_cl
     if ((uint64_t)g->nx * g->ny > RBC_GRID_MAX_VERTICES)
         return fail(p, key, "nx * ny = %llu vertices, more than the limit of %u",
                     (unsigned long long)g->nx * g->ny, RBC_GRID_MAX_VERTICES);
+    if (p->grid_vertices + (uint64_t)g->nx * g->ny > SCENE_MAX_GRID_VERTICES)
+        return fail(p, key,
+                    "nx * ny = %llu vertices; with the %llu of the grids before it the scene "
+                    "would have %llu, more than the limit of %u for all its grids together",
+                    (unsigned long long)g->nx * g->ny, (unsigned long long)p->grid_vertices,
+                    (unsigned long long)(p->grid_vertices + (uint64_t)g->nx * g->ny),
+                    SCENE_MAX_GRID_VERTICES);
+    p->grid_vertices += (uint64_t)g->nx * g->ny;
 
     rbc_grid_status status = rbc_grid_build(g, &c->positions, &c->vertex_count, &c->quads,
                                             &c->quad_count);
@@ -1293,7 +1307,7 @@ static int syntax_error(parser *p, const char *text, const char *at) {
 /* Parse a NUL-terminated text. */
 static int parse_text(const char *text, const char *source, rbc_scene *out, char *err,
                       size_t err_size) {
-    parser p = {source ? source : "(scene)", err, err_size};
+    parser p = {source ? source : "(scene)", err, err_size, 0};
     const char *end = NULL;
     cJSON *root = cJSON_ParseWithOpts(text, &end, 1);
     if (!root)
@@ -1312,7 +1326,7 @@ static int parse_text(const char *text, const char *source, rbc_scene *out, char
 
 int rbc_scene_parse(const char *json, size_t length, const char *source, rbc_scene *out,
                     char *err, size_t err_size) {
-    parser p = {source ? source : "(scene)", err, err_size};
+    parser p = {source ? source : "(scene)", err, err_size, 0};
     if (err_size > 0)
         err[0] = '\0';
     if (!out)
@@ -1363,6 +1377,17 @@ int rbc_scene_load_file(const char *path, rbc_scene *out, char *err, size_t err_
             capacity *= 2;
         }
         size_t got = fread(data + size, 1, capacity - size, f);
+        /* A NUL is never in a scene: refuse at the first one rather than read a
+         * device such as /dev/zero up to the size limit. */
+        const char *nul = memchr(data + size, '\0', got);
+        if (nul) {
+            size_t at = (size_t)(nul - data);
+            fclose(f);
+            free(data);
+            format(err, err_size,
+                   "%s: contains a NUL byte (at offset %zu); a scene is UTF-8 JSON text", path, at);
+            return -1;
+        }
         size += got;
         if (got == 0)
             break;

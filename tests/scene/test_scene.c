@@ -318,6 +318,13 @@ static void test_malformed(void) {
          "cloths[0].grid: nx * ny = 4294967296 vertices, more than the limit of 16777216"},
         {BASE_HEAD "\"cloths\":[" GRID_CLOTH "],\"world\":{\"substeps\":-1}}",
          "world.substeps: must be an integer in [0, 1024], got -1"},
+        /* Grids are a few bytes that allocate nx * ny vertices: all of a scene's grids
+         * share the one-grid limit (64 grids of 2^24 vertices ran out of memory). */
+        {BASE_HEAD "\"cloths\":[{\"name\":\"a\",\"grid\":{\"nx\":4096,\"ny\":2048,\"spacing\":0.001}},"
+                   "{\"name\":\"b\",\"grid\":{\"nx\":4096,\"ny\":2049,\"spacing\":0.001}}]}",
+         "bad.json: cloths[1].grid: nx * ny = 8392704 vertices; with the 8388608 of the grids "
+         "before it the scene would have 16781312, more than the limit of 16777216 for all its "
+         "grids together"},
         /* bad choices and names */
         {BASE_HEAD "\"cloths\":[" GRID_CLOTH "],\"world\":{\"backend\":\"gpu\"}}",
          "world.backend: must be one of \"auto\", \"cpu\", \"cuda\", got \"gpu\""},
@@ -1324,6 +1331,16 @@ static void test_paper_scenes(void) {
     }
 }
 
+/* A device that never ends (/dev/zero) is refused at its first NUL byte, not read up
+ * to the 1 GiB file limit. */
+static void test_endless_file(void) {
+    rbc_scene s;
+    char err[512];
+    CHECK(rbc_scene_load_file("/dev/zero", &s, err, sizeof err) != 0);
+    CHECK(strstr(err, "/dev/zero: contains a NUL byte (at offset 0)") != NULL);
+    if (!strstr(err, "NUL")) fprintf(stderr, "  got: %s\n", err);
+}
+
 int main(int argc, char **argv) {
     if (argc > 1)
         scenes_dir = argv[1];
@@ -1342,5 +1359,6 @@ int main(int argc, char **argv) {
     test_instantiate();
     test_instantiate_v1_3();
     test_paper_scenes();
+    test_endless_file();
     return check_report("test_scene");
 }
