@@ -17,18 +17,17 @@
 #define CPU_RELAX() ((void)0)
 #endif
 
-/* Spins before yielding the core: long enough to cover a phase of a 10K-particle
- * step (a few microseconds), short enough not to starve a host thread on a
- * machine with fewer cores than threads. */
+/* Spins before yielding the core (rbc_pool_spin: the wavefront's neighbour waits):
+ * long enough to cover a phase of a 10K-particle step (a few microseconds). */
 #define SPIN_BEFORE_YIELD 4000
 /* Spins before a worker sleeps on the condition variable between steps. */
 #define SPIN_BEFORE_SLEEP 20000
-/* Yields before a thread waiting at a barrier sleeps (a futex on the barrier's
- * generation) until the last one arrives: while one thread runs a long serial
- * stage (cloth contact's Gauss-Seidel pass over 400K contacts: milliseconds), the
- * others gave up their cores a million times a second (the four-layer scene spent
- * 2 of its 5 s in the kernel on two threads). */
-#define YIELD_BEFORE_SLEEP 64
+/* Spins before a thread waiting at a barrier, or the caller waiting for the workers
+ * to finish, sleeps on a futex. No sched_yield in between: on a machine whose cores
+ * other processes hold, a yield hands the core to a busy loop for the rest of its
+ * time slice (milliseconds), and a step has hundreds of barriers; a futex sleeper
+ * is woken by the last arrival and preempts the busy loop at once. About 20 us. */
+#define SPIN_BEFORE_FUTEX 2000
 
 struct rbc_pool {
     rbc_allocator alloc;
@@ -39,6 +38,8 @@ struct rbc_pool {
     _Atomic uint32_t job_gen;
     _Atomic int quit;
     _Atomic uint32_t done;
+    _Atomic uint32_t done_sleeper; /* the caller sleeps on `done` */
+    uint32_t active;               /* threads taking part in the current run */
     rbc_pool_fn fn;
     void *ctx;
     _Alignas(64) _Atomic uint32_t bar_count;
@@ -70,8 +71,10 @@ static void *worker_main(void *arg) {
         }
         if (atomic_load(&pool->quit)) break;
         seen = atomic_load(&pool->job_gen);
-        pool->fn(pool->ctx, tid, pool->n);
-        atomic_fetch_add_explicit(&pool->done, 1, memory_order_acq_rel);
+        if (tid < pool->active) pool->fn(pool->ctx, tid, pool->active);
+        atomic_fetch_add(&pool->done, 1);
+        if (atomic_load(&pool->done_sleeper))
+            syscall(SYS_futex, (uint32_t *)&pool->done, FUTEX_WAKE_PRIVATE, 1, NULL, NULL, 0);
     }
     return NULL;
 }
@@ -93,6 +96,7 @@ int rbc_pool_create(rbc_pool **out, uint32_t nthreads, const rbc_allocator *a) {
     if (!pool) return -1;
     pool->alloc = *a;
     pool->n = nthreads;
+    pool->active = nthreads;
     pthread_mutex_init(&pool->mu, NULL);
     pthread_cond_init(&pool->cv, NULL);
     size_t bytes = sizeof(pthread_t) * nthreads + sizeof(worker_arg) * nthreads;
@@ -134,27 +138,52 @@ void rbc_pool_destroy(rbc_pool *pool) {
 uint32_t rbc_pool_size(const rbc_pool *pool) { return pool->n; }
 
 void rbc_pool_run(rbc_pool *pool, rbc_pool_fn fn, void *ctx) {
-    if (pool->n == 1) {
+    rbc_pool_run_n(pool, pool->n, fn, ctx);
+}
+
+void rbc_pool_run_n(rbc_pool *pool, uint32_t n, rbc_pool_fn fn, void *ctx) {
+    if (n < 1) n = 1;
+    if (n > pool->n) n = pool->n;
+    if (n == 1) {
+        /* Barriers see active 1 and return at once; the workers stay asleep. */
+        pool->active = 1;
         fn(ctx, 0, 1);
         return;
     }
     pool->fn = fn;
     pool->ctx = ctx;
+    pool->active = n;
     atomic_store_explicit(&pool->done, 0, memory_order_relaxed);
     pthread_mutex_lock(&pool->mu);
     atomic_fetch_add_explicit(&pool->job_gen, 1, memory_order_release);
     pthread_cond_broadcast(&pool->cv);
     pthread_mutex_unlock(&pool->mu);
-    fn(ctx, 0, pool->n);
+    fn(ctx, 0, n);
+    /* Every worker acknowledges the run (those past n at once), so none still reads
+     * fn or ctx when the next run sets them. */
+    const uint32_t want = pool->n - 1;
     uint32_t spins = 0;
-    while (atomic_load_explicit(&pool->done, memory_order_acquire) != pool->n - 1)
-        rbc_pool_spin(&spins);
+    for (;;) {
+        uint32_t d = atomic_load(&pool->done);
+        if (d == want) break;
+        if (++spins < SPIN_BEFORE_FUTEX) {
+            CPU_RELAX();
+            continue;
+        }
+        /* As the barrier's sleep: announce, re-check inside the futex. */
+        atomic_store(&pool->done_sleeper, 1);
+        d = atomic_load(&pool->done);
+        if (d != want)
+            syscall(SYS_futex, (uint32_t *)&pool->done, FUTEX_WAIT_PRIVATE, d, NULL, NULL, 0);
+        atomic_store(&pool->done_sleeper, 0);
+    }
 }
 
 void rbc_pool_barrier(rbc_pool *pool) {
-    if (pool->n == 1) return;
+    const uint32_t n = pool->active;
+    if (n == 1) return;
     uint32_t gen = atomic_load_explicit(&pool->bar_gen, memory_order_acquire);
-    if (atomic_fetch_add_explicit(&pool->bar_count, 1, memory_order_acq_rel) == pool->n - 1) {
+    if (atomic_fetch_add_explicit(&pool->bar_count, 1, memory_order_acq_rel) == n - 1) {
         atomic_store_explicit(&pool->bar_count, 0, memory_order_relaxed);
         atomic_fetch_add(&pool->bar_gen, 1);
         if (atomic_load(&pool->bar_sleepers))
@@ -164,8 +193,8 @@ void rbc_pool_barrier(rbc_pool *pool) {
     }
     uint32_t spins = 0;
     while (atomic_load_explicit(&pool->bar_gen, memory_order_acquire) == gen) {
-        if (spins < SPIN_BEFORE_YIELD + YIELD_BEFORE_SLEEP) {
-            rbc_pool_spin(&spins);
+        if (++spins < SPIN_BEFORE_FUTEX) {
+            CPU_RELAX();
             continue;
         }
         /* Sleep while the generation is still gen: the futex checks that atomically,

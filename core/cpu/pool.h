@@ -1,5 +1,6 @@
 /* pool.h -- a persistent thread pool that runs one SPMD function on every thread
- * (the caller is thread 0) with a spinning barrier between the solver's phases.
+ * (the caller is thread 0) with a barrier between the solver's phases (a short spin,
+ * then a futex).
  * Workers are woken once per rbc_world_step, not once per phase: a 10K-particle
  * color sweep takes microseconds, so per-phase wake-ups would dominate. */
 #ifndef RBC_CPU_POOL_H
@@ -17,6 +18,9 @@ void rbc_pool_destroy(rbc_pool *pool);
 uint32_t rbc_pool_size(const rbc_pool *pool);
 /* Run fn(ctx, tid, n) on all n threads; returns when every thread has returned. */
 void rbc_pool_run(rbc_pool *pool, rbc_pool_fn fn, void *ctx);
+/* The same on the first n threads only (1 <= n <= the pool's size; clamped):
+ * barriers inside count n. */
+void rbc_pool_run_n(rbc_pool *pool, uint32_t n, rbc_pool_fn fn, void *ctx);
 /* Inside fn: wait until all n threads arrive. */
 void rbc_pool_barrier(rbc_pool *pool);
 /* One round of a spin-wait, as the barrier waits: a pause for the first spins, then

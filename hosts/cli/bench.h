@@ -66,6 +66,10 @@ int cli_bench_peers(const cli_plugin *plugin, const cli_bench_options *options);
 /// otherwise. Returns 0, or 1 after a message on stderr.
 int cli_bench_defaults(const cli_plugin *plugin, const cli_bench_options *options);
 
+/// `rbcloth bench pool`: ms per step with 1 thread, the default thread count and
+/// every core, idle and with one busy loop per core (issue 17). Returns 0, or 1.
+int cli_bench_pool(const cli_plugin *plugin, const cli_bench_options *options);
+
 /// The head of a results page (docs/results/): the command that regenerates it, and
 /// the date (UTC), the commit of the source tree this binary was built from (with
 /// "+ uncommitted changes" when the tree differs; "unknown" without git) and the

@@ -135,6 +135,8 @@ static const char bench_usage[] =
     "  peers        solver x substeps x iterations on the paper's cloth for 500\n"
     "               frames: the Pareto front of ms per frame against Eq. 7 beside\n"
     "               published peer figures (a few minutes; --quick: seconds)\n"
+    "  pool         ms per step on 1 thread, the default count and every core, on\n"
+    "               an idle machine and with one busy loop per core (about 30 s)\n"
     "\n"
     "  --out DIR            output directory (default: out/bench)\n"
     "  --frames N           frames per run (default: the bench's; accuracy 240,\n"
@@ -152,7 +154,7 @@ static const char info_usage[] =
 /* Names a command line may give, for "did you mean" (rbc_scene_nearest). */
 static const char *const command_names[] = {"run", "batch", "bench", "info", "help", NULL};
 static const char *const bench_names[] = {"defaults", "accuracy", "stability", "perf",
-                                          "scenes", "peers", NULL};
+                                          "scenes", "peers", "pool", NULL};
 static const char *const run_option_names[] = {
     "--out", "--frames", "--frame-stats", "--no-view", "--quiet", "--threads", "--substeps",
     "--substep-rate", "--iterations", "--nonlinear", "--preset", "--solver", "--mode",
@@ -511,7 +513,7 @@ static int command_bench(int argc, char **argv) {
     }
     if (argc < 1)
         return usage_error("%s", "bench needs a name: 'defaults', 'accuracy', 'stability', "
-                                 "'perf', 'scenes' or 'peers'");
+                                 "'perf', 'scenes', 'peers' or 'pool'");
     typedef int (*bench_fn)(const cli_plugin *, const cli_bench_options *);
     static const struct {
         const char *name;
@@ -521,7 +523,8 @@ static int command_bench(int argc, char **argv) {
                    {"stability", cli_bench_stability},
                    {"perf", cli_bench_perf},
                    {"scenes", cli_bench_scenes},
-                   {"peers", cli_bench_peers}};
+                   {"peers", cli_bench_peers},
+                   {"pool", cli_bench_pool}};
     const char *which = argv[0];
     bench_fn run = NULL;
     for (size_t k = 0; k < sizeof benches / sizeof benches[0]; ++k)

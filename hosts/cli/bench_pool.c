@@ -1,0 +1,307 @@
+/* bench_pool.c -- `rbcloth bench pool`: what the default thread count costs on a
+ * machine whose cores other work holds (issue 17: an engine's job system always
+ * holds the cores).
+ *
+ * For each cloth (grids of 244 to 65536 particles, the default solve at 1/60 s) and
+ * each load (none, and one busy loop per core in child processes), three worlds
+ * step in alternation, a block of steps each in turn, so that a change of load on a
+ * shared machine hits them alike: thread_count 1, thread_count 0 (the default: the
+ * library probes whether its threads pay) and thread_count = cores (every step on
+ * every thread, what the default was before). The figure is the host's wall time of
+ * rbc_world_step, median and mean over all steps (the mean includes the default's
+ * probe steps), and the ratio of the default's median to one thread's.
+ */
+#define _GNU_SOURCE
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/prctl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "bench.h"
+#include "fsutil.h"
+
+typedef struct pool_cloth {
+    const char *name;
+    uint32_t nx, ny;
+} pool_cloth;
+
+/* 244 particles: the small cloth the issue measured (a 4 x 61 strip); 100 x 100:
+ * the demo's cloth. */
+static const pool_cloth cloths[] = {
+    {"strip_4x61", 4, 61},
+    {"grid_32x32", 32, 32},
+    {"demo_100x100", 100, 100},
+    {"grid_256x256", 256, 256},
+};
+enum { CLOTH_COUNT = sizeof cloths / sizeof cloths[0] };
+
+enum { CFG_ONE, CFG_DEFAULT, CFG_ALL, CFG_COUNT };
+
+typedef struct pool_row {
+    double median, mean, p90;
+    uint32_t steps;
+    uint32_t threads_last; /* stats.thread_count after the last step */
+    uint32_t steps_multi;  /* steps whose stats said more than one thread */
+    char error[256];
+} pool_row;
+
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* One busy loop per core, each a child process that dies with us. */
+static int start_load(pid_t *pids, uint32_t count) {
+    for (uint32_t k = 0; k < count; ++k) {
+        pid_t p = fork();
+        if (p < 0) return -1;
+        if (p == 0) {
+            prctl(PR_SET_PDEATHSIG, SIGKILL);
+            volatile unsigned long x = 0;
+            for (;;) x++;
+        }
+        pids[k] = p;
+    }
+    return 0;
+}
+
+static void stop_load(pid_t *pids, uint32_t count) {
+    for (uint32_t k = 0; k < count; ++k)
+        if (pids[k] > 0) {
+            kill(pids[k], SIGKILL);
+            waitpid(pids[k], NULL, 0);
+            pids[k] = 0;
+        }
+}
+
+static rbc_result make_world(const rbc_api_v1 *api, uint32_t threads, const bench_mesh *m,
+                             rbc_world_id *world) {
+    rbc_world_def wd;
+    rbc_result r = api->world_def_init(&wd, (uint32_t)sizeof wd);
+    if (r != RBC_OK) return r;
+    wd.thread_count = threads;
+    if ((r = api->world_create(&wd, world)) != RBC_OK) return r;
+    rbc_cloth_def cd;
+    rbc_cloth_id cloth;
+    if ((r = bench_cloth_def(api, m, &cd)) == RBC_OK) r = api->cloth_create(*world, &cd, &cloth);
+    if (r != RBC_OK) {
+        api->world_destroy(*world);
+        *world = 0;
+    }
+    return r;
+}
+
+static void measure(const rbc_api_v1 *api, const bench_mesh *m, uint32_t cores, uint32_t rounds,
+                    uint32_t block, double block_limit_s, pool_row rows[CFG_COUNT]) {
+    const uint32_t threads[CFG_COUNT] = {1, 0, cores};
+    rbc_world_id worlds[CFG_COUNT] = {0};
+    double *ms[CFG_COUNT] = {0};
+    const uint32_t cap = rounds * block;
+    int ok = 1;
+    for (int k = 0; k < CFG_COUNT; ++k) {
+        memset(&rows[k], 0, sizeof rows[k]);
+        rbc_result r = make_world(api, threads[k], m, &worlds[k]);
+        if (r != RBC_OK) {
+            bench_result_text(api, r, rows[k].error, sizeof rows[k].error);
+            ok = 0;
+        }
+        if (!(ms[k] = malloc(sizeof(double) * cap))) {
+            snprintf(rows[k].error, sizeof rows[k].error, "out of memory");
+            ok = 0;
+        }
+    }
+    const float dt = 1.0f / 60.0f;
+    /* Warm-up: the first steps fault in pages and estimate the spectral radius. */
+    for (int k = 0; ok && k < CFG_COUNT; ++k)
+        for (int f = 0; f < 3; ++f) api->world_step(worlds[k], dt);
+    for (uint32_t round = 0; ok && round < rounds; ++round)
+        for (int j = 0; j < CFG_COUNT; ++j) {
+            /* Alternate the order too: 0 1 2, 2 1 0, ... */
+            int k = round % 2 ? CFG_COUNT - 1 - j : j;
+            const double t_block = bench_now();
+            for (uint32_t s = 0; s < block; ++s) {
+                const double t0 = bench_now();
+                rbc_result r = api->world_step(worlds[k], dt);
+                const double t1 = bench_now();
+                if (r != RBC_OK) {
+                    bench_result_text(api, r, rows[k].error, sizeof rows[k].error);
+                    ok = 0;
+                    break;
+                }
+                ms[k][rows[k].steps++] = (t1 - t0) * 1e3;
+                rbc_world_stats st;
+                api->world_stats_init(&st, (uint32_t)sizeof st);
+                st.skip_measures = 1;
+                api->world_get_stats(worlds[k], &st);
+                rows[k].threads_last = st.thread_count;
+                rows[k].steps_multi += st.thread_count > 1;
+                if (t1 - t_block > block_limit_s) break;
+            }
+        }
+    for (int k = 0; k < CFG_COUNT; ++k) {
+        if (worlds[k]) api->world_destroy(worlds[k]);
+        pool_row *row = &rows[k];
+        if (row->steps) {
+            double sum = 0.0;
+            for (uint32_t s = 0; s < row->steps; ++s) sum += ms[k][s];
+            row->mean = sum / row->steps;
+            qsort(ms[k], row->steps, sizeof(double), cmp_double);
+            row->median = row->steps % 2 ? ms[k][row->steps / 2]
+                                         : 0.5 * (ms[k][row->steps / 2 - 1] + ms[k][row->steps / 2]);
+            row->p90 = ms[k][(size_t)((row->steps - 1) * 0.9)];
+        }
+        free(ms[k]);
+    }
+}
+
+static int write_plot(const char *dir, pool_row rows[CLOTH_COUNT][2][CFG_COUNT]) {
+    FILE *f = bench_open(dir, "pool.gp");
+    if (!f) return -1;
+    fprintf(f, "# Generated by `rbcloth bench pool` (the figures of pool.csv); run `gnuplot "
+               "pool.gp` here.\n");
+    for (int load = 0; load < 2; ++load) {
+        fprintf(f, "$%s << EOD\n", load ? "busy" : "idle");
+        for (int c = 0; c < CLOTH_COUNT; ++c) {
+            const pool_row *r = rows[c][load];
+            if (!r[CFG_ONE].steps) continue;
+            fprintf(f, "%s %.5f %.5f %.5f\n", cloths[c].name, r[CFG_ONE].median,
+                    r[CFG_DEFAULT].median, r[CFG_ALL].median);
+        }
+        fprintf(f, "EOD\n");
+    }
+    fprintf(f, "set terminal pngcairo size 1200,480 font ',10' noenhanced\n"
+               "set output 'pool.png'\n"
+               "set multiplot layout 1,2\n"
+               "set logscale y\n"
+               "set ylabel 'ms per step (median, host wall time)'\n"
+               "set style data histograms\n"
+               "set style histogram clustered gap 1\n"
+               "set style fill solid 0.8 border -1\n"
+               "set key top left\n"
+               "set grid ytics\n");
+    for (int load = 0; load < 2; ++load)
+        fprintf(f, "set title '%s'\n"
+                   "plot $%s using 2:xtic(1) title '1 thread', '' using 3 title 'default', "
+                   "'' using 4 title 'all cores'\n",
+                load ? "every core busy with other work" : "idle machine", load ? "busy" : "idle");
+    fprintf(f, "unset multiplot\n");
+    return bench_close(f, dir, "pool.gp");
+}
+
+int cli_bench_pool(const cli_plugin *plugin, const cli_bench_options *o) {
+    const rbc_api_v1 *api = plugin->api;
+    if ((api->abi_version_fn() & 0xFFFFu) < 7) {
+        fprintf(stderr, "rbcloth: bench pool needs a plugin of ABI 1.7 or later\n");
+        return 1;
+    }
+    const char *dir = o->out_dir;
+    char command[512];
+    snprintf(command, sizeof command, "rbcloth bench pool --out %s%s", dir,
+             o->quick ? " --quick" : "");
+    long nproc = sysconf(_SC_NPROCESSORS_ONLN);
+    const uint32_t cores = nproc > 0 ? (uint32_t)nproc : 1;
+    const uint32_t rounds = o->quick ? 2 : 8, block = o->quick ? 5 : 25;
+    const double block_limit = o->quick ? 0.5 : 3.0;
+    char err[512];
+    if (fs_mkdir_p(dir, err, sizeof err)) {
+        fprintf(stderr, "rbcloth: %s\n", err);
+        return 1;
+    }
+    FILE *csv = bench_open(dir, "pool.csv");
+    if (!csv) return 1;
+    fprintf(csv, "cloth,load,particles,cores,one_median_ms,one_mean_ms,one_steps,"
+                 "default_median_ms,default_mean_ms,default_steps,all_median_ms,all_mean_ms,"
+                 "all_steps,default_over_one,all_over_one,default_steps_multithreaded,error\n");
+    static pool_row rows[CLOTH_COUNT][2][CFG_COUNT];
+    int failed = 0;
+    pid_t pids[256] = {0};
+    const uint32_t busy = cores < 256 ? cores : 256;
+    for (int load = 0; load < 2; ++load) {
+        if (load && start_load(pids, busy)) {
+            stop_load(pids, busy);
+            fprintf(stderr, "rbcloth: bench pool: cannot start the busy loops\n");
+            fclose(csv);
+            return 1;
+        }
+        for (int c = 0; c < CLOTH_COUNT; ++c) {
+            if (o->quick && c != 0 && c != 2) continue;
+            bench_mesh m;
+            if (bench_mesh_grid(&m, cloths[c].nx, cloths[c].ny, 1.0 / (cloths[c].nx - 1), 0, 0.0) ||
+                !(m.pins = malloc(2 * sizeof(uint32_t)))) {
+                fprintf(stderr, "rbcloth: bench pool: out of memory\n");
+                stop_load(pids, busy);
+                fclose(csv);
+                bench_mesh_free(&m);
+                return 1;
+            }
+            m.pins[0] = 0;
+            m.pins[1] = cloths[c].nx - 1;
+            m.pin_count = 2;
+            pool_row *r = rows[c][load];
+            measure(api, &m, cores, rounds, block, block_limit, r);
+            bench_mesh_free(&m);
+            for (int k = 0; k < CFG_COUNT; ++k) failed |= r[k].error[0] != 0;
+            const double d1 = r[CFG_DEFAULT].median / r[CFG_ONE].median;
+            const double a1 = r[CFG_ALL].median / r[CFG_ONE].median;
+            fprintf(csv, "%s,%s,%u,%u,%.5f,%.5f,%u,%.5f,%.5f,%u,%.5f,%.5f,%u,%.4f,%.4f,%u,%s%s%s\n",
+                    cloths[c].name, load ? "busy" : "idle", cloths[c].nx * cloths[c].ny, cores,
+                    r[CFG_ONE].median, r[CFG_ONE].mean, r[CFG_ONE].steps, r[CFG_DEFAULT].median,
+                    r[CFG_DEFAULT].mean, r[CFG_DEFAULT].steps, r[CFG_ALL].median, r[CFG_ALL].mean,
+                    r[CFG_ALL].steps, d1, a1, r[CFG_DEFAULT].steps_multi, r[CFG_ONE].error,
+                    r[CFG_DEFAULT].error, r[CFG_ALL].error);
+            fflush(csv);
+            printf("%-14s %s: 1 thread %8.3f ms, default %8.3f ms (x%.2f, %u of %u steps on "
+                   "several threads), all %u cores %8.3f ms (x%.2f)\n",
+                   cloths[c].name, load ? "busy" : "idle", r[CFG_ONE].median,
+                   r[CFG_DEFAULT].median, d1, r[CFG_DEFAULT].steps_multi, r[CFG_DEFAULT].steps,
+                   cores, r[CFG_ALL].median, a1);
+            fflush(stdout);
+        }
+        if (load) stop_load(pids, busy);
+    }
+    if (bench_close(csv, dir, "pool.csv")) return 1;
+
+    FILE *md = bench_open(dir, "pool.md");
+    if (!md) return 1;
+    fprintf(md, "# Threads on a busy machine\n\n");
+    bench_write_provenance(md, command);
+    fprintf(md,
+            "Each cloth hangs from two corners with the default solve at 1/60 s. Three "
+            "worlds step in alternation, %u rounds of up to %u steps each (a block stops "
+            "after %.1f s): `thread_count` 1, 0 (the default: every step runs on all %u "
+            "cores or on the caller's thread alone, whichever the library's probes measure "
+            "faster) and %u (every step on every core, the default before issue 17). *busy*: "
+            "%u child processes spin in a loop the whole time, one per core, as an engine's "
+            "job system would. Figures: the host's wall time of `rbc_world_step`, median "
+            "over all steps (mean in `pool.csv`, which includes the default's probe steps); "
+            "*x*: the ratio to one thread's median in the same load. *multi*: steps of the "
+            "default world that ran on several threads.\n\n",
+            rounds, block, block_limit, cores, cores, busy);
+    fprintf(md, "| cloth | particles | load | 1 thread, ms | default, ms | x | multi | all "
+                "cores, ms | x |\n|---|---:|---|---:|---:|---:|---:|---:|---:|\n");
+    for (int load = 0; load < 2; ++load)
+        for (int c = 0; c < CLOTH_COUNT; ++c) {
+            const pool_row *r = rows[c][load];
+            if (!r[CFG_ONE].steps) continue;
+            fprintf(md, "| %s | %u | %s | %.3f | %.3f | %.2f | %u / %u | %.3f | %.2f |\n",
+                    cloths[c].name, cloths[c].nx * cloths[c].ny, load ? "busy" : "idle",
+                    r[CFG_ONE].median, r[CFG_DEFAULT].median,
+                    r[CFG_DEFAULT].median / r[CFG_ONE].median, r[CFG_DEFAULT].steps_multi,
+                    r[CFG_DEFAULT].steps, r[CFG_ALL].median, r[CFG_ALL].median / r[CFG_ONE].median);
+        }
+    fprintf(md, "\n![ms per step, one thread, the default and all cores, idle and busy](pool.png)"
+                "\n\nThe plot (`pool.png`, from `pool.gp`) needs gnuplot.\n");
+    if (bench_close(md, dir, "pool.md")) return 1;
+    if (write_plot(dir, rows)) return 1;
+    if (bench_have_gnuplot() && bench_run_gnuplot(dir, "pool.gp") != 0) {
+        fprintf(stderr, "rbcloth: bench pool: gnuplot %s/pool.gp failed\n", dir);
+        return 1;
+    }
+    printf("Wrote pool.csv, pool.md and pool.gp%s in %s\n", bench_have_gnuplot() ? ", pool.png" : "",
+           dir);
+    return failed ? 1 : 0;
+}
