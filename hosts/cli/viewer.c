@@ -946,6 +946,9 @@ static void sb_reserve(sbuf *b, size_t more) {
 }
 
 static void sb_add(sbuf *b, const void *data, size_t len) {
+    /* Nothing to add: an empty buffer has no storage yet, and memcpy to NULL is
+     * undefined even for 0 bytes (UBSan). */
+    if (len == 0) return;
     sb_reserve(b, len);
     if (b->oom) return;
     memcpy(b->p + b->len, data, len);

@@ -27,9 +27,11 @@
 /* The world def of rbc_world_def_default with the paper's fixed counts
  * (RBC_PRESET_PAPER): most tests check what a step does at given substeps and
  * iterations, which the default solve (the target mode, ABI 1.6) chooses itself.
- * The solver def is static, so the def stays valid as the test passes it around. */
+ * The solver def is static, so the def stays valid as the test passes it around;
+ * one per thread (test_behaviour's thread test calls this from two threads at once,
+ * and a shared one was written by both: a data race ThreadSanitizer reported). */
 static inline rbc_world_def abi_world_def_fixed(void) {
-    static rbc_solver_def paper;
+    static _Thread_local rbc_solver_def paper;
     if (rbc_solver_def_preset(&paper, (uint32_t)sizeof paper, RBC_PRESET_PAPER) != RBC_OK) {
         fprintf(stderr, "abi_world_def_fixed: %s\n", rbc_last_error());
         exit(2);

@@ -21,7 +21,8 @@
 #    rbc_world_def went unnoticed. `abidw --exported-interfaces-only` binds all
 #    of them. The baseline must bind every function the header declares.
 #  - A .so without DWARF compares equal to any baseline (symbols only, even with
-#    --fail-no-debug-info), so the .so must carry .debug_info.
+#    --fail-no-debug-info), so the .so must carry .debug_info. CMakeLists.txt builds
+#    with -g in every configuration (Release too), so only a stripped .so lacks it.
 set -uo pipefail
 src=${1:?usage: check_abi.sh SRC_DIR path/to/librbcloth.so}
 so=${2:?usage: check_abi.sh SRC_DIR path/to/librbcloth.so}
@@ -44,7 +45,13 @@ fi
 # random when grep exits early and readelf dies of SIGPIPE.)
 sections=$(readelf -S "$so")
 if ! grep -q '\.debug_info' <<< "$sections"; then
-  echo "FAIL: $so has no DWARF (.debug_info): build with -g, abidiff cannot see types without it" >&2
+  # CMakeLists.txt adds -g to every configuration (Release and MinSizeRel too), so
+  # a plugin built by this tree always has it: one without was stripped (strip,
+  # install/strip, a packager) or built by other means. abidiff would compare its
+  # symbols only and pass whatever its types became, so this fails rather than skip.
+  echo "FAIL: $so has no DWARF (.debug_info section): abidiff cannot compare types without it." >&2
+  echo "      This tree builds the plugin with -g in every configuration; was the .so stripped" >&2
+  echo "      (strip, cmake --install --strip) or built outside CMakeLists.txt? Check an unstripped build." >&2
   exit 1
 fi
 

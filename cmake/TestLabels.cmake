@@ -1,0 +1,65 @@
+# CTest labels for every test (tests/README.md, "Labels"). Each tests/*/CMakeLists.txt
+# ends with rbc_label_tests(FOLDER): every test of that directory gets the label
+# FOLDER, then the labels below by name (appended: labels a test sets itself stay).
+#
+#   quick     our own code, seconds each: `ctest -L quick -j2` answers in under a
+#             minute on 2 cores. Every test that is neither slow nor external.
+#   slow      longer than about 5 s in the plain build (the paper's scenes, the
+#             contact suite, the sweeps, the quick benches), or a test that needs
+#             such a test's fixture
+#   threads   tests whose point is the threaded solve (1 vs 2+ threads bitwise, the
+#             thread contract, worlds on several threads): what the TSan build runs
+#   valgrind  runs valgrind (excluded from the sanitizer builds: valgrind cannot run
+#             an ASan/TSan binary)
+#   browser   headless Chromium (RESOURCE_LOCK chromium), blender: Debian's Blender,
+#   slurm     a one-node Slurm: each runs a third-party program on files our tests
+#             wrote; excluded from the sanitizer builds (nothing of ours is
+#             instrumented there beyond a PNG checker, and they add minutes)
+#   fuzz      replays of the fuzz targets' seeds and regression inputs (tests/fuzz)
+#   external  browser, blender, slurm and valgrind together
+set(RBC_LABEL_SLOW_REGEX
+  "^(scene_funnel|scene_four_layers|abi_contact|abi_layer_order|core_clothcontact|import_sweep|bench_scenes_quick|bench_accuracy_quick|bench_stability_quick|cli_run_funnel)"
+  CACHE INTERNAL "")
+set(RBC_LABEL_THREADS_REGEX
+  "^(core_rbgs|core_grid|core_clothcontact|abi_behaviour|abi_energy_guard|abi_target|abi_contact|abi_layer_order|abi_hardening|bench_scenes_quick|cli_batch)$"
+  CACHE INTERNAL "")
+set(RBC_LABEL_VALGRIND_REGEX "valgrind" CACHE INTERNAL "")
+set(RBC_LABEL_BLENDER_REGEX "^blender_" CACHE INTERNAL "")
+set(RBC_LABEL_SLURM_REGEX "^slurm_" CACHE INTERNAL "")
+
+function(rbc_label_tests folder)
+  get_property(tests DIRECTORY PROPERTY TESTS)
+  foreach(t IN LISTS tests)
+    set(labels ${folder})
+    get_test_property(${t} RESOURCE_LOCK locks)
+    set(external 0)
+    if(locks MATCHES "chromium")
+      list(APPEND labels browser)
+      set(external 1)
+    endif()
+    foreach(kind VALGRIND BLENDER SLURM)
+      if(t MATCHES "${RBC_LABEL_${kind}_REGEX}")
+        string(TOLOWER ${kind} l)
+        list(APPEND labels ${l})
+        set(external 1)
+      endif()
+    endforeach()
+    if(external)
+      list(APPEND labels external)
+    endif()
+    if(t MATCHES "${RBC_LABEL_THREADS_REGEX}")
+      list(APPEND labels threads)
+    endif()
+    if(t MATCHES "${RBC_LABEL_SLOW_REGEX}")
+      list(APPEND labels slow)
+    elseif(NOT external)
+      list(APPEND labels quick)
+    endif()
+    get_test_property(${t} LABELS have)
+    if(have)
+      list(APPEND labels ${have})
+    endif()
+    list(REMOVE_DUPLICATES labels)
+    set_tests_properties(${t} PROPERTIES LABELS "${labels}")
+  endforeach()
+endfunction()
