@@ -498,8 +498,8 @@ typedef struct rbc_world_def {
     rbc_backend backend;
     /// Worker threads including the caller's, for the CPU backend; 0 = one per
     /// available core (at most 64), and each step runs on all of them or on the
-    /// caller's alone, whichever its probes measure faster (one step in 8 to 256
-    /// tries the other): a machine whose cores other work holds gets one thread, so
+    /// caller's alone, whichever its probes measure faster (every 8 to 256 steps, two
+    /// steps try the other): a machine whose cores other work holds gets one thread, so
     /// a step is not slowed by waiting for descheduled workers. Results are the same
     /// bits either way. A count > 0 is used as given. Default 0.
     uint32_t thread_count;

@@ -1754,8 +1754,8 @@ static void target_decide(rbc_solver *s, uint32_t used, int hit_cap, double reac
 
 /* Results do not depend on the thread count (every reduction is over fixed blocks,
  * every partition is checked bitwise on 1 and 2 threads), so the count may change
- * from one step to the next. A probe runs one step on the other count every
- * probe_every steps (two steps, the faster counts): 8 after a change, doubling to
+ * from one step to the next. Every probe_every steps a probe runs PROBE_STEPS steps
+ * on the other count and the fastest of them counts: 8 after a change, doubling to
  * 256 while the choice holds. */
 enum { PROBE_FIRST = 8, PROBE_MAX = 256, PROBE_STEPS = 2 };
 

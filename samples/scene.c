@@ -99,9 +99,9 @@ const char *rbc_scene_default_json(void) { return default_scene_json; }
 #define SCENE_MAX_CLOTHS 1024u
 #define SCENE_MAX_COLLIDERS 1024u
 #define SCENE_MAX_GRID_SIDE 65536u
-/* All grids of a scene together: one grid's limit (RBC_GRID_MAX_VERTICES), about
- * 0.9 GB of world state, whatever the number of cloths. */
-#define SCENE_MAX_GRID_VERTICES (1u << 24)
+/* All grids of a scene together get one grid's limit, whatever the number of
+ * cloths. */
+#define SCENE_MAX_GRID_VERTICES RBC_GRID_MAX_VERTICES
 #define SCENE_MAX_THREADS 1024u
 /* Iteration ranges of rbc_world_def. */
 #define SCENE_MAX_SUBSTEPS 1024u

@@ -26,7 +26,7 @@
  * to finish, sleeps on a futex. No sched_yield in between: on a machine whose cores
  * other processes hold, a yield hands the core to a busy loop for the rest of its
  * time slice (milliseconds), and a step has hundreds of barriers; a futex sleeper
- * is woken by the last arrival and preempts the busy loop at once. About 20 us. */
+ * is woken by the last arrival and preempts the busy loop at once. */
 #define SPIN_BEFORE_FUTEX 2000
 
 struct rbc_pool {

@@ -23,9 +23,9 @@ void rbc_pool_run(rbc_pool *pool, rbc_pool_fn fn, void *ctx);
 void rbc_pool_run_n(rbc_pool *pool, uint32_t n, rbc_pool_fn fn, void *ctx);
 /* Inside fn: wait until all n threads arrive. */
 void rbc_pool_barrier(rbc_pool *pool);
-/* One round of a spin-wait, as the barrier waits: a pause for the first spins, then
- * a yield, so a waiter on an oversubscribed machine gives its core to the thread it
- * waits for. Start with *spins = 0. */
+/* One round of a spin-wait (the lattice wavefront waits on its neighbour's row with
+ * it): a pause for the first spins, then a yield. The barrier and rbc_pool_run do not
+ * use it; they spin briefly and then sleep on a futex. Start with *spins = 0. */
 void rbc_pool_spin(uint32_t *spins);
 /* The number of cores this process may run on (at least 1). */
 uint32_t rbc_cpu_count(void);

@@ -209,6 +209,20 @@ static void test_cut_and_torn_destroy(void) {
     CHECK_EQ(cut, 516);
 }
 
+/* A world of `wd` with one nx x nx grid cloth at height y, spacing apart, pinned
+ * at `pins`; *g holds the grid (free it after the world). */
+static rbc_world_id grid_world(const rbc_world_def *wd, uint32_t nx, float spacing, float y,
+                               const uint32_t *pins, uint32_t pin_count, test_grid *g,
+                               rbc_cloth_id *c) {
+    rbc_world_id w = 0;
+    CHECK_EQ(rbc_world_create(wd, &w), RBC_OK);
+    *g = test_grid_make(nx, nx, spacing, 0.0f, y, 0.0f);
+    rbc_cloth_def cd = test_grid_def(g, pins, pin_count);
+    *c = 0;
+    CHECK_EQ(rbc_cloth_create(w, &cd, c), RBC_OK);
+    return w;
+}
+
 /* ------------------------------------------------------------------------- */
 /* Energy guard + collision callback on threads                                */
 /* ------------------------------------------------------------------------- */
@@ -234,17 +248,12 @@ static float *guarded_run(uint32_t threads, uint32_t *n_out, uint64_t *clamped) 
     wd.solver = &sd;
     wd.substeps = 4;
     wd.thread_count = threads;
-    rbc_world_id w = 0;
-    CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
+    test_grid g;
+    rbc_cloth_id c;
+    rbc_world_id w = grid_world(&wd, 48, 0.02f, 0.3f, NULL, 0, &g, &c);
     CHECK_EQ(rbc_world_set_collision_callback(w, floor_callback, NULL), RBC_OK);
-    test_grid g = test_grid_make(48, 48, 0.02f, 0.0f, 0.3f, 0.0f);
-    rbc_cloth_def cd = test_grid_def(&g, NULL, 0);
-    rbc_cloth_id c = 0;
-    CHECK_EQ(rbc_cloth_create(w, &cd, &c), RBC_OK);
     for (int f = 0; f < 60; ++f) CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_OK);
-    uint32_t nread = 0;
-    float *x = test_read(w, c, &nread);
-    (void)c;
+    float *x = test_read(w, c, NULL);
     rbc_world_stats st;
     rbc_world_stats_init(&st, (uint32_t)sizeof st);
     CHECK_EQ(rbc_world_get_stats(w, &st), RBC_OK);
@@ -281,13 +290,10 @@ static void test_auto_threads_bitwise(void) {
     for (int v = 0; v < 2; ++v) {
         rbc_world_def wd = rbc_world_def_default();
         wd.thread_count = v ? 0 : 1;
-        rbc_world_id w = 0;
-        CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
-        test_grid g = test_grid_make(100, 100, 0.0101f, 0.0f, 0.0f, 0.0f);
-        uint32_t pins[2] = {0, 99};
-        rbc_cloth_def cd = test_grid_def(&g, pins, 2);
-        rbc_cloth_id c = 0;
-        CHECK_EQ(rbc_cloth_create(w, &cd, &c), RBC_OK);
+        const uint32_t pins[2] = {0, 99};
+        test_grid g;
+        rbc_cloth_id c;
+        rbc_world_id w = grid_world(&wd, 100, 0.0101f, 0.0f, pins, 2, &g, &c);
         for (int f = 0; f < 120; ++f) {
             CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_OK);
             rbc_world_stats st;
@@ -299,8 +305,7 @@ static void test_auto_threads_bitwise(void) {
                 single += st.thread_count == 1;
             }
         }
-        uint32_t n = 0;
-        x[v] = test_read(w, c, &n);
+        x[v] = test_read(w, c, NULL);
         rbc_world_destroy(w);
         test_grid_free(&g);
     }
@@ -332,13 +337,10 @@ static void test_stats_init(void) {
 
     /* With it, a reading measures: the hanging cloth's Eq. 7 error is > 0. */
     rbc_world_def wd = abi_world_def_fixed();
-    rbc_world_id w = 0;
-    CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
-    test_grid g = test_grid_make(10, 10, 0.1f, 0.0f, 1.0f, 0.0f);
-    uint32_t pins[2] = {90, 99};
-    rbc_cloth_def cd = test_grid_def(&g, pins, 2);
-    rbc_cloth_id c = 0;
-    CHECK_EQ(rbc_cloth_create(w, &cd, &c), RBC_OK);
+    const uint32_t pins[2] = {90, 99};
+    test_grid g;
+    rbc_cloth_id c;
+    rbc_world_id w = grid_world(&wd, 10, 0.1f, 1.0f, pins, 2, &g, &c);
     CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_OK);
     memset(&st, 0xAB, sizeof st);
     rbc_world_stats_init(&st, (uint32_t)sizeof st);
