@@ -68,7 +68,9 @@
  *    NULL; defs of older sizes keep the paper's 1 substep of 11 RBGS iterations),
  *    RBC_PRESET_PAPER, and the strain warning (rbc_world_def.strain_warning;
  *    stats.step_max_strain and strain_warning_steps). 1.7: rbc_world_stats_init;
- *    the default thread count probes whether its threads pay.
+ *    the default thread count probes whether its threads pay. 1.8: mesh import
+ *    runs in a helper process (rbcloth-import) with a time and a memory limit
+ *    (rbc_mesh_import_def.timeout_ms, memory_limit_mb).
  *  - The ABI version is not the library's release version (rbc_version_string).
  */
 #ifndef RBCLOTH_H
@@ -100,7 +102,7 @@ extern "C" {
 /// Major version of this ABI: incompatible changes bump it.
 #define RBC_ABI_VERSION_MAJOR 1
 /// Minor version of this ABI: appended functions or fields bump it.
-#define RBC_ABI_VERSION_MINOR 7
+#define RBC_ABI_VERSION_MINOR 8
 /// (major << 16) | minor, as returned by rbc_abi_version().
 #define RBC_ABI_VERSION ((RBC_ABI_VERSION_MAJOR << 16) | RBC_ABI_VERSION_MINOR)
 
@@ -237,8 +239,9 @@ enum {
     /// global matrix, made once and redone only when h, pins or topology change
     /// (Liu 2013, Projective Dynamics). Linear iteration counts do not apply. The
     /// factorisation happens in the first step with a new h or pin set: that step
-    /// allocates (CHOLMOD uses malloc) and takes longer (about 13 ms at 10K
-    /// particles, 1.4 s at 250K on one core); keep dt constant to pay it once.
+    /// allocates (CHOLMOD's factor too, through the world's allocator hooks) and
+    /// takes longer (about 13 ms at 10K particles, 1.4 s at 250K on one core); keep
+    /// dt constant to pay it once.
     RBC_SOLVER_DIRECT = 7,
     RBC_SOLVER_FORCE32 = 0x7FFFFFFF
 };
@@ -507,6 +510,10 @@ typedef struct rbc_world_def {
     /// Default RBC_LOG_WARNING.
     rbc_log_level log_level;
     /// Optional allocator hooks; both or neither. Default NULL (malloc/free).
+    /// Every allocation of the world's calls goes through them, RBC_SOLVER_DIRECT's
+    /// CHOLMOD blocks included (CHOLMOD's through SuiteSparse's process-global
+    /// SuiteSparse_config, which the library points at its own wrappers unless the
+    /// host has set it: then CHOLMOD uses the host's SuiteSparse allocator instead).
     rbc_alloc_fn alloc;
     rbc_free_fn free;
     void *alloc_user;
@@ -1129,7 +1136,19 @@ typedef struct rbc_mesh_import_def {
     /// pinned, and a name that matches no placement taken is
     /// RBC_ERR_INVALID_ARGUMENT (listing the names). NULL = off. Default NULL.
     const char *pin_group;
+    /* --- 1.8 --- */
+    /// Wall-clock limit of the import, milliseconds: past it the import helper is
+    /// stopped and the import fails with RBC_ERR_IO ("did not finish within").
+    /// 0 = no limit. Default 60000.
+    uint32_t timeout_ms;
+    /// Address-space limit of the import helper, MiB: an import that needs more
+    /// fails with RBC_ERR_OUT_OF_MEMORY. 0 = half of the machine's physical memory.
+    /// Default 0. (Not applied in sanitizer builds of the helper.)
+    uint32_t memory_limit_mb;
 } rbc_mesh_import_def;
+
+/// sizeof(rbc_mesh_import_def) in ABI 1.2 to 1.7 (before timeout_ms).
+#define RBC_MESH_IMPORT_DEF_SIZE_V1_2 ((uint32_t)offsetof(rbc_mesh_import_def, timeout_ms))
 
 /// What rbc_mesh_import made of a file, read with rbc_mesh_get_info (set
 /// struct_size first). Counts of faces are of the meshes taken. (1.2)
@@ -1201,9 +1220,18 @@ RBC_API rbc_result RBC_CALL rbc_mesh_import_def_init(rbc_mesh_import_def *def,
 /// position, an n-gon with RBC_NGON_REFUSE (the message names the file, mesh and
 /// face or vertex); RBC_ERR_INVALID_ARGUMENT a bad def or a mesh_index/mesh_name
 /// that selects nothing; RBC_ERR_CAPACITY 4096 meshes exist. Nothing is printed
-/// (assimp's logging stays off). Imports on several threads are serialised.
-/// The import runs in the calling process: a file that crashes assimp itself
-/// crashes the host (hosts that read untrusted files import in a child process).
+/// (assimp's logging stays off).
+/// Isolation (1.8): assimp runs in a helper process, rbcloth-import, that the
+/// library spawns for each import and that sends the mesh back over a socket.
+/// Whatever a file does to assimp ends the helper, never the host: a crash or
+/// abort is RBC_ERR_IO naming the signal, an import past def->timeout_ms is
+/// RBC_ERR_IO ("did not finish within"), one past def->memory_limit_mb is
+/// RBC_ERR_OUT_OF_MEMORY. The helper is $RBC_IMPORT_HELPER if set, else
+/// rbcloth-import in the folder of this library, else
+/// ../libexec/rbcloth/rbcloth-import from it; missing, imports fail with RBC_ERR_IO
+/// naming where it was looked for. Imports on several threads run in parallel,
+/// each in its own helper. The host's SIGCHLD handling is left alone (the helper
+/// is waited for by its pid, or through a pidfd where the kernel has them).
 RBC_API rbc_result RBC_CALL rbc_mesh_import(const char *path, const rbc_mesh_import_def *def,
                                             rbc_mesh_id *out_mesh);
 /// Destroy a mesh (cloths made from it are not affected).

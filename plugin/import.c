@@ -1,72 +1,47 @@
-/* import.c -- rbc_mesh_import: a file read with assimp into a cloth mesh the library
- * owns (positions, quads, springs, pins and a report), and rbc_cloth_create_from_mesh.
+/* import.c -- rbc_mesh_import and the meshes it makes: the def is checked here,
+ * the file is read by the import helper (rbcloth-import, importer/) in a process of
+ * its own, and the mesh it sends back is registered here; then the mesh accessors
+ * and rbc_cloth_create_from_mesh.
  *
- * The pipeline, in the order rbc_mesh_import runs it:
- *   1. assimp reads the file with JoinIdenticalVertices | ValidateDataStructure and
- *      nothing else: no triangulation, so quads and n-gons reach us as the file
- *      has them (docs/facts.md: quads survive in OBJ, PLY, Collada).
- *   2. The node hierarchy is walked here (not aiProcess_PreTransformVertices, which
- *      would also merge and reorder meshes): every placement of a selected mesh
- *      contributes its vertices transformed by the product of its nodes' matrices,
- *      then scaled.
- *   3. Welding by position (hash of the bit pattern, or a grid of cells of the weld
- *      distance), since assimp keeps copies that differ in normal or UV.
- *   4. Faces: points and lines skipped, corners repeated after welding removed,
- *      degenerate faces dropped (the core's quad test), n-gons split into a quad fan
- *      or refused.
- *   5. Triangle pairing: every pair of triangles that are the only two on an edge is
- *      a candidate if its quad is convex and within the angle and fold bounds; best
- *      score first, greedy (a maximal matching, not a maximum one).
- *   6. Leftover triangles: their edges that no quad has become explicit springs.
- *   7. Unused vertices dropped; pins from vertex colors and from the def's rules;
- *      bipartiteness by BFS and the color count from the core's own coloring (which
- *      also checks that rbc_cloth_create will accept the mesh).
- * Every step validates before anything is registered: a failing import creates
- * nothing, frees what it allocated and prints nothing. */
-#define _GNU_SOURCE /* memmem */
-#include <assimp/cimport.h>
-#include <assimp/config.h>
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
+ * Why a process (docs/design/import.md, "Isolation"): assimp crashes, aborts, hangs
+ * and allocates without bound on crafted files, and an exception of its can escape
+ * its C API. None of that may end the host, and a thread cannot be stopped safely
+ * in the middle of a C++ library; a process can. It also keeps assimp and its
+ * libraries out of the plugin that an engine loads. The cost is a spawn per import
+ * (about a millisecond, docs/results/import.md) and a copy of the mesh. */
+#define _GNU_SOURCE /* dladdr, pipe2 */
+#include <dlfcn.h>
 #include <errno.h>
+#include <fcntl.h>
+#include <limits.h>
 #include <math.h>
-#include <pthread.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
 
 #include "errors.h"
 #include "handles.h"
+#include "importer/convert.h"
+#include "importer/wire.h"
 #include "registry.h"
 #include "rbcloth.h"
-#include "topology.h"
+
+extern char **environ;
 
 #define RBC_MAX_MESHES 4096u
-#define RBC_PI 3.14159265358979323846
-/* Vertices or faces beyond this are refused (indices stay far from UINT32_MAX even
- * after n-gon fans and 2x-4x edge arrays). */
-#define RBC_IMPORT_MAX_ELEMENTS (1u << 28)
-
-typedef struct rbc_mesh {
-    uint32_t id;
-    uint32_t n, nq, ns, np;
-    float *pos;        /* [3n] */
-    uint32_t *quads;   /* [4nq] */
-    uint32_t *springs; /* [2ns] */
-    uint32_t *pins;    /* [np] ascending */
-    uint32_t nlt;      /* triangles left unpaired */
-    uint32_t *ltris;   /* [3nlt] (rbc_mesh_get_triangles) */
-    rbc_mesh_info info;
-} rbc_mesh;
+#define RBC_IMPORT_DEFAULT_TIMEOUT_MS 60000u
 
 static rbc_reg_entry g_mesh_entries[RBC_MAX_MESHES];
 static rbc_registry g_meshes = RBC_REGISTRY_INIT(RBC_KIND_MESH, RBC_MAX_MESHES, g_mesh_entries);
-
-/* assimp's C API keeps its last error in one global string: imports are serialised
- * so that the message we copy is the one of our import. */
-static pthread_mutex_t g_assimp_lock = PTHREAD_MUTEX_INITIALIZER;
 
 static const char fn_import[] = "rbc_mesh_import";
 
@@ -94,85 +69,26 @@ static rbc_mesh_import_def import_def_defaults(void) {
     d.pin_point_distance = -1.0f;
     d.pin_top_axis = -1;
     d.pin_top_tolerance = 1e-4f;
+    d.timeout_ms = RBC_IMPORT_DEFAULT_TIMEOUT_MS;
+    d.memory_limit_mb = 0;
     return d;
 }
 
 RBC_API rbc_result RBC_CALL rbc_mesh_import_def_init(rbc_mesh_import_def *def,
                                                      uint32_t struct_size) {
     rbc_mesh_import_def d = import_def_defaults();
-    return rbc_def_init_common(def, struct_size, &d, sizeof d, 0, "rbc_mesh_import_def_init",
+    return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_MESH_IMPORT_DEF_SIZE_V1_2,
+                               "rbc_mesh_import_def_init",
                                "rbc_mesh_import_def");
 }
 
-/* ------------------------------------------------------------------------- */
-/* Build state                                                               */
-/* ------------------------------------------------------------------------- */
-
-typedef struct u32vec {
-    uint32_t *v;
-    size_t n, cap;
-} u32vec;
-
-static int vec_reserve(u32vec *a, size_t more) {
-    if (a->n + more <= a->cap) return 1;
-    size_t cap = a->cap ? a->cap : 64;
-    while (cap < a->n + more) {
-        if (cap > SIZE_MAX / 8) return 0;
-        cap *= 2;
-    }
-    uint32_t *p = realloc(a->v, cap * sizeof *p);
-    if (!p) return 0;
-    a->v = p;
-    a->cap = cap;
-    return 1;
-}
-
-typedef struct instance {
-    uint32_t mesh;     /* index into aiScene::mMeshes */
-    int pin_all;       /* the placement is the pin group's: pin all its vertices */
-    double m[12];      /* rows 1..3 of the 4x4 affine transform */
-    uint32_t base;     /* first source vertex */
-} instance;
-
-typedef struct build {
-    const char *path;
-    rbc_mesh_import_def def;
-    rbc_mesh_info info;
-    /* source vertices (all placements), then welded vertices */
-    size_t nsrc;
-    float *src_pos;       /* [3 nsrc] transformed and scaled */
-    uint8_t *src_red;     /* [nsrc] pinned by color */
-    uint8_t *src_bad;     /* [nsrc] non-finite position */
-    uint32_t *weld_map;   /* [nsrc] -> welded index */
-    uint32_t nw;
-    float *w_pos;         /* [3 nw] */
-    uint8_t *w_red;       /* [nw] */
-    u32vec quads, tris, corners;
-    uint32_t tris_from_ngon_pending;
-    instance *inst;
-    size_t ninst, cap_inst;
-} build;
-
-static void build_free(build *b) {
-    free(b->src_pos);
-    free(b->src_red);
-    free(b->src_bad);
-    free(b->weld_map);
-    free(b->w_pos);
-    free(b->w_red);
-    free(b->quads.v);
-    free(b->tris.v);
-    free(b->corners.v);
-    free(b->inst);
-}
-
-static rbc_result import_error(const build *b, rbc_result code, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
 /* "rbc_mesh_import: <path>: <what>" -- the sweep groups refusals by <what>'s first
  * clause, so each clause starts with a fixed phrase and details follow a ':'. */
-static rbc_result import_error(const build *b, rbc_result code, const char *fmt, ...) {
+static rbc_result import_error(const char *path, rbc_result code, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+static rbc_result import_error(const char *path, rbc_result code, const char *fmt, ...) {
     char *buf = rbc_error_buffer();
-    int k = snprintf(buf, RBC_ERROR_CAP, "%s: %s: ", fn_import, b->path);
+    int k = snprintf(buf, RBC_ERROR_CAP, "%s: %s: ", fn_import, path);
     if (k < 0 || k >= RBC_ERROR_CAP) return code;
     va_list ap;
     va_start(ap, fmt);
@@ -181,948 +97,36 @@ static rbc_result import_error(const build *b, rbc_result code, const char *fmt,
     return code;
 }
 
-static rbc_result oom(const build *b) { return import_error(b, RBC_ERR_OUT_OF_MEMORY, "out of memory"); }
-
-/* ------------------------------------------------------------------------- */
-/* Geometry tests                                                            */
-/* ------------------------------------------------------------------------- */
-
-static void sub3(const float *p, uint32_t a, uint32_t b, double out[3]) {
-    for (int c = 0; c < 3; ++c) out[c] = (double)p[3 * a + c] - p[3 * b + c];
-}
-static void cross3(const double u[3], const double v[3], double out[3]) {
-    out[0] = u[1] * v[2] - u[2] * v[1];
-    out[1] = u[2] * v[0] - u[0] * v[2];
-    out[2] = u[0] * v[1] - u[1] * v[0];
-}
-static double dot3(const double u[3], const double v[3]) {
-    return u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
-}
-
-/* The core's quad test (topology.c): no coincident consecutive corners, and area^2
- * above 1e-12 of the longest edge^4 (zero area up to float rounding). */
-static int quad_ok(const float *p, const uint32_t q[4]) {
-    double longest2 = 0.0, e[3];
-    for (int k = 0; k < 4; ++k) {
-        sub3(p, q[k], q[(k + 1) & 3], e);
-        double len2 = dot3(e, e);
-        if (len2 == 0.0) return 0;
-        if (len2 > longest2) longest2 = len2;
-    }
-    double d1[3], d2[3], c[3];
-    sub3(p, q[2], q[0], d1);
-    sub3(p, q[3], q[1], d2);
-    cross3(d1, d2, c);
-    double area2 = 0.25 * dot3(c, c);
-    return area2 > 1e-12 * longest2 * longest2;
-}
-
-/* The same criterion for a triangle. */
-static int tri_ok(const float *p, uint32_t a, uint32_t b, uint32_t c) {
-    double ab[3], ac[3], bc[3], n[3];
-    sub3(p, b, a, ab);
-    sub3(p, c, a, ac);
-    sub3(p, c, b, bc);
-    double l1 = dot3(ab, ab), l2 = dot3(ac, ac), l3 = dot3(bc, bc);
-    if (l1 == 0.0 || l2 == 0.0 || l3 == 0.0) return 0;
-    double longest2 = fmax(l1, fmax(l2, l3));
-    cross3(ab, ac, n);
-    double area2 = 0.25 * dot3(n, n);
-    return area2 > 1e-12 * longest2 * longest2;
-}
-
-/* Quality of the quad q: convex (every corner turns the same way about the normal of
- * the diagonals), largest |corner angle - 90| and fold between the triangles
- * (q0 q1 q2) and (q2 q3 q0), degrees. Returns 0 if not convex. */
-static int quad_quality(const float *p, const uint32_t q[4], double *dev, double *fold) {
-    double d1[3], d2[3], nq[3];
-    sub3(p, q[2], q[0], d1);
-    sub3(p, q[3], q[1], d2);
-    cross3(d1, d2, nq);
-    double worst = 0.0;
-    for (int k = 0; k < 4; ++k) {
-        double ein[3], eout[3], t[3];
-        sub3(p, q[k], q[(k + 3) & 3], ein);
-        sub3(p, q[(k + 1) & 3], q[k], eout);
-        cross3(ein, eout, t);
-        if (!(dot3(t, nq) > 0.0)) return 0;
-        /* interior angle between (prev - cur) and (next - cur) */
-        double a[3] = {-ein[0], -ein[1], -ein[2]};
-        double la = sqrt(dot3(a, a)), lb = sqrt(dot3(eout, eout));
-        double cosang = dot3(a, eout) / (la * lb);
-        if (cosang > 1.0) cosang = 1.0;
-        if (cosang < -1.0) cosang = -1.0;
-        double ang = acos(cosang) * (180.0 / RBC_PI);
-        if (fabs(ang - 90.0) > worst) worst = fabs(ang - 90.0);
-    }
-    double u[3], v[3], n1[3], n2[3];
-    sub3(p, q[1], q[0], u);
-    sub3(p, q[2], q[0], v);
-    cross3(u, v, n1);
-    sub3(p, q[3], q[2], u);
-    sub3(p, q[0], q[2], v);
-    cross3(u, v, n2);
-    double c = dot3(n1, n2) / (sqrt(dot3(n1, n1)) * sqrt(dot3(n2, n2)));
-    if (!(c == c)) return 0;
-    if (c > 1.0) c = 1.0;
-    if (c < -1.0) c = -1.0;
-    *dev = worst;
-    *fold = acos(c) * (180.0 / RBC_PI);
-    return 1;
-}
-
-/* ------------------------------------------------------------------------- */
-/* 2. Placements and vertices                                                */
-/* ------------------------------------------------------------------------- */
-
-static int name_is(const struct aiString *s, const char *name) {
-    size_t len = strlen(name);
-    return s->length == len && memcmp(s->data, name, len) == 0;
-}
-
-static rbc_result add_instance(build *b, uint32_t mesh, const double m[12], int pin_all) {
-    if (b->ninst == b->cap_inst) {
-        size_t cap = b->cap_inst ? 2 * b->cap_inst : 16;
-        instance *p = realloc(b->inst, cap * sizeof *p);
-        if (!p) return oom(b);
-        b->inst = p;
-        b->cap_inst = cap;
-    }
-    instance *in = &b->inst[b->ninst++];
-    in->mesh = mesh;
-    in->pin_all = pin_all;
-    memcpy(in->m, m, sizeof in->m);
-    in->base = 0;
-    return RBC_OK;
-}
-
-/* Names of meshes and nodes, for the message of a name that matches nothing. */
-static void list_names(const struct aiScene *s, char *out, size_t cap) {
-    size_t k = 0;
-    out[0] = '\0';
-    for (unsigned m = 0; m < s->mNumMeshes; ++m) {
-        if (k + 48 >= cap) {
-            snprintf(out + k, cap - k, ", ...");
-            return;
-        }
-        int w = snprintf(out + k, cap - k, "%s\"%.32s\"", k ? ", " : "",
-                         s->mMeshes[m]->mName.data);
-        if (w < 0) return;
-        k += (size_t)w;
-    }
-}
-
-static rbc_result collect_instances(build *b, const struct aiScene *s) {
-    const rbc_mesh_import_def *d = &b->def;
-    if (s->mNumMeshes == 0 || !s->mMeshes)
-        return import_error(b, RBC_ERR_BAD_MESH, "no mesh in the file");
-    if (d->mesh_index >= 0 && (uint32_t)d->mesh_index >= s->mNumMeshes)
-        return import_error(b, RBC_ERR_INVALID_ARGUMENT,
-                            "mesh_index out of range: mesh_index is %d and the file has %u "
-                            "meshes",
-                            (int)d->mesh_index, s->mNumMeshes);
-    uint8_t *placed = calloc(s->mNumMeshes, 1);
-    if (!placed) return oom(b);
-    /* Depth-first over the node tree with the accumulated transform. */
-    typedef struct frame {
-        const struct aiNode *node;
-        double m[12];
-    } frame;
-    size_t cap = 64, top = 0, visited = 0;
-    frame *stack = malloc(cap * sizeof *stack);
-    rbc_result rc = RBC_OK;
-    if (!stack) {
-        free(placed);
-        return oom(b);
-    }
-    if (s->mRootNode) {
-        static const double id[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
-        stack[top].node = s->mRootNode;
-        memcpy(stack[top].m, id, sizeof id);
-        top++;
-    }
-    while (top > 0 && rc == RBC_OK) {
-        frame f = stack[--top];
-        const struct aiNode *nd = f.node;
-        if (++visited > RBC_IMPORT_MAX_ELEMENTS) {
-            rc = import_error(b, RBC_ERR_BAD_MESH, "too many nodes: more than %u",
-                              RBC_IMPORT_MAX_ELEMENTS);
-            break;
-        }
-        const struct aiMatrix4x4 *t = &nd->mTransformation;
-        const double l[12] = {t->a1, t->a2, t->a3, t->a4, t->b1, t->b2,
-                              t->b3, t->b4, t->c1, t->c2, t->c3, t->c4};
-        double m[12]; /* parent * local, affine (the last row of assimp's is 0 0 0 1) */
-        for (int r = 0; r < 3; ++r) {
-            for (int c = 0; c < 4; ++c) {
-                double v = 0.0;
-                for (int k = 0; k < 3; ++k) v += f.m[4 * r + k] * l[4 * k + c];
-                if (c == 3) v += f.m[4 * r + 3];
-                m[4 * r + c] = v;
-            }
-        }
-        for (unsigned k = 0; k < nd->mNumMeshes && rc == RBC_OK; ++k) {
-            unsigned mi = nd->mMeshes[k];
-            if (mi >= s->mNumMeshes) {
-                rc = import_error(b, RBC_ERR_BAD_MESH,
-                                  "node refers to a missing mesh: node \"%.64s\" names mesh %u of "
-                                  "%u",
-                                  nd->mName.data, mi, s->mNumMeshes);
-                break;
-            }
-            placed[mi] = 1;
-            int take = d->mesh_index >= 0 ? mi == (unsigned)d->mesh_index
-                       : d->mesh_name     ? name_is(&s->mMeshes[mi]->mName, d->mesh_name) ||
-                                            name_is(&nd->mName, d->mesh_name)
-                                          : 1;
-            int group = d->pin_group && (name_is(&s->mMeshes[mi]->mName, d->pin_group) ||
-                                         name_is(&nd->mName, d->pin_group));
-            if (take) rc = add_instance(b, mi, m, group);
-        }
-        for (unsigned k = 0; k < nd->mNumChildren && rc == RBC_OK; ++k) {
-            if (!nd->mChildren || !nd->mChildren[k]) continue;
-            if (top == cap) {
-                frame *p = realloc(stack, 2 * cap * sizeof *p);
-                if (!p) {
-                    rc = oom(b);
-                    break;
-                }
-                stack = p;
-                cap *= 2;
-            }
-            stack[top].node = nd->mChildren[k];
-            memcpy(stack[top].m, m, sizeof m);
-            top++;
-        }
-    }
-    /* Meshes no node places are taken once, untransformed. */
-    for (unsigned mi = 0; mi < s->mNumMeshes && rc == RBC_OK; ++mi) {
-        if (placed[mi]) continue;
-        int take = d->mesh_index >= 0 ? mi == (unsigned)d->mesh_index
-                   : d->mesh_name     ? name_is(&s->mMeshes[mi]->mName, d->mesh_name)
-                                      : 1;
-        static const double id[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
-        int group = d->pin_group && name_is(&s->mMeshes[mi]->mName, d->pin_group);
-        if (take) rc = add_instance(b, mi, id, group);
-    }
-    free(stack);
-    free(placed);
-    if (rc) return rc;
-    if (b->ninst && d->pin_group) {
-        int any = 0;
-        for (size_t k = 0; k < b->ninst; ++k) any |= b->inst[k].pin_all;
-        if (!any) {
-            char names[400];
-            list_names(s, names, sizeof names);
-            return import_error(b, RBC_ERR_INVALID_ARGUMENT,
-                                "pin_group \"%.128s\" names no mesh or node taken: the file's "
-                                "meshes are %s (node names match too)",
-                                d->pin_group, names);
-        }
-    }
-    if (b->ninst == 0) {
-        char names[400];
-        list_names(s, names, sizeof names);
-        return import_error(b, RBC_ERR_INVALID_ARGUMENT,
-                            "no mesh named \"%.128s\": the file's meshes are %s (node names "
-                            "match too)",
-                            d->mesh_name ? d->mesh_name : "", names);
-    }
-    return RBC_OK;
-}
-
-static rbc_result collect_vertices(build *b, const struct aiScene *s) {
-    size_t total = 0;
-    for (size_t k = 0; k < b->ninst; ++k) {
-        const struct aiMesh *me = s->mMeshes[b->inst[k].mesh];
-        b->inst[k].base = (uint32_t)total;
-        total += me->mVertices ? me->mNumVertices : 0;
-        if (total > RBC_IMPORT_MAX_ELEMENTS)
-            return import_error(b, RBC_ERR_BAD_MESH, "too many vertices: more than %u",
-                                RBC_IMPORT_MAX_ELEMENTS);
-        b->info.source_face_count += me->mNumFaces;
-    }
-    b->info.source_mesh_count = (uint32_t)b->ninst;
-    b->info.source_vertex_count = (uint32_t)total;
-    b->nsrc = total;
-    b->src_pos = malloc((3 * total + 1) * sizeof(float));
-    b->src_red = calloc(total + 1, 1);
-    b->src_bad = calloc(total + 1, 1);
-    if (!b->src_pos || !b->src_red || !b->src_bad) return oom(b);
-    const double scale = b->def.scale;
-    const float thr = b->def.pin_color_threshold;
-    for (size_t k = 0; k < b->ninst; ++k) {
-        const instance *in = &b->inst[k];
-        const struct aiMesh *me = s->mMeshes[in->mesh];
-        if (!me->mVertices) continue;
-        const struct aiColor4D *col = me->mColors[0];
-        for (unsigned v = 0; v < me->mNumVertices; ++v) {
-            size_t i = in->base + (size_t)v;
-            const struct aiVector3D *p = &me->mVertices[v];
-            double x = p->x, y = p->y, z = p->z;
-            for (int r = 0; r < 3; ++r) {
-                double val = in->m[4 * r] * x + in->m[4 * r + 1] * y + in->m[4 * r + 2] * z +
-                             in->m[4 * r + 3];
-                float fv = (float)(val * scale);
-                if (!isfinite(fv)) b->src_bad[i] = 1;
-                if (fv == 0.0f) fv = 0.0f; /* -0 welds with +0 */
-                b->src_pos[3 * i + r] = fv;
-            }
-            /* Bit 0: pinned by color; bit 1: by the pin group. */
-            if (col && thr > 0.0f && col[v].r >= thr && col[v].g < thr && col[v].b < thr)
-                b->src_red[i] |= 1;
-            if (in->pin_all) b->src_red[i] |= 2;
-        }
-    }
-    return RBC_OK;
-}
-
-/* ------------------------------------------------------------------------- */
-/* 3. Welding                                                                */
-/* ------------------------------------------------------------------------- */
-
-static uint64_t mix64(uint64_t h) {
-    h ^= h >> 33;
-    h *= 0xff51afd7ed558ccdull;
-    h ^= h >> 33;
-    h *= 0xc4ceb9fe1a85ec53ull;
-    h ^= h >> 33;
-    return h;
-}
-
-typedef struct cell_table {
-    int64_t *keys;  /* [3 cap] */
-    uint32_t *head; /* [cap] first welded vertex of the cell, UINT32_MAX = empty slot */
-    size_t mask;
-} cell_table;
-
-/* Slot of the cell `key` (its head may be UINT32_MAX: not there yet). */
-static size_t cell_slot(const cell_table *t, const int64_t key[3]) {
-    uint64_t h = mix64((uint64_t)key[0] * 0x9E3779B97F4A7C15ull ^ mix64((uint64_t)key[1]) ^
-                       mix64((uint64_t)key[2] + 0x632BE59BD9B4E019ull));
-    size_t s = (size_t)h & t->mask;
-    while (t->head[s] != UINT32_MAX &&
-           (t->keys[3 * s] != key[0] || t->keys[3 * s + 1] != key[1] || t->keys[3 * s + 2] != key[2]))
-        s = (s + 1) & t->mask;
-    return s;
-}
-
-static void cell_key(const float *p, double inv, int64_t key[3]) {
-    for (int c = 0; c < 3; ++c) {
-        if (inv == 0.0) {
-            uint32_t bits;
-            memcpy(&bits, &p[c], 4);
-            key[c] = bits;
-        } else {
-            double q = floor((double)p[c] * inv);
-            if (q > 4e18) q = 4e18;
-            if (q < -4e18) q = -4e18;
-            key[c] = (int64_t)q;
-        }
-    }
-}
-
-static rbc_result weld(build *b) {
-    size_t n = b->nsrc;
-    b->weld_map = malloc((n + 1) * sizeof(uint32_t));
-    b->w_pos = malloc((3 * n + 1) * sizeof(float));
-    b->w_red = calloc(n + 1, 1);
-    if (!b->weld_map || !b->w_pos || !b->w_red) return oom(b);
-    if (!b->def.weld) {
-        for (size_t i = 0; i < n; ++i) {
-            b->weld_map[i] = (uint32_t)i;
-            b->w_red[i] = b->src_red[i];
-        }
-        if (n) memcpy(b->w_pos, b->src_pos, 3 * n * sizeof(float));
-        b->nw = (uint32_t)n;
-        return RBC_OK;
-    }
-    const double dist = b->def.weld_distance;
-    const double inv = dist > 0.0 ? 1.0 / dist : 0.0;
-    size_t cap = 16;
-    while (cap < 2 * n) cap *= 2;
-    cell_table t;
-    t.mask = cap - 1;
-    t.keys = malloc(3 * cap * sizeof(int64_t));
-    t.head = malloc(cap * sizeof(uint32_t));
-    uint32_t *next = malloc((n + 1) * sizeof(uint32_t)); /* chain of welded vertices per cell */
-    if (!t.keys || !t.head || !next) {
-        free(t.keys);
-        free(t.head);
-        free(next);
-        return oom(b);
-    }
-    memset(t.head, 0xFF, cap * sizeof(uint32_t));
-    uint32_t nw = 0;
-    for (size_t i = 0; i < n; ++i) {
-        const float *p = b->src_pos + 3 * i;
-        int64_t key[3] = {0, 0, 0};
-        uint32_t found = UINT32_MAX;
-        if (b->src_bad[i]) {
-            found = UINT32_MAX; /* never weld a non-finite vertex; it is refused if used */
-        } else if (inv == 0.0) {
-            cell_key(p, 0.0, key);
-            size_t s = cell_slot(&t, key);
-            if (t.head[s] != UINT32_MAX) found = t.head[s];
-        } else {
-            cell_key(p, inv, key);
-            for (int dx = -1; dx <= 1 && found == UINT32_MAX; ++dx)
-                for (int dy = -1; dy <= 1 && found == UINT32_MAX; ++dy)
-                    for (int dz = -1; dz <= 1 && found == UINT32_MAX; ++dz) {
-                        int64_t k2[3] = {key[0] + dx, key[1] + dy, key[2] + dz};
-                        size_t s = cell_slot(&t, k2);
-                        for (uint32_t w = t.head[s]; w != UINT32_MAX; w = next[w]) {
-                            const float *q = b->w_pos + 3 * (size_t)w;
-                            double ex = (double)p[0] - q[0], ey = (double)p[1] - q[1],
-                                   ez = (double)p[2] - q[2];
-                            if (ex * ex + ey * ey + ez * ez <= dist * dist) {
-                                found = w;
-                                break;
-                            }
-                        }
-                    }
-        }
-        if (found == UINT32_MAX) {
-            found = nw++;
-            memcpy(b->w_pos + 3 * (size_t)found, p, 3 * sizeof(float));
-            if (!b->src_bad[i]) {
-                if (inv != 0.0) cell_key(p, inv, key);
-                size_t s = cell_slot(&t, key);
-                if (t.head[s] == UINT32_MAX) memcpy(&t.keys[3 * s], key, sizeof key);
-                next[found] = t.head[s];
-                t.head[s] = found;
-            }
-        }
-        b->weld_map[i] = found;
-        b->w_red[found] |= b->src_red[i];
-    }
-    free(t.keys);
-    free(t.head);
-    free(next);
-    b->nw = nw;
-    b->info.welded_vertices = (uint32_t)(n - nw);
-    return RBC_OK;
-}
-
-/* ------------------------------------------------------------------------- */
-/* 4. Faces                                                                  */
-/* ------------------------------------------------------------------------- */
-
-/* A triangle or quad kept, counted by origin (a face of the file, or a piece of an
- * n-gon); a degenerate one is dropped and counted. */
-static rbc_result push_tri(build *b, uint32_t a, uint32_t c1, uint32_t c2, int from_ngon) {
-    if (!tri_ok(b->w_pos, a, c1, c2)) {
-        b->info.degenerate_faces++;
-        return RBC_OK;
-    }
-    if (!vec_reserve(&b->tris, 3)) return oom(b);
-    uint32_t *t = b->tris.v + b->tris.n;
-    t[0] = a;
-    t[1] = c1;
-    t[2] = c2;
-    b->tris.n += 3;
-    if (from_ngon)
-        b->info.triangles_from_ngons++;
-    else
-        b->info.file_triangles++;
-    return RBC_OK;
-}
-
-static rbc_result push_quad(build *b, const uint32_t q[4], int from_ngon) {
-    if (!quad_ok(b->w_pos, q)) {
-        b->info.degenerate_faces++;
-        return RBC_OK;
-    }
-    if (!vec_reserve(&b->quads, 4)) return oom(b);
-    memcpy(b->quads.v + b->quads.n, q, 4 * sizeof(uint32_t));
-    b->quads.n += 4;
-    if (from_ngon)
-        b->info.quads_from_ngons++;
-    else
-        b->info.file_quads++;
-    return RBC_OK;
-}
-
-static rbc_result add_faces(build *b, const struct aiScene *s) {
-    for (size_t k = 0; k < b->ninst; ++k) {
-        const instance *in = &b->inst[k];
-        const struct aiMesh *me = s->mMeshes[in->mesh];
-        if (!me->mFaces) continue;
-        for (unsigned f = 0; f < me->mNumFaces; ++f) {
-            const struct aiFace *fa = &me->mFaces[f];
-            unsigned ni = fa->mNumIndices;
-            if (ni < 3) {
-                b->info.points_lines_skipped++;
-                continue;
-            }
-            if (!fa->mIndices)
-                return import_error(b, RBC_ERR_BAD_MESH,
-                                    "face without indices: mesh %u (\"%.64s\") face %u", in->mesh,
-                                    me->mName.data, f);
-            b->corners.n = 0;
-            if (!vec_reserve(&b->corners, ni)) return oom(b);
-            uint32_t *c = b->corners.v;
-            size_t nc = 0;
-            for (unsigned j = 0; j < ni; ++j) {
-                unsigned idx = fa->mIndices[j];
-                if (idx >= me->mNumVertices || !me->mVertices)
-                    return import_error(b, RBC_ERR_BAD_MESH,
-                                        "face index out of range: mesh %u (\"%.64s\") face %u "
-                                        "corner %u is vertex %u of %u",
-                                        in->mesh, me->mName.data, f, j, idx, me->mNumVertices);
-                size_t src = in->base + (size_t)idx;
-                if (b->src_bad[src]) {
-                    const float *p = b->src_pos + 3 * src;
-                    return import_error(b, RBC_ERR_BAD_MESH,
-                                        "non-finite position: mesh %u (\"%.64s\") vertex %u is "
-                                        "(%g, %g, %g) after transform and scale (face %u uses it)",
-                                        in->mesh, me->mName.data, idx, (double)p[0],
-                                        (double)p[1], (double)p[2], f);
-                }
-                uint32_t w = b->weld_map[src];
-                if (nc == 0 || c[nc - 1] != w) c[nc++] = w;
-            }
-            while (nc > 1 && c[nc - 1] == c[0]) nc--;
-            int repeated = 0; /* a corner repeated apart from its neighbour: a pinched face */
-            if (nc <= 8) {
-                for (size_t x = 0; x < nc && !repeated; ++x)
-                    for (size_t y = x + 1; y < nc; ++y)
-                        if (c[x] == c[y]) {
-                            repeated = 1;
-                            break;
-                        }
-            }
-            if (nc < 3 || repeated) {
-                b->info.degenerate_faces++;
-                continue;
-            }
-            rbc_result rc = RBC_OK;
-            if (nc == 3) {
-                rc = push_tri(b, c[0], c[1], c[2], 0);
-            } else if (nc == 4) {
-                rc = push_quad(b, c, 0);
-            } else {
-                if (b->def.ngons == RBC_NGON_REFUSE)
-                    return import_error(b, RBC_ERR_BAD_MESH,
-                                        "n-gon refused: mesh %u (\"%.64s\") face %u has %zu "
-                                        "corners (ngons = RBC_NGON_REFUSE)",
-                                        in->mesh, me->mName.data, f, nc);
-                b->info.ngons_split++;
-                size_t i = 1;
-                for (; i + 2 < nc && !rc; i += 2) {
-                    uint32_t q[4] = {c[0], c[i], c[i + 1], c[i + 2]};
-                    rc = push_quad(b, q, 1);
-                }
-                if (!rc && i + 1 < nc) rc = push_tri(b, c[0], c[i], c[i + 1], 1);
-            }
-            if (rc) return rc;
-        }
-    }
-    return RBC_OK;
-}
-
-/* ------------------------------------------------------------------------- */
-/* 5. Triangle pairing                                                       */
-/* ------------------------------------------------------------------------- */
-
-typedef struct edge_ref {
-    uint64_t key; /* (min << 32) | max */
-    uint32_t tri;
-} edge_ref;
-
-static int cmp_edge_ref(const void *x, const void *y) {
-    const edge_ref *a = x, *b = y;
-    if (a->key != b->key) return a->key < b->key ? -1 : 1;
-    return a->tri < b->tri ? -1 : a->tri > b->tri;
-}
-
-typedef struct pair_cand {
-    double dev, fold;
-    uint64_t key;
-    uint32_t t1, t2;
-    uint32_t q[4];
-} pair_cand;
-
-static int cmp_cand(const void *x, const void *y) {
-    const pair_cand *a = x, *b = y;
-    if (a->dev != b->dev) return a->dev < b->dev ? -1 : 1;
-    if (a->fold != b->fold) return a->fold < b->fold ? -1 : 1;
-    return a->key < b->key ? -1 : a->key > b->key;
-}
-
-static uint64_t edge_key(uint32_t a, uint32_t b) {
-    return a < b ? ((uint64_t)a << 32) | b : ((uint64_t)b << 32) | a;
-}
-
-/* Pair triangles into quads; paired[t] = 1 for those merged. */
-static rbc_result pair_triangles(build *b, uint8_t *paired) {
-    size_t nt = b->tris.n / 3;
-    if (!b->def.pair_triangles || nt < 2) return RBC_OK;
-    const uint32_t *T = b->tris.v;
-    edge_ref *e = malloc(3 * nt * sizeof *e);
-    pair_cand *cand = malloc(nt * sizeof *cand); /* at most 3nt/2 shared edges... */
-    size_t ncap = nt, nc = 0;
-    if (!e || !cand) {
-        free(e);
-        free(cand);
-        return oom(b);
-    }
-    for (size_t t = 0; t < nt; ++t)
-        for (int k = 0; k < 3; ++k) {
-            e[3 * t + k].key = edge_key(T[3 * t + k], T[3 * t + (k + 1) % 3]);
-            e[3 * t + k].tri = (uint32_t)t;
-        }
-    qsort(e, 3 * nt, sizeof *e, cmp_edge_ref);
-    const double max_dev = b->def.pair_max_angle_deviation_deg;
-    const double max_fold = b->def.pair_max_fold_deg;
-    for (size_t i = 0; i < 3 * nt;) {
-        size_t j = i;
-        while (j < 3 * nt && e[j].key == e[i].key) j++;
-        if (j - i == 2 && e[i].tri != e[i + 1].tri) {
-            uint32_t t1 = e[i].tri, t2 = e[i + 1].tri;
-            uint32_t u = (uint32_t)(e[i].key >> 32), v = (uint32_t)e[i].key;
-            /* Rotate t1 to (c1, x, y): x -> y is its directed shared edge. */
-            const uint32_t *a = T + 3 * (size_t)t1, *bb = T + 3 * (size_t)t2;
-            int r = 0;
-            while (r < 3 && (a[r] == u || a[r] == v)) r++;
-            uint32_t c1 = a[r], x = a[(r + 1) % 3], y = a[(r + 2) % 3];
-            uint32_t c2 = bb[0] != u && bb[0] != v ? bb[0] : bb[1] != u && bb[1] != v ? bb[1] : bb[2];
-            if (c1 != c2) {
-                pair_cand pc;
-                pc.q[0] = x;
-                pc.q[1] = c2;
-                pc.q[2] = y;
-                pc.q[3] = c1;
-                pc.key = e[i].key;
-                pc.t1 = t1;
-                pc.t2 = t2;
-                if (quad_ok(b->w_pos, pc.q) && quad_quality(b->w_pos, pc.q, &pc.dev, &pc.fold) &&
-                    pc.dev <= max_dev && pc.fold <= max_fold) {
-                    if (nc == ncap) {
-                        pair_cand *p = realloc(cand, 2 * ncap * sizeof *p);
-                        if (!p) {
-                            free(e);
-                            free(cand);
-                            return oom(b);
-                        }
-                        cand = p;
-                        ncap *= 2;
-                    }
-                    cand[nc++] = pc;
-                }
-            }
-        }
-        i = j;
-    }
-    free(e);
-    qsort(cand, nc, sizeof *cand, cmp_cand);
-    for (size_t k = 0; k < nc; ++k) {
-        if (paired[cand[k].t1] || paired[cand[k].t2]) continue;
-        if (!vec_reserve(&b->quads, 4)) {
-            free(cand);
-            return oom(b);
-        }
-        memcpy(b->quads.v + b->quads.n, cand[k].q, 4 * sizeof(uint32_t));
-        b->quads.n += 4;
-        paired[cand[k].t1] = paired[cand[k].t2] = 1;
-        b->info.paired_triangles += 2;
-    }
-    free(cand);
-    return RBC_OK;
-}
-
-static int cmp_u64(const void *x, const void *y) {
-    uint64_t a = *(const uint64_t *)x, b = *(const uint64_t *)y;
-    return a < b ? -1 : a > b;
-}
-
-/* ------------------------------------------------------------------------- */
-/* 6-7. Springs, compaction, pins, report                                    */
-/* ------------------------------------------------------------------------- */
-
-/* Two-coloring by BFS over the springs graph; 1 if bipartite. */
-static int is_bipartite(uint32_t n, const uint32_t *quads, uint32_t nq, const uint32_t *springs,
-                        uint32_t ns, int *ok) {
-    size_t ne = 4 * (size_t)nq + ns;
-    uint32_t *start = calloc((size_t)n + 1, sizeof *start);
-    uint32_t *adj = malloc((2 * ne + 1) * sizeof *adj);
-    uint32_t *fill = malloc(((size_t)n + 1) * sizeof *fill);
-    int8_t *side = malloc((size_t)n + 1);
-    uint32_t *queue = malloc(((size_t)n + 1) * sizeof *queue);
-    int result = 1;
-    *ok = start && adj && fill && side && queue;
-    if (*ok) {
-#define EDGE_AT(k, a_, b_)                                                        \
-    do {                                                                          \
-        if ((k) < 4 * (size_t)nq) {                                               \
-            size_t q_ = (k) / 4, c_ = (k) % 4;                                    \
-            a_ = quads[4 * q_ + c_];                                              \
-            b_ = quads[4 * q_ + (c_ + 1) % 4];                                    \
-        } else {                                                                  \
-            size_t s_ = (k) - 4 * (size_t)nq;                                     \
-            a_ = springs[2 * s_];                                                 \
-            b_ = springs[2 * s_ + 1];                                             \
-        }                                                                         \
-    } while (0)
-        for (size_t k = 0; k < ne; ++k) {
-            uint32_t a, c;
-            EDGE_AT(k, a, c);
-            start[a + 1]++;
-            start[c + 1]++;
-        }
-        for (uint32_t v = 0; v < n; ++v) start[v + 1] += start[v];
-        memcpy(fill, start, (size_t)n * sizeof *fill);
-        for (size_t k = 0; k < ne; ++k) {
-            uint32_t a, c;
-            EDGE_AT(k, a, c);
-            adj[fill[a]++] = c;
-            adj[fill[c]++] = a;
-        }
-#undef EDGE_AT
-        memset(side, -1, n);
-        for (uint32_t s0 = 0; s0 < n && result; ++s0) {
-            if (side[s0] >= 0) continue;
-            side[s0] = 0;
-            size_t head = 0, tail = 0;
-            queue[tail++] = s0;
-            while (head < tail && result) {
-                uint32_t v = queue[head++];
-                for (uint32_t k = start[v]; k < start[v + 1]; ++k) {
-                    uint32_t w = adj[k];
-                    if (side[w] < 0) {
-                        side[w] = (int8_t)(1 - side[v]);
-                        queue[tail++] = w;
-                    } else if (side[w] == side[v]) {
-                        result = 0;
-                        break;
-                    }
-                }
-            }
-        }
-    }
-    free(start);
-    free(adj);
-    free(fill);
-    free(side);
-    free(queue);
-    return result;
-}
-
-static rbc_result finish(build *b, rbc_mesh *out) {
-    size_t nt = b->tris.n / 3;
-    uint8_t *paired = calloc(nt + 1, 1);
-    if (!paired) return oom(b);
-    rbc_result rc = pair_triangles(b, paired);
-    if (rc) {
-        free(paired);
-        return rc;
-    }
-    size_t nq = b->quads.n / 4;
-    /* Springs: leftover triangles' edges that are no quad's edge, once each. */
-    uint64_t *qe = malloc((4 * nq + 1) * sizeof *qe);
-    uint64_t *se = malloc((3 * nt + 1) * sizeof *se);
-    uint32_t *lt = malloc((3 * nt + 1) * sizeof *lt); /* leftover triangles */
-    if (!qe || !se || !lt) {
-        free(paired);
-        free(qe);
-        free(se);
-        free(lt);
-        return oom(b);
-    }
-    size_t nlt = 0;
-    for (size_t q = 0; q < nq; ++q)
-        for (int k = 0; k < 4; ++k)
-            qe[4 * q + k] = edge_key(b->quads.v[4 * q + k], b->quads.v[4 * q + (k + 1) % 4]);
-    qsort(qe, 4 * nq, sizeof *qe, cmp_u64);
-    size_t nse = 0;
-    for (size_t t = 0; t < nt; ++t) {
-        if (paired[t]) continue;
-        b->info.leftover_triangles++;
-        memcpy(&lt[3 * nlt++], &b->tris.v[3 * t], 3 * sizeof(uint32_t));
-        for (int k = 0; k < 3; ++k) {
-            uint64_t key = edge_key(b->tris.v[3 * t + k], b->tris.v[3 * t + (k + 1) % 3]);
-            if (!bsearch(&key, qe, 4 * nq, sizeof *qe, cmp_u64)) se[nse++] = key;
-        }
-    }
-    free(paired);
-    free(qe);
-    qsort(se, nse, sizeof *se, cmp_u64);
-    size_t ns = 0;
-    for (size_t k = 0; k < nse; ++k)
-        if (ns == 0 || se[ns - 1] != se[k]) se[ns++] = se[k];
-    if (nq == 0 && ns == 0) {
-        free(se);
-        free(lt);
-        return import_error(b, RBC_ERR_BAD_MESH,
-                            "no face to simulate: %u faces in %u meshes, %u points or lines, %u "
-                            "degenerate",
-                            b->info.source_face_count, b->info.source_mesh_count,
-                            b->info.points_lines_skipped, b->info.degenerate_faces);
-    }
-    /* Drop unused vertices, keeping the order of the rest. */
-    uint32_t *remap = malloc(((size_t)b->nw + 1) * sizeof *remap);
-    if (!remap) {
-        free(se);
-        free(lt);
-        return oom(b);
-    }
-    memset(remap, 0xFF, (size_t)b->nw * sizeof *remap);
-    for (size_t k = 0; k < 4 * nq; ++k) remap[b->quads.v[k]] = 0;
-    for (size_t k = 0; k < ns; ++k) {
-        remap[se[k] >> 32] = 0;
-        remap[(uint32_t)se[k]] = 0;
-    }
-    uint32_t n = 0;
-    for (uint32_t v = 0; v < b->nw; ++v)
-        if (remap[v] == 0) remap[v] = n++;
-    b->info.unused_vertices = b->nw - n;
-    out->n = n;
-    out->nq = (uint32_t)nq;
-    out->ns = (uint32_t)ns;
-    out->pos = malloc((3 * (size_t)n + 1) * sizeof(float));
-    out->quads = malloc((4 * nq + 1) * sizeof(uint32_t));
-    out->springs = malloc((2 * ns + 1) * sizeof(uint32_t));
-    out->pins = malloc(((size_t)n + 1) * sizeof(uint32_t));
-    out->ltris = lt;
-    out->nlt = (uint32_t)nlt;
-    uint8_t *red = malloc((size_t)n + 1);
-    if (!out->pos || !out->quads || !out->springs || !out->pins || !red) {
-        free(se);
-        free(remap);
-        free(red);
-        return oom(b);
-    }
-    for (size_t k = 0; k < 3 * nlt; ++k) lt[k] = remap[lt[k]];
-    for (uint32_t v = 0; v < b->nw; ++v) {
-        if (remap[v] == UINT32_MAX) continue;
-        memcpy(out->pos + 3 * (size_t)remap[v], b->w_pos + 3 * (size_t)v, 3 * sizeof(float));
-        red[remap[v]] = b->w_red[v];
-    }
-    for (size_t k = 0; k < 4 * nq; ++k) out->quads[k] = remap[b->quads.v[k]];
-    for (size_t k = 0; k < ns; ++k) {
-        out->springs[2 * k] = remap[se[k] >> 32];
-        out->springs[2 * k + 1] = remap[(uint32_t)se[k]];
-    }
-    free(se);
-    free(remap);
-
-    /* Bounds and pins. */
-    const rbc_mesh_import_def *d = &b->def;
-    rbc_mesh_info *info = &b->info;
-    for (int c = 0; c < 3; ++c) {
-        info->bounds_min[c] = INFINITY;
-        info->bounds_max[c] = -INFINITY;
-    }
-    for (uint32_t v = 0; v < n; ++v)
-        for (int c = 0; c < 3; ++c) {
-            float x = out->pos[3 * (size_t)v + c];
-            if (x < info->bounds_min[c]) info->bounds_min[c] = x;
-            if (x > info->bounds_max[c]) info->bounds_max[c] = x;
-        }
-    double plane_norm = sqrt((double)d->pin_plane[0] * d->pin_plane[0] +
-                             (double)d->pin_plane[1] * d->pin_plane[1] +
-                             (double)d->pin_plane[2] * d->pin_plane[2]);
-    uint32_t np = 0;
-    for (uint32_t v = 0; v < n; ++v) {
-        const float *p = out->pos + 3 * (size_t)v;
-        int rule = 0;
-        if (d->pin_plane_distance >= 0.0f) {
-            double s = ((double)d->pin_plane[0] * p[0] + (double)d->pin_plane[1] * p[1] +
-                        (double)d->pin_plane[2] * p[2] - d->pin_plane[3]) /
-                       plane_norm;
-            if (fabs(s) <= d->pin_plane_distance) rule = 1;
-        }
-        if (d->pin_point_distance >= 0.0f) {
-            double ex = (double)p[0] - d->pin_point[0], ey = (double)p[1] - d->pin_point[1],
-                   ez = (double)p[2] - d->pin_point[2];
-            if (sqrt(ex * ex + ey * ey + ez * ez) <= d->pin_point_distance) rule = 1;
-        }
-        if (d->pin_top_axis >= 0 &&
-            (double)p[d->pin_top_axis] >=
-                (double)info->bounds_max[d->pin_top_axis] - d->pin_top_tolerance)
-            rule = 1;
-        info->pins_from_rules += (uint32_t)rule;
-        info->pins_from_colors += red[v] & 1;
-        info->pins_from_group += (red[v] >> 1) & 1;
-        if (rule || red[v]) out->pins[np++] = v;
-    }
-    free(red);
-    out->np = np;
-    info->vertex_count = n;
-    info->quad_count = (uint32_t)nq;
-    info->spring_count = (uint32_t)ns;
-    info->pin_count = np;
-
-    int ok;
-    info->bipartite = (uint32_t)is_bipartite(n, out->quads, out->nq, out->springs, out->ns, &ok);
-    if (!ok) return oom(b);
-    /* The core's coloring on the cloth this mesh makes without shear and bend springs;
-     * building it also runs every check rbc_cloth_create will run. */
-    rbc_mesh_input in;
-    memset(&in, 0, sizeof in);
-    in.vertex_count = n;
-    in.positions = out->pos;
-    in.quad_count = out->nq;
-    in.quads = out->quads;
-    in.spring_count = out->ns;
-    in.springs = out->springs;
-    in.vertex_mass = 1.0f;
-    in.stiffness = 1.0f;
-    rbc_topology topo;
-    rbc_allocator alloc = rbc_allocator_default();
-    char msg[RBC_ERROR_CAP / 2];
-    int32_t trc = rbc_topology_build(&in, &alloc, &topo, msg, sizeof msg);
-    if (trc) return import_error(b, trc, "not a cloth mesh: %s", msg);
-    info->color_count = topo.ncolors;
-    rbc_topology_free(&topo, &alloc);
-    return RBC_OK;
-}
-
-static void mesh_free(rbc_mesh *m) {
-    if (!m) return;
-    free(m->pos);
-    free(m->quads);
-    free(m->springs);
-    free(m->ltris);
-    free(m->pins);
-    free(m);
-}
-
-/* ------------------------------------------------------------------------- */
-/* rbc_mesh_import                                                           */
-/* ------------------------------------------------------------------------- */
-
-static rbc_result check_def(const build *b) {
-    const rbc_mesh_import_def *d = &b->def;
+static rbc_result check_def(const char *path, const rbc_mesh_import_def *d) {
     if (d->mesh_index < -1)
-        return import_error(b, RBC_ERR_INVALID_ARGUMENT,
+        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
                              "def->mesh_index is %d; it must be >= 0, or -1 for all meshes",
                              (int)d->mesh_index);
     if (!(isfinite(d->scale) && d->scale > 0.0f))
-        return import_error(b, RBC_ERR_INVALID_ARGUMENT,
+        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
                              "def->scale is %g; it must be finite and > 0", (double)d->scale);
     if (d->weld > 1 || d->pair_triangles > 1)
-        return import_error(b, RBC_ERR_INVALID_ARGUMENT,
+        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
                              "def->weld is %u and def->pair_triangles %u; each must be 0 or 1",
                              d->weld, d->pair_triangles);
     if (!(isfinite(d->weld_distance) && d->weld_distance >= 0.0f))
-        return import_error(b, RBC_ERR_INVALID_ARGUMENT,
+        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
                              "def->weld_distance is %g m; it must be finite and >= 0", (double)d->weld_distance);
     if (!(d->pair_max_angle_deviation_deg >= 0.0f && d->pair_max_angle_deviation_deg <= 90.0f))
-        return import_error(b, RBC_ERR_INVALID_ARGUMENT,
+        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
                              "def->pair_max_angle_deviation_deg is %g; range 0..90", (double)d->pair_max_angle_deviation_deg);
     if (!(d->pair_max_fold_deg >= 0.0f && d->pair_max_fold_deg <= 180.0f))
-        return import_error(b, RBC_ERR_INVALID_ARGUMENT,
+        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
                              "def->pair_max_fold_deg is %g; range 0..180", (double)d->pair_max_fold_deg);
     if (d->ngons != RBC_NGON_SPLIT && d->ngons != RBC_NGON_REFUSE)
-        return import_error(b, RBC_ERR_INVALID_ARGUMENT, "def->ngons %d is not an rbc_ngon_mode",
+        return import_error(path, RBC_ERR_INVALID_ARGUMENT, "def->ngons %d is not an rbc_ngon_mode",
                              (int)d->ngons);
     if (!(d->pin_color_threshold >= 0.0f && d->pin_color_threshold <= 1.0f))
-        return import_error(b, RBC_ERR_INVALID_ARGUMENT,
+        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
                              "def->pin_color_threshold is %g; range 0 (off) ..1", (double)d->pin_color_threshold);
     if (!(isfinite(d->pin_plane_distance) && isfinite(d->pin_point_distance) &&
           isfinite(d->pin_top_tolerance) && d->pin_top_tolerance >= 0.0f))
-        return import_error(b, RBC_ERR_INVALID_ARGUMENT,
+        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
                              "def->pin_plane_distance %g, pin_point_distance %g and "
                              "pin_top_tolerance %g must be finite (the tolerance >= 0)",
                              (double)d->pin_plane_distance, (double)d->pin_point_distance,
@@ -1130,22 +134,344 @@ static rbc_result check_def(const build *b) {
     if (d->pin_plane_distance >= 0.0f) {
         for (int c = 0; c < 4; ++c)
             if (!isfinite(d->pin_plane[c]))
-                return import_error(b, RBC_ERR_INVALID_ARGUMENT,
+                return import_error(path, RBC_ERR_INVALID_ARGUMENT,
                                      "def->pin_plane[%d] is not finite", c);
         if (d->pin_plane[0] == 0.0f && d->pin_plane[1] == 0.0f && d->pin_plane[2] == 0.0f)
-            return import_error(b, RBC_ERR_INVALID_ARGUMENT,
+            return import_error(path, RBC_ERR_INVALID_ARGUMENT,
                                  "def->pin_plane has a zero normal (its first three values)");
     }
     if (d->pin_point_distance >= 0.0f)
         for (int c = 0; c < 3; ++c)
             if (!isfinite(d->pin_point[c]))
-                return import_error(b, RBC_ERR_INVALID_ARGUMENT,
+                return import_error(path, RBC_ERR_INVALID_ARGUMENT,
                                      "def->pin_point[%d] is not finite", c);
     if (d->pin_top_axis < -1 || d->pin_top_axis > 2)
-        return import_error(b, RBC_ERR_INVALID_ARGUMENT,
+        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
                              "def->pin_top_axis is %d; 0 (x), 1 (y), 2 (z) or -1 (off)", (int)d->pin_top_axis);
     return RBC_OK;
 }
+
+/* ------------------------------------------------------------------------- */
+/* The import helper                                                         */
+/* ------------------------------------------------------------------------- */
+
+#define HELPER_NAME "rbcloth-import"
+
+/* Where the helper is: $RBC_IMPORT_HELPER, else next to this library, else
+ * ../libexec/rbcloth/ from it (an installed tree). 0 and the places looked in
+ * (for the message) when none is executable. */
+static int find_helper(char *out, size_t cap, char *looked, size_t lcap) {
+    looked[0] = '\0';
+    const char *env = getenv("RBC_IMPORT_HELPER");
+    if (env && *env) {
+        snprintf(looked, lcap, "%s ($RBC_IMPORT_HELPER)", env);
+        if (access(env, X_OK) != 0) return 0;
+        snprintf(out, cap, "%s", env);
+        return 1;
+    }
+    Dl_info dl;
+    char lib[PATH_MAX];
+    if (!dladdr((void *)&rbc_mesh_import, &dl) || !dl.dli_fname ||
+        !realpath(dl.dli_fname, lib)) {
+        snprintf(looked, lcap, "(the library's own path is unknown; set $RBC_IMPORT_HELPER)");
+        return 0;
+    }
+    char *slash = strrchr(lib, '/');
+    if (slash) *slash = '\0';
+    static const char *const rel[] = {"/" HELPER_NAME, "/../libexec/rbcloth/" HELPER_NAME};
+    size_t used = 0;
+    for (size_t i = 0; i < sizeof rel / sizeof rel[0]; ++i) {
+        int k = snprintf(out, cap, "%s%s", lib, rel[i]);
+        if (k > 0 && (size_t)k < cap && access(out, X_OK) == 0) return 1;
+        int w = snprintf(looked + used, lcap - used, "%s%s", i ? ", " : "", out);
+        if (w > 0 && used + (size_t)w < lcap) used += (size_t)w;
+    }
+    return 0;
+}
+
+static uint64_t now_ms(void) {
+    struct timespec t;
+    clock_gettime(CLOCK_MONOTONIC, &t);
+    return (uint64_t)t.tv_sec * 1000u + (uint64_t)t.tv_nsec / 1000000u;
+}
+
+/* The answer as it arrives: a growing buffer, parsed once the helper is done. */
+typedef struct answer_buf {
+    char *p;
+    size_t n, cap;
+    int alloc_failed; /* an 'M' frame came */
+} answer_buf;
+
+/* The 'R' frame's size once its counts are in, or 0 while they are not; SIZE_MAX for
+ * a frame that cannot be right. */
+static size_t frame_size(const answer_buf *a) {
+    const size_t fixed = 1 + 3 * sizeof(uint32_t);
+    if (a->n < fixed) return 0;
+    uint32_t w[3];
+    memcpy(w, a->p + 1, sizeof w);
+    if (w[0] != RBC_WIRE_ANSWER || w[2] >= RBC_ERROR_CAP) return SIZE_MAX;
+    size_t need = fixed + w[2];
+    if ((int32_t)w[1] != RBC_OK) return need;
+    const size_t info_at = need;
+    need += sizeof(uint32_t) + sizeof(rbc_mesh_info) + 5 * sizeof(uint32_t);
+    if (a->n < need) return 0;
+    uint32_t isz, c[5];
+    memcpy(&isz, a->p + info_at, sizeof isz);
+    if (isz != sizeof(rbc_mesh_info)) return SIZE_MAX;
+    memcpy(c, a->p + info_at + sizeof isz + sizeof(rbc_mesh_info), sizeof c);
+    for (int i = 0; i < 5; ++i)
+        if (c[i] > RBC_IMPORT_MAX_ELEMENTS) return SIZE_MAX;
+    return need + sizeof(float) * 3 * (size_t)c[0] +
+           sizeof(uint32_t) * (4 * (size_t)c[1] + 2 * (size_t)c[2] + c[3] + 3 * (size_t)c[4]);
+}
+
+/* Split the complete frame into *m (arrays malloc'd). */
+static rbc_result parse_answer(const answer_buf *a, const char *path, rbc_mesh *m) {
+    const char *q = a->p + 1;
+    uint32_t w[3];
+    memcpy(w, q, sizeof w);
+    q += sizeof w;
+    rbc_result code = (rbc_result)(int32_t)w[1];
+    if (code != RBC_OK) {
+        if (code > RBC_OK || code < RBC_ERR_CAPACITY)
+            return import_error(path, RBC_ERR_IO, "the import helper answered an unknown code %d",
+                                (int)code);
+        char *buf = rbc_error_buffer();
+        memcpy(buf, q, w[2]);
+        buf[w[2]] = '\0';
+        return code;
+    }
+    q += w[2] + sizeof(uint32_t);
+    memcpy(&m->info, q, sizeof m->info);
+    q += sizeof m->info;
+    uint32_t c[5];
+    memcpy(c, q, sizeof c);
+    q += sizeof c;
+    m->n = c[0], m->nq = c[1], m->ns = c[2], m->np = c[3], m->nlt = c[4];
+    struct {
+        void **dst;
+        size_t bytes;
+    } arr[] = {
+        {(void **)&m->pos, 3 * sizeof(float) * (size_t)m->n},
+        {(void **)&m->quads, 4 * sizeof(uint32_t) * (size_t)m->nq},
+        {(void **)&m->springs, 2 * sizeof(uint32_t) * (size_t)m->ns},
+        {(void **)&m->pins, sizeof(uint32_t) * (size_t)m->np},
+        {(void **)&m->ltris, 3 * sizeof(uint32_t) * (size_t)m->nlt},
+    };
+    for (size_t i = 0; i < sizeof arr / sizeof arr[0]; ++i) {
+        *arr[i].dst = malloc(arr[i].bytes + 1);
+        if (!*arr[i].dst) return import_error(path, RBC_ERR_OUT_OF_MEMORY, "out of memory");
+        memcpy(*arr[i].dst, q, arr[i].bytes);
+        q += arr[i].bytes;
+    }
+    /* The helper is ours, but what it sends is checked like input: an index out of
+     * range would be read by rbc_cloth_create_from_mesh. */
+    uint32_t bad = 0;
+    for (size_t i = 0; i < 4 * (size_t)m->nq; ++i) bad |= m->quads[i] >= m->n;
+    for (size_t i = 0; i < 2 * (size_t)m->ns; ++i) bad |= m->springs[i] >= m->n;
+    for (size_t i = 0; i < m->np; ++i) bad |= m->pins[i] >= m->n;
+    for (size_t i = 0; i < 3 * (size_t)m->nlt; ++i) bad |= m->ltris[i] >= m->n;
+    if (bad || m->info.vertex_count != m->n || m->info.quad_count != m->nq)
+        return import_error(path, RBC_ERR_IO, "the import helper sent a malformed mesh");
+    return RBC_OK;
+}
+
+static const char *signal_name(int sig) {
+    switch (sig) {
+    case SIGSEGV: return "SIGSEGV";
+    case SIGABRT: return "SIGABRT";
+    case SIGBUS: return "SIGBUS";
+    case SIGFPE: return "SIGFPE";
+    case SIGILL: return "SIGILL";
+    case SIGKILL: return "SIGKILL";
+    case SIGTERM: return "SIGTERM";
+    case SIGXCPU: return "SIGXCPU";
+    default: return "a signal";
+    }
+}
+
+static uint64_t default_memory_limit(void) {
+    long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
+    if (pages <= 0 || size <= 0) return 0;
+    return (uint64_t)pages * (uint64_t)size / 2;
+}
+
+static int send_string(int fd, const char *s) {
+    uint32_t len = s ? (uint32_t)strlen(s) : RBC_WIRE_NULL;
+    if (rbc_wire_send(fd, &len, sizeof len)) return -1;
+    return s ? rbc_wire_send(fd, s, len) : 0;
+}
+
+/* Run the helper on `path` and take its mesh into *m. Every way the helper can end
+ * (an answer, an exit without one, a signal, the time limit) is an error naming the
+ * file, and nothing of the helper outlives the call. */
+static rbc_result import_in_helper(const char *path, const rbc_mesh_import_def *def,
+                                   rbc_mesh *m) {
+    char helper[PATH_MAX], looked[3 * PATH_MAX];
+    if (!find_helper(helper, sizeof helper, looked, sizeof looked))
+        return import_error(path, RBC_ERR_IO,
+                            "the import helper " HELPER_NAME " was not found (looked for %s); "
+                            "it belongs next to librbcloth.so, or set $RBC_IMPORT_HELPER",
+                            looked);
+    int sv[2];
+    if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0)
+        return import_error(path, RBC_ERR_IO, "cannot make the import helper's socket: %s",
+                            strerror(errno));
+    /* The helper's descriptors: 3 the socket (dup2 clears close-on-exec), 0-2
+     * /dev/null (the library prints nothing, nor does its helper). Signals at their
+     * defaults and none blocked, whatever the host's thread had. */
+    posix_spawn_file_actions_t fa;
+    posix_spawnattr_t at;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawnattr_init(&at);
+    posix_spawn_file_actions_adddup2(&fa, sv[1], RBC_WIRE_FD);
+    posix_spawn_file_actions_addopen(&fa, 0, "/dev/null", O_RDONLY, 0);
+    posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
+    if (!getenv("RBC_IMPORT_HELPER_STDERR"))
+        posix_spawn_file_actions_addopen(&fa, 2, "/dev/null", O_WRONLY, 0);
+    sigset_t none, all;
+    sigemptyset(&none);
+    sigfillset(&all);
+    sigdelset(&all, SIGKILL);
+    sigdelset(&all, SIGSTOP);
+    posix_spawnattr_setsigmask(&at, &none);
+    posix_spawnattr_setsigdefault(&at, &all);
+    posix_spawnattr_setflags(&at, POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
+    char *argv[] = {helper, (char *)RBC_WIRE_ARG, NULL};
+    pid_t pid;
+    int err = posix_spawn(&pid, helper, &fa, &at, argv, environ);
+    posix_spawn_file_actions_destroy(&fa);
+    posix_spawnattr_destroy(&at);
+    close(sv[1]);
+    if (err) {
+        close(sv[0]);
+        return import_error(path, RBC_ERR_IO, "cannot start the import helper %s: %s", helper,
+                            strerror(err));
+    }
+    const int fd = sv[0];
+
+    /* The request. A helper that dies before reading it shows as EPIPE here and as
+     * its exit status below. */
+    rbc_mesh_import_def wire_def = *def;
+    wire_def.mesh_name = NULL;
+    wire_def.pin_group = NULL;
+    uint64_t limit = def->memory_limit_mb ? (uint64_t)def->memory_limit_mb << 20
+                                          : default_memory_limit();
+    uint32_t head[2] = {RBC_WIRE_REQUEST, (uint32_t)sizeof wire_def};
+    (void)(rbc_wire_send(fd, head, sizeof head) || rbc_wire_send(fd, &wire_def, sizeof wire_def) ||
+           rbc_wire_send(fd, &limit, sizeof limit) || send_string(fd, path) ||
+           send_string(fd, def->mesh_name) || send_string(fd, def->pin_group));
+
+    /* The answer, within the time limit. */
+    const uint64_t start = now_ms();
+    const uint64_t deadline = def->timeout_ms ? start + def->timeout_ms : UINT64_MAX;
+    answer_buf a = {0};
+    size_t want = 0;
+    int timed_out = 0, read_err = 0, oom = 0;
+    for (;;) {
+        if (a.n > 0 && a.p[0] == 'M') { /* drop the allocation-failure tag */
+            a.alloc_failed = 1;
+            memmove(a.p, a.p + 1, --a.n);
+            continue;
+        }
+        if (a.n > 0 && a.p[0] != 'R') {
+            read_err = EPROTO;
+            break;
+        }
+        if (a.n > 0 && (want = frame_size(&a)) != 0 && (want == SIZE_MAX || a.n >= want)) break;
+        uint64_t t = now_ms();
+        if (t >= deadline) {
+            timed_out = 1;
+            break;
+        }
+        struct pollfd pf = {fd, POLLIN, 0};
+        int wait = deadline == UINT64_MAX ? -1 : (int)(deadline - t > INT_MAX ? INT_MAX : deadline - t);
+        int r = poll(&pf, 1, wait);
+        if (r < 0 && errno == EINTR) continue;
+        if (r < 0) {
+            read_err = errno;
+            break;
+        }
+        if (r == 0) continue;
+        if (a.cap - a.n < 65536) {
+            size_t cap = a.cap ? 2 * a.cap : 1u << 17;
+            if (want && want != SIZE_MAX && want + 1 > cap) cap = want + 1;
+            char *q = realloc(a.p, cap);
+            if (!q) {
+                oom = 1;
+                break;
+            }
+            a.p = q;
+            a.cap = cap;
+        }
+        ssize_t k = read(fd, a.p + a.n, a.cap - a.n);
+        if (k < 0 && errno == EINTR) continue;
+        if (k < 0) {
+            read_err = errno;
+            break;
+        }
+        if (k == 0) break; /* the helper has gone */
+        a.n += (size_t)k;
+    }
+    close(fd);
+    int complete = !timed_out && !read_err && !oom && a.n > 0 && want && want != SIZE_MAX &&
+                   a.n >= want;
+
+    /* The helper is done, or is made to be: a complete answer is followed by its exit
+     * at once; anything else ends it. */
+    if (!complete) kill(pid, SIGKILL);
+    int status = 0, reaped = 0;
+    for (;;) {
+        pid_t r = waitpid(pid, &status, 0);
+        if (r == pid) {
+            reaped = 1;
+            break;
+        }
+        if (r < 0 && errno == EINTR) continue;
+        break; /* ECHILD: the host reaps its children itself (SIGCHLD ignored) */
+    }
+
+    rbc_result rc;
+    double secs = (double)(now_ms() - start) / 1000.0;
+    if (complete) {
+        rc = parse_answer(&a, path, m);
+    } else if (oom) {
+        rc = import_error(path, RBC_ERR_OUT_OF_MEMORY, "out of memory reading the helper's answer");
+    } else if (timed_out) {
+        rc = import_error(path, RBC_ERR_IO,
+                          "the import did not finish within %u ms (def->timeout_ms): the "
+                          "import helper was stopped; assimp hangs or is slow on this file",
+                          def->timeout_ms);
+    } else if (a.alloc_failed && reaped && !(WIFEXITED(status) && WEXITSTATUS(status) == 0)) {
+        rc = import_error(path, RBC_ERR_OUT_OF_MEMORY,
+                          "out of memory: the import needed more than its %llu MiB "
+                          "(def->memory_limit_mb) and assimp %s after %.1f s",
+                          (unsigned long long)(limit >> 20),
+                          WIFSIGNALED(status) ? signal_name(WTERMSIG(status)) : "gave up",
+                          secs);
+    } else if (reaped && WIFSIGNALED(status)) {
+        rc = import_error(path, RBC_ERR_IO,
+                          "assimp crashed reading the file (the import helper died of %s, "
+                          "signal %d, after %.1f s); the file is malformed or assimp has a "
+                          "bug with it",
+                          signal_name(WTERMSIG(status)), WTERMSIG(status), secs);
+    } else if (reaped && WIFEXITED(status)) {
+        rc = import_error(path, RBC_ERR_IO,
+                          "the import helper %s exited with status %d without an answer%s",
+                          helper, WEXITSTATUS(status),
+                          read_err ? " (its answer was malformed)" : "");
+    } else {
+        rc = import_error(path, RBC_ERR_IO,
+                          "the import helper ended without an answer (its exit status was "
+                          "taken by the host's own SIGCHLD handling)");
+    }
+    free(a.p);
+    return rc;
+}
+
+/* ------------------------------------------------------------------------- */
+/* rbc_mesh_import                                                           */
+/* ------------------------------------------------------------------------- */
 
 RBC_API rbc_result RBC_CALL rbc_mesh_import(const char *path, const rbc_mesh_import_def *user_def,
                                             rbc_mesh_id *out_mesh) {
@@ -1153,136 +479,46 @@ RBC_API rbc_result RBC_CALL rbc_mesh_import(const char *path, const rbc_mesh_imp
     if (!out_mesh) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: out_mesh is NULL", fn);
     *out_mesh = 0;
     if (!path || !*path) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: path is empty", fn);
-    build b;
-    memset(&b, 0, sizeof b);
-    b.path = path;
-    b.def = import_def_defaults();
+    rbc_mesh_import_def def = import_def_defaults();
     if (user_def) {
         uint32_t size;
         memcpy(&size, user_def, sizeof size);
-        if (size != sizeof b.def)
+        if (size != sizeof def && size != RBC_MESH_IMPORT_DEF_SIZE_V1_2)
             return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                                  "%s: def->struct_size is %u, which matches no released version "
-                                 "(this library knows %zu); set it to sizeof(rbc_mesh_import_def)",
-                                 fn, size, sizeof b.def);
-        memcpy(&b.def, user_def, size);
+                                 "(this library knows %zu and the older size %u); set it to "
+                                 "sizeof(rbc_mesh_import_def)",
+                                 fn, size, sizeof def, RBC_MESH_IMPORT_DEF_SIZE_V1_2);
+        memcpy(&def, user_def, size); /* an older def keeps the newer fields' defaults */
+        def.struct_size = sizeof def;
     }
-    rbc_result rc = check_def(&b);
+    rbc_result rc = check_def(path, &def);
     if (rc) return rc;
-
-    /* Open errors are ours to name (assimp's message for them is vaguer). */
+    size_t plen = strlen(path);
+    if (plen >= RBC_WIRE_MAX_STRING || (def.mesh_name && strlen(def.mesh_name) >= RBC_WIRE_MAX_STRING) ||
+        (def.pin_group && strlen(def.pin_group) >= RBC_WIRE_MAX_STRING))
+        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
+                            "the path, def->mesh_name or def->pin_group is %u bytes or longer",
+                            RBC_WIRE_MAX_STRING);
+    /* Open errors are named here, before any process is started. */
     struct stat st;
     if (stat(path, &st) != 0)
-        return import_error(&b, RBC_ERR_IO, "cannot open the file: %s", strerror(errno));
+        return import_error(path, RBC_ERR_IO, "cannot open the file: %s", strerror(errno));
     if (!S_ISREG(st.st_mode))
-        return import_error(&b, RBC_ERR_IO, "cannot open the file: not a regular file");
-    FILE *probe = fopen(path, "rb");
-    if (!probe) return import_error(&b, RBC_ERR_IO, "cannot open the file: %s", strerror(errno));
-    /* assimp 5.2.5 loops forever on a PLY file whose header has no end_header (a
-     * truncated or cut header; found by tests/import): refuse it before assimp
-     * sees it. assimp recognises PLY by its first token, so do we. */
-    char head[4096];
-    size_t got = fread(head, 1, sizeof head - 1, probe);
-    head[got] = '\0';
-    int is_ply = got >= 4 && memcmp(head, "ply", 3) == 0 && (head[3] == '\n' || head[3] == '\r' ||
-                                                           head[3] == ' ');
-    int has_end = 0;
-    if (is_ply) { /* the header is text; look through its first MiB */
-        size_t seen = got;
-        char carry[16] = "";
-        for (;;) {
-            if (memmem(head, got, "end_header", 10)) {
-                has_end = 1;
-                break;
-            }
-            if (seen >= (1u << 20) || got < sizeof head - 1) break;
-            memcpy(carry, head + got - 9, 9); /* a token split across reads */
-            memcpy(head, carry, 9);
-            got = 9 + fread(head + 9, 1, sizeof head - 10, probe);
-            seen += got - 9;
-            if (got == 9) break;
-        }
-    }
-    fclose(probe);
-    /* assimp 5.2.5 reserves memory for the vertex count an OFF header declares before
-     * reading any vertex: a header claiming 3.5e11 vertices (assimp-testmodels'
-     * invalid/OutOfMemory.off) exhausts memory and takes the host down. A vertex
-     * needs at least 6 bytes of text ("0 0 0\n") and a face 8: refuse counts the
-     * file cannot hold. The header is "[ST][C][N][4][n]OFF" then the counts. */
-    if (!is_ply) {
-        const char *q = head;
-        while (*q == 'S' || *q == 'T' || *q == 'C' || *q == 'N' || *q == '4' || *q == 'n') ++q;
-        if (strncmp(q, "OFF", 3) == 0 && (q[3] == '\n' || q[3] == '\r' || q[3] == ' ' || q[3] == '\t')) {
-            q += 3;
-            while (*q == ' ' || *q == '\t' || *q == '\r' || *q == '\n' || *q == '#') {
-                if (*q == '#') /* a comment line */
-                    while (*q && *q != '\n') ++q;
-                else
-                    ++q;
-            }
-            char *end1 = NULL, *end2 = NULL;
-            unsigned long long nv = strtoull(q, &end1, 10);
-            unsigned long long nf = end1 && end1 != q ? strtoull(end1, &end2, 10) : 0;
-            unsigned long long sz = (unsigned long long)st.st_size;
-            if (strncmp(q, "BINARY", 6) != 0 && end1 != q && (nv > sz / 6 || nf > sz / 8))
-                return import_error(&b, RBC_ERR_IO,
-                                    "the OFF header declares %llu vertices and %llu faces, more "
-                                    "than a %llu-byte file can hold (refused here: assimp 5.2.5 "
-                                    "allocates for the declared counts first)",
-                                    nv, nf, sz);
-        }
-    }
-    if (is_ply && !has_end)
-        return import_error(&b, RBC_ERR_IO,
-                            "assimp could not read the file: a PLY header without end_header "
-                            "(refused here: assimp 5.2.5 loops forever on it)");
+        return import_error(path, RBC_ERR_IO, "cannot open the file: not a regular file");
+    if (access(path, R_OK) != 0)
+        return import_error(path, RBC_ERR_IO, "cannot open the file: %s", strerror(errno));
 
-    /* 1. assimp, keeping polygons. No logger is attached, so assimp's DefaultLogger
-     * is its NullLogger: nothing is printed. Skeleton-only files are not turned into
-     * bone meshes. */
-    struct aiPropertyStore *props = aiCreatePropertyStore();
-    if (!props) return oom(&b);
-    aiSetImportPropertyInteger(props, AI_CONFIG_IMPORT_NO_SKELETON_MESHES, 1);
-    char aierr[512] = "";
-    pthread_mutex_lock(&g_assimp_lock);
-    const struct aiScene *scene = aiImportFileExWithProperties(
-        path, aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure, NULL, props);
-    if (!scene) {
-        const char *e = aiGetErrorString();
-        snprintf(aierr, sizeof aierr, "%s", e && *e ? e : "(no message)");
-    }
-    pthread_mutex_unlock(&g_assimp_lock);
-    aiReleasePropertyStore(props);
-    if (!scene) {
-        /* Messages end in a newline at times; keep one line. */
-        for (char *p = aierr; *p; ++p)
-            if (*p == '\n' || *p == '\r') *p = ' ';
-        if (strstr(aierr, "No suitable reader found"))
-            return import_error(&b, RBC_ERR_UNSUPPORTED, "no assimp reader for this format: %s",
-                                aierr);
-        return import_error(&b, RBC_ERR_IO, "assimp could not read the file: %s", aierr);
-    }
     rbc_mesh *m = calloc(1, sizeof *m);
-    if (!m) rc = oom(&b);
-    if (!rc && (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE))
-        rc = import_error(&b, RBC_ERR_BAD_MESH,
-                          "no mesh in the file: assimp read an incomplete scene (animation or "
-                          "skeleton only)");
-    if (!rc) rc = collect_instances(&b, scene);
-    if (!rc) rc = collect_vertices(&b, scene);
-    if (!rc) rc = weld(&b);
-    if (!rc) rc = add_faces(&b, scene);
-    aiReleaseImport(scene);
-    if (!rc) rc = finish(&b, m);
+    if (!m) return import_error(path, RBC_ERR_OUT_OF_MEMORY, "out of memory");
+    rc = import_in_helper(path, &def, m);
     if (!rc && rbc_reg_add(&g_meshes, m, 0, &m->id) != RBC_OK)
-        rc = import_error(&b, RBC_ERR_CAPACITY, "%u meshes exist already", RBC_MAX_MESHES);
+        rc = import_error(path, RBC_ERR_CAPACITY, "%u meshes exist already", RBC_MAX_MESHES);
     if (rc) {
-        mesh_free(m);
-        build_free(&b);
+        rbc_import_mesh_free(m);
+        free(m);
         return rc;
     }
-    m->info = b.info;
-    build_free(&b);
     *out_mesh = m->id;
     return RBC_OK;
 }
@@ -1299,7 +535,8 @@ RBC_API rbc_result RBC_CALL rbc_mesh_destroy(rbc_mesh_id id) {
     rbc_mesh *m = lookup_mesh(id, "rbc_mesh_destroy");
     if (!m) return RBC_ERR_STALE_HANDLE;
     rbc_reg_remove(&g_meshes, id);
-    mesh_free(m);
+    rbc_import_mesh_free(m);
+    free(m);
     return RBC_OK;
 }
 
@@ -1425,3 +662,4 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create_from_mesh(rbc_world_id world, rbc_m
     }
     return rc;
 }
+

@@ -4,7 +4,7 @@
  * a byte on stdout/stderr from the library.
  *
  *   import_sweep [--timeout S] [--every K] [--max-bytes B] [--max-memory-mb M]
- *                [--exclude SUBSTRING] [--quiet] PATH...
+ *                [--min-imported N] [--exclude SUBSTRING] [--quiet] PATH...
  *
  * PATHs are files or folders (walked recursively); files are taken in sorted order,
  * every K-th of them with --every (a subset for slow runs under valgrind), none over
@@ -16,22 +16,28 @@
  * LeakSanitizer or valgrind (--leak-check=full --error-exitcode=N, which follows
  * forked children) check the child's leaks file by file.
  *
+ * The library imports in a helper process (rbcloth-import) with the def's time
+ * limit, set here to half of --timeout so that the library's limit is the one hit.
+ *
  * Outcomes:
  *   imported                       the child printed "OK ..." and exited 0
  *   refused: CODE: reason          "ERR ...": the library's message, grouped by its
  *                                  first clause after the path
- *   refused: assimp crashed (signal N) / assimp hung / assimp memory error
- *                                  the child failed AND a second child that only
- *                                  runs assimp's own import (same flags) on the file
- *                                  fails the same way: assimp's bug, not ours. In
- *                                  the library this file would crash (or hang) the
- *                                  host process.
- *   FAIL                           anything else: a crash, hang, memory error or
- *                                  leak that assimp alone does not show, output on
- *                                  stdout/stderr, an error without a message, an
- *                                  inconsistent report.
+ *   isolated: CODE: reason         the library reported that assimp crashed, hung or
+ *                                  ran out of memory in the helper, AND a second
+ *                                  child that runs only assimp's own import (same
+ *                                  flags) on the file fails too: assimp's bug, kept
+ *                                  out of the host
+ *   FAIL                           anything else: the child crashed, hung, had a
+ *                                  memory error or leak, wrote to stdout/stderr, got
+ *                                  an error without a message or an inconsistent
+ *                                  report; or the helper failed where assimp alone
+ *                                  does not (our bug), or exited without an answer.
+ * With --min-imported N, fewer than N files imported is a failure too: a run in
+ * which every import fails the same way (a helper that cannot start, a sanitizer
+ * that kills every child) must not pass as "all refused cleanly".
  * Prints one line per file (unless --quiet: failures and assimp's bugs only), then
- * the counts by outcome, and exits 1 if any file FAILed. */
+ * the counts by outcome, and exits 1 if any file FAILed or too few imported. */
 #define _XOPEN_SOURCE 700 /* nftw */
 #include <assimp/cimport.h>
 #include <assimp/postprocess.h>
@@ -56,6 +62,7 @@ static char **g_files;
 static size_t g_nfiles, g_cap;
 static long long g_max_bytes = -1;
 static long long g_max_mb = 0; /* address-space limit of the children, MiB; 0 = none */
+static uint32_t g_import_timeout_ms; /* the def's timeout_ms */
 static const char *g_exclude[8]; /* leave out paths containing these */
 static int g_nexclude;
 
@@ -91,7 +98,10 @@ static double now_s(void) {
 /* The library's side: import, check, simulate one step, destroy. Writes one line. */
 static void child_import(const char *path, FILE *res) {
     rbc_mesh_id m = 0;
-    rbc_result rc = rbc_mesh_import(path, NULL, &m);
+    rbc_mesh_import_def def;
+    rbc_mesh_import_def_init(&def, sizeof def);
+    def.timeout_ms = g_import_timeout_ms;
+    rbc_result rc = rbc_mesh_import(path, &def, &m);
     if (rc != RBC_OK) {
         const char *msg = rbc_last_error();
         if (m != 0 || !msg || !*msg)
@@ -323,6 +333,7 @@ int main(int argc, char **argv) {
     double timeout = 30.0;
     long every = 1;
     int quiet = 0, first_path = argc;
+    long min_imported = 0;
     for (int i = 1; i < argc; ++i) {
         if (strcmp(argv[i], "--timeout") == 0 && i + 1 < argc) {
             timeout = atof(argv[++i]);
@@ -332,6 +343,8 @@ int main(int argc, char **argv) {
             g_max_bytes = atoll(argv[++i]);
         } else if (strcmp(argv[i], "--max-memory-mb") == 0 && i + 1 < argc) {
             g_max_mb = atoll(argv[++i]);
+        } else if (strcmp(argv[i], "--min-imported") == 0 && i + 1 < argc) {
+            min_imported = atol(argv[++i]);
         } else if (strcmp(argv[i], "--exclude") == 0 && i + 1 < argc && g_nexclude < 8) {
             g_exclude[g_nexclude++] = argv[++i];
         } else if (strcmp(argv[i], "--quiet") == 0) {
@@ -344,7 +357,7 @@ int main(int argc, char **argv) {
     if (first_path >= argc || timeout <= 0 || every < 1) {
         fprintf(stderr,
                 "usage: %s [--timeout S] [--every K] [--max-bytes B] [--max-memory-mb M] "
-                "[--exclude SUBSTRING] [--quiet] PATH...\n",
+                "[--min-imported N] [--exclude SUBSTRING] [--quiet] PATH...\n",
                 argv[0]);
         return 2;
     }
@@ -359,6 +372,7 @@ int main(int argc, char **argv) {
             return 2;
         }
     }
+    g_import_timeout_ms = (uint32_t)(timeout * 500.0);
     qsort(g_files, g_nfiles, sizeof *g_files, cmp_str);
     if (g_nfiles == 0) {
         fprintf(stderr, "import_sweep: no files under the given paths\n");
@@ -366,7 +380,7 @@ int main(int argc, char **argv) {
     }
     double t0 = now_s(), slowest = 0.0;
     const char *slowest_file = "";
-    int imported = 0, refused = 0, assimp_bugs = 0, failed = 0, taken = 0;
+    int imported = 0, refused = 0, isolated_bugs = 0, failed = 0, taken = 0;
     outcome o, raw;
     for (size_t f = 0; f < g_nfiles; f += (size_t)every) {
         const char *path = g_files[f];
@@ -389,22 +403,7 @@ int main(int argc, char **argv) {
         }
         const char *verdict = NULL;
         if (child_failed(&o, what, sizeof what)) {
-            /* Ours or assimp's? Run assimp alone on the file. */
-            run_child(path, 1, timeout, &raw);
-            char raw_what[200];
-            if (child_failed(&raw, raw_what, sizeof raw_what) &&
-                (o.timed_out == raw.timed_out) &&
-                (WIFSIGNALED(o.status) == WIFSIGNALED(raw.status))) {
-                snprintf(key, sizeof key, "refused: assimp %s", what);
-                tally(key, path);
-                assimp_bugs++;
-                refused++;
-                printf("ASSIMP %s: assimp alone %s too; in the library this file would take the "
-                       "host down with it\n",
-                       path, raw_what);
-                continue;
-            }
-            verdict = what;
+            verdict = what; /* the host died or hung: isolation failed */
         } else if (o.out_len > 0) {
             verdict = "the library wrote to stdout";
         } else if (o.err_len > 0 && !assimp_stderr) {
@@ -416,12 +415,36 @@ int main(int argc, char **argv) {
             continue;
         } else if (strncmp(o.line, "ERR ", 4) == 0) {
             refusal_key(o.line, path, key, sizeof key);
-            char full[400];
-            snprintf(full, sizeof full, "refused: %s", key);
-            tally(full, path);
-            refused++;
-            if (!quiet) printf("refused %s: %s\n", path, o.line + 4);
-            continue;
+            /* A failure the helper isolated: assimp's, if assimp alone fails too. A
+             * helper that exits without an answer is ours whatever assimp does. */
+            int helper_died = strstr(o.line, "the import helper") && strstr(o.line, "exited with status");
+            int isolated = strstr(o.line, "assimp crashed reading the file") ||
+                           strstr(o.line, "the import did not finish within") ||
+                           strstr(o.line, "out of memory: the import needed more");
+            if (helper_died) {
+                verdict = "the import helper exited without an answer";
+            } else if (isolated) {
+                run_child(path, 1, timeout, &raw);
+                char raw_what[200];
+                if (!child_failed(&raw, raw_what, sizeof raw_what)) {
+                    verdict = "the import helper failed where assimp alone does not";
+                } else {
+                    char full[400];
+                    snprintf(full, sizeof full, "isolated: %s", key);
+                    tally(full, path);
+                    refused++;
+                    isolated_bugs++;
+                    printf("ISOLATED %s: %s; assimp alone %s\n", path, o.line + 4, raw_what);
+                    continue;
+                }
+            } else {
+                char full[400];
+                snprintf(full, sizeof full, "refused: %s", key);
+                tally(full, path);
+                refused++;
+                if (!quiet) printf("refused %s: %s\n", path, o.line + 4);
+                continue;
+            }
         } else {
             verdict = o.line[0] ? o.line : "no result line";
         }
@@ -438,10 +461,14 @@ int main(int argc, char **argv) {
     for (int k = 0; k < g_nbuckets; ++k)
         printf("  %5d  %s   (e.g. %s)\n", g_buckets[k].count, g_buckets[k].key,
                g_buckets[k].example);
-    printf("import_sweep: imported %d, refused %d (of which assimp's own crash/hang/memory "
-           "error %d), failed %d\n",
-           imported, refused, assimp_bugs, failed);
+    printf("import_sweep: imported %d, refused %d (of which assimp's own crash, hang or "
+           "memory exhaustion, isolated in the helper: %d), failed %d\n",
+           imported, refused, isolated_bugs, failed);
+    int too_few = imported < min_imported;
+    if (too_few)
+        printf("import_sweep: FAIL: %d files imported, fewer than the floor of %ld "
+               "(--min-imported)\n", imported, min_imported);
     for (size_t f = 0; f < g_nfiles; ++f) free(g_files[f]);
     free(g_files);
-    return failed ? 1 : 0;
+    return failed || too_few ? 1 : 0;
 }
