@@ -58,6 +58,13 @@ __attribute__((visibility("default"))) const char *__asan_default_options(void) 
  * to glibc's and tells the plugin at the first failure ('M', write(2) is safe here).
  * Sanitizer builds keep the sanitizer's allocator and have no memory limit. */
 static volatile sig_atomic_t g_alloc_failed;
+/* Failure injection for the tests (tests/import/test_isolation.c): with
+ * RBC_IMPORT_HELPER_FAIL_ALLOC=N in the environment, the N-th allocation after the
+ * request is read fails, and the count of the import's allocations is written to
+ * stderr (kept with RBC_IMPORT_HELPER_STDERR=1), so a test can walk every one.
+ * 0 = off. Not thread-safe, nor need it be: assimp's import runs on this thread. */
+__attribute__((unused)) static unsigned long g_fail_at, g_alloc_count;
+__attribute__((unused)) static int g_counting;
 
 __attribute__((unused)) static void alloc_failed(void) {
     if (g_alloc_failed) return;
@@ -76,23 +83,29 @@ extern void *__libc_memalign(size_t, size_t);
  * would be this file's alone. */
 #define RBCI_EXPORT __attribute__((visibility("default")))
 
+static int inject(void) {
+    if (!g_counting || ++g_alloc_count != g_fail_at) return 0;
+    errno = ENOMEM; /* what glibc's malloc sets */
+    return 1;
+}
+
 RBCI_EXPORT void *malloc(size_t n) {
-    void *p = __libc_malloc(n);
+    void *p = inject() ? NULL : __libc_malloc(n);
     if (!p && n) alloc_failed();
     return p;
 }
 RBCI_EXPORT void *calloc(size_t k, size_t n) {
-    void *p = __libc_calloc(k, n);
+    void *p = inject() ? NULL : __libc_calloc(k, n);
     if (!p && k && n) alloc_failed();
     return p;
 }
 RBCI_EXPORT void *realloc(void *q, size_t n) {
-    void *p = __libc_realloc(q, n);
+    void *p = n && inject() ? NULL : __libc_realloc(q, n);
     if (!p && n) alloc_failed();
     return p;
 }
 RBCI_EXPORT void *memalign(size_t a, size_t n) {
-    void *p = __libc_memalign(a, n);
+    void *p = inject() ? NULL : __libc_memalign(a, n);
     if (!p && n) alloc_failed();
     return p;
 }
@@ -218,10 +231,27 @@ int main(int argc, char **argv) {
         setrlimit(RLIMIT_AS, &rl);
     }
 
+#if !RBCI_SANITIZED
+    const char *fail = getenv("RBC_IMPORT_HELPER_FAIL_ALLOC");
+    g_fail_at = fail ? strtoul(fail, NULL, 10) : 0;
+    g_counting = g_fail_at != 0;
+#endif
     rbc_mesh m;
     rbc_result rc = rbc_import_convert(path, &def, &m);
+    g_counting = 0;
+#if !RBCI_SANITIZED
+    if (g_fail_at) fprintf(stderr, "rbcloth-import: %lu allocations\n", g_alloc_count);
+#endif
     char message[RBC_ERROR_CAP];
     snprintf(message, sizeof message, "%s", rc ? rbc_error_buffer() : "");
+    if (!rc && g_alloc_failed) {
+        /* assimp caught a failed allocation and went on: what it read may lack what
+         * that allocation was for. A mesh that may be incomplete is not sent. */
+        rbc_import_mesh_free(&m);
+        snprintf(message, sizeof message, "%s: %.300s: an allocation failed during the import",
+                 "rbc_mesh_import", path);
+        rc = RBC_ERR_OUT_OF_MEMORY;
+    }
     if (rc && g_alloc_failed) {
         /* assimp turned the failed allocation into an error of its own (often
          * "std::bad_alloc"): it ran out of memory, whatever it says. The message

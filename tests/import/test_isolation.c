@@ -11,6 +11,10 @@
  *   - a host that ignores SIGCHLD (children reaped by the kernel) still imports;
  *   - imports on four threads at once give the same meshes;
  *   - a def of the 1.2-1.7 size still imports, with the 1.8 fields' defaults;
+ *   - every allocation of an import failed in turn inside the helper
+ *     (RBC_IMPORT_HELPER_FAIL_ALLOC): each is RBC_ERR_OUT_OF_MEMORY, also where
+ *     assimp catches the failure and goes on (its scene may lack what the
+ *     allocation was for), never RBC_OK, another code or a dead host;
  *   - no helper is left behind: no child of this process remains.
  * Usage: test_isolation CRASHERS_DIR */
 #define _GNU_SOURCE
@@ -235,6 +239,66 @@ static void test_old_def(const char *grid) {
     CHECK_EQ(full.memory_limit_mb, 0);
 }
 
+/* The helper's count of an import's allocations (it writes it to stderr when
+ * injection is on): stderr goes to a file for the call. */
+static unsigned long count_allocations(const char *grid) {
+    char log[512];
+    snprintf(log, sizeof log, "%s/helper.log", g_dir);
+    fflush(stderr);
+    int saved = dup(2);
+    FILE *f = fopen(log, "w+");
+    if (!f || saved < 0) return 0;
+    dup2(fileno(f), 2);
+    setenv("RBC_IMPORT_HELPER_STDERR", "1", 1);
+    setenv("RBC_IMPORT_HELPER_FAIL_ALLOC", "4000000000", 1);
+    rbc_mesh_id m = 0;
+    rbc_result rc = rbc_mesh_import(grid, NULL, &m);
+    unsetenv("RBC_IMPORT_HELPER_STDERR");
+    unsetenv("RBC_IMPORT_HELPER_FAIL_ALLOC");
+    dup2(saved, 2);
+    close(saved);
+    if (rc == RBC_OK) rbc_mesh_destroy(m);
+    unsigned long n = 0;
+    rewind(f);
+    if (fscanf(f, "rbcloth-import: %lu allocations", &n) != 1) n = 0;
+    fclose(f);
+    return n;
+}
+
+static void test_injected_failures(const char *grid) {
+    if (SANITIZED) {
+        fprintf(stderr, "  injected allocation failures: not in sanitizer builds (skipped)\n");
+        return;
+    }
+    unsigned long n = count_allocations(grid);
+    /* assimp and the conversion allocate a few hundred times for two quads. */
+    CHECK(n > 50);
+    unsigned long oom = 0, ok = 0, other = 0;
+    for (unsigned long k = 1; k <= n; ++k) {
+        char v[32];
+        snprintf(v, sizeof v, "%lu", k);
+        setenv("RBC_IMPORT_HELPER_FAIL_ALLOC", v, 1);
+        rbc_mesh_id m = 0;
+        rbc_result rc = rbc_mesh_import(grid, NULL, &m);
+        if (rc == RBC_ERR_OUT_OF_MEMORY && m == 0 && strstr(rbc_last_error(), "out of memory")) {
+            oom++;
+        } else if (rc == RBC_OK) {
+            ok++;
+            rbc_mesh_destroy(m);
+        } else {
+            other++;
+            fprintf(stderr, "  allocation %lu failed: %s %s\n", k, rbc_result_string(rc),
+                    rbc_last_error());
+        }
+    }
+    unsetenv("RBC_IMPORT_HELPER_FAIL_ALLOC");
+    fprintf(stderr, "  injected allocation failures: %lu, out of memory %lu, imported anyway %lu, "
+            "other %lu\n", n, oom, ok, other);
+    CHECK_EQ(other, 0);
+    CHECK_EQ(ok, 0);
+    CHECK_EQ(oom, n);
+}
+
 int main(int argc, char **argv) {
     if (argc != 2) {
         fprintf(stderr, "usage: %s CRASHERS_DIR\n", argv[0]);
@@ -253,6 +317,7 @@ int main(int argc, char **argv) {
     test_sigchld_ignored(grid);
     test_threads(grid);
     test_old_def(grid);
+    test_injected_failures(grid);
     /* Every helper was reaped: this process has no child left. */
     errno = 0;
     CHECK(waitpid(-1, NULL, WNOHANG) == -1 && errno == ECHILD);
