@@ -39,9 +39,18 @@
  * than left to CHOLMOD's default, which switches to METIS by a fill heuristic that a
  * 1M particle grid is just under. LL' rather than LDL': same speed, and a pivot <= 0
  * stops the factorisation with CHOLMOD_NOT_POSDEF instead of being factored.
+ *
+ * Memory: every CHOLMOD call here (start, allocate_sparse, analyze, factorize,
+ * free_sparse, free_work, free_factor, finish) runs inside an rbc_cholmod_enter
+ * scope with the cloth's allocator (create and destroy below), so CHOLMOD's blocks
+ * come from the world's hooks (cholmod_alloc.h). A hook that returns NULL makes the
+ * CHOLMOD call fail with CHOLMOD_OUT_OF_MEMORY: create reports RBC_ERR_OUT_OF_MEMORY
+ * (cholmod_fail), frees what it had and leaves *out NULL, and the caller keeps the
+ * cloth's previous factor (solver.c).
  */
 #include "report.h"
 #include "direct.h"
+#include "cholmod_alloc.h"
 
 #include <math.h>
 #include <stdarg.h>
@@ -71,11 +80,13 @@ struct rbc_direct {
 
 void rbc_direct_destroy(rbc_direct *d) {
     if (!d) return;
+    rbc_allocator a = d->alloc; /* d is freed below: the scope uses a copy */
     if (d->started) {
+        const rbc_allocator *prev = rbc_cholmod_enter(&a);
         cholmod_free_factor(&d->L, &d->cm);
         cholmod_finish(&d->cm);
+        rbc_cholmod_leave(prev);
     }
-    rbc_allocator a = d->alloc;
     rbc_mem_free(&a, d->free_idx, rbc_mul_size(d->n, sizeof(int32_t)));
     rbc_mem_free(&a, d->free_of, rbc_mul_size(d->nf, sizeof(uint32_t)));
     rbc_mem_free(&a, d->pos, rbc_mul_size(d->nf, sizeof(uint32_t)));
@@ -131,8 +142,21 @@ static void sort_column(int *rows, double *vals, size_t len) {
     }
 }
 
+static int32_t direct_create(rbc_direct **out, const rbc_topology *t, const uint8_t *pinned,
+                             float h, const rbc_allocator *a, char *err, size_t errlen);
+
 int32_t rbc_direct_create(rbc_direct **out, const rbc_topology *t, const uint8_t *pinned,
                           float h, const rbc_allocator *a, char *err, size_t errlen) {
+    /* Every CHOLMOD call of create, its failure paths' destroy included, allocates
+     * through a (see the top of this file). */
+    const rbc_allocator *prev = rbc_cholmod_enter(a);
+    int32_t rc = direct_create(out, t, pinned, h, a, err, errlen);
+    rbc_cholmod_leave(prev);
+    return rc;
+}
+
+static int32_t direct_create(rbc_direct **out, const rbc_topology *t, const uint8_t *pinned,
+                             float h, const rbc_allocator *a, char *err, size_t errlen) {
     *out = NULL;
     if (!(isfinite(h) && h > 0.0f && isfinite(1.0f / (h * h))))
         return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,

@@ -15,9 +15,11 @@
  * step is two triangular solves with three right-hand sides (x, y, z).
  *
  * Indices are internal (topology.h); positions are SoA floats as in solver.h. The
- * factorisation and the solve run in double. CHOLMOD allocates its factor and
- * workspaces with malloc (not the rbc_allocator: SuiteSparse 5's allocator hooks are
- * process-global); everything else goes through the rbc_allocator. Nothing prints.
+ * factorisation and the solve run in double. Everything is allocated through the
+ * rbc_allocator, CHOLMOD's factor and workspaces too (cholmod_alloc.h: SuiteSparse 5's
+ * allocator hooks are process-global, so they are pointed at wrappers that take the
+ * allocator of the calling thread's create or destroy), unless the host set
+ * SuiteSparse_config's allocator itself. Nothing prints.
  *
  * Thread-compatible: one rbc_direct per cloth, used by one thread at a time; distinct
  * objects may be used from different threads concurrently.

@@ -9,7 +9,9 @@
  *     (rbc_k_global, float) converge to the direct solution within a derived bound.
  *  3. The solve allocates nothing (neither through the rbc_allocator nor CHOLMOD's
  *     malloc hooks), all-pinned cloths work, bad input and a matrix that is not
- *     positive definite are reported, not crashed on.
+ *     positive definite are reported, not crashed on. A host that set
+ *     SuiteSparse_config's hooks itself (main does) keeps them: CHOLMOD's blocks go
+ *     there, and core/cholmod_alloc.c installs nothing.
  *  4. Timing of the factorisation and of one solve for 10K and 250K particle grids
  *     (printed, never asserted).
  */
@@ -18,6 +20,7 @@
 #include <time.h>
 
 #include "check.h"
+#include "cholmod_alloc.h"
 #include "direct.h"
 #include "kernels/pd_kernels.h"
 #include "meshes.h"
@@ -192,6 +195,7 @@ static void check_residual(const char *name, sys *s) {
     rbc_allocator a = counting_allocator();
     rbc_direct *d = NULL;
     char err[256] = "";
+    long ss_before = ss_allocs;
     double t0 = now_ms();
     int32_t rc = rbc_direct_create(&d, &s->t, s->pinned, s->h, &a, err, sizeof err);
     double t_create = now_ms() - t0;
@@ -201,6 +205,11 @@ static void check_residual(const char *name, sys *s) {
         return;
     }
     CHECK(rbc_direct_bytes(d) > 0);
+    /* main set SuiteSparse_config itself: direct.c keeps it (cholmod_alloc.h), and
+     * CHOLMOD's blocks went there. */
+    CHECK(ss_allocs > ss_before);
+    CHECK(SuiteSparse_config.malloc_func == ss_malloc);
+    CHECK(!rbc_cholmod_hooks_installed());
 
     /* The solve allocates nothing: count both allocators around it. */
     long r0 = rbc_allocs, s0 = ss_allocs;
