@@ -21,12 +21,19 @@ typedef struct cli_batch_options {
     const char *out_dir;
     /// Worker processes (one fork per job).
     long jobs;
+    /// Seconds a job may run (import included) before its worker is killed and the job
+    /// fails ("timed out"); 0 = no limit. A job's manifest key "timeout" wins.
+    double job_timeout;
+    /// Seconds between the SIGTERM forwarded to the workers at SIGINT/SIGTERM and the
+    /// SIGKILL of those still running (a worker checks only between frames).
+    double term_grace;
     /// No progress bar (the per-job lines are still printed).
     int quiet;
 } cli_batch_options;
 
 /// Run the manifest. Returns 0 when every job succeeded (or was already done), 1
-/// when any failed or the run was interrupted (the failures listed on stderr).
+/// when any failed or the run was interrupted (the failures listed on stderr), or
+/// when another rbcloth batch holds the output folder.
 int cli_batch(const cli_plugin *plugin, const cli_batch_options *options);
 
 #endif

@@ -48,6 +48,9 @@ static const char run_usage[] =
     "frame), NAME.json (summary), NAME.png (the last frame, strain as colour) and\n"
     "NAME.html (a player that opens in any browser); with several cloths\n"
     "NAME_CLOTH.obj and NAME_CLOTH.pc2 per cloth. Options win over the scene.\n"
+    "SIGINT (Ctrl-C) or SIGTERM stops it at the end of the frame (a second one at\n"
+    "once), removing its temporary files (NAME.pc2.tmp ...); the exit status is 1.\n"
+    "DIR may not be the output folder of a running batch, nor one of its jobs'.\n"
     "\n"
     "Output:\n"
     "  --out DIR            output directory, created if missing (default: out)\n"
@@ -97,14 +100,22 @@ static const char batch_usage[] =
     "Simulate every job of a manifest (mesh files read with assimp, or scenes) in\n"
     "worker processes. DIR/JOB/ holds JOB.obj (rest mesh), the caches asked for (pc2,\n"
     "mdd, objseq: frames/JOB_0001.obj ..), JOB.png and JOB.html; DIR/index.html shows\n"
-    "every job's still. Finished jobs are skipped on a rerun; SIGINT/SIGTERM stop it\n"
-    "without half-written files; it closes with DIR/batch_report.json and .md.\n"
+    "every job's still. Finished jobs are skipped on a rerun, even with DIR spelled\n"
+    "another way; SIGINT/SIGTERM stop it without half-written files (workers still\n"
+    "running after --term-grace are killed; a second signal kills them at once); it\n"
+    "closes with DIR/batch_report.json and .md. One batch at a time per DIR: a second\n"
+    "is refused (DIR/.rbcloth-batch.lock names the holder). Workers die with the batch.\n"
     "Folder mode: every mesh file in MESHDIR (.obj .ply .off .stl .dae .gltf .glb .fbx\n"
     ".3ds ...) is a job named after its file, with T's settings (the keys of a\n"
     "manifest's \"defaults\"). Formats: docs/formats.md.\n"
     "\n"
     "  -j, --jobs N         worker processes, 1..256 (default: 2)\n"
     "  --out DIR            output directory (default: out/batch)\n"
+    "  --job-timeout S      kill a job still running after S seconds, import included,\n"
+    "                       and record it failed; a job's \"timeout\" key wins; 0 = no\n"
+    "                       limit (default: 0)\n"
+    "  --term-grace S       seconds from SIGINT/SIGTERM to the SIGKILL of workers still\n"
+    "                       running (default: 5)\n"
     "  --template T.json    settings of every job in folder mode\n"
     "  --only I             run job I only (0-based, manifest or file-name order) and\n"
     "                       write no report: one Slurm array task\n"
@@ -113,7 +124,8 @@ static const char batch_usage[] =
     "  --count              print the number of jobs and exit\n"
     "  -q, --quiet          no progress lines\n"
     "\n"
-    "Exit status: 0 all jobs ok, 1 a job failed or the batch could not run, 2 usage.\n";
+    "Exit status: 0 all jobs ok; 1 a job failed or timed out, the batch was stopped\n"
+    "by a signal, DIR is held by another batch, or the batch could not run; 2 usage.\n";
 
 static const char bench_usage[] =
     "Usage: rbcloth bench NAME [OPTIONS]\n"
@@ -162,7 +174,8 @@ static const char *const run_option_names[] = {
     "--omega", "--energy-guard", "--help", NULL};
 static const char *const batch_option_names[] = {"--jobs", "--out", "--template", "--only",
                                                  "--report-only", "--count", "--quiet",
-                                                 "--help", NULL};
+                                                 "--job-timeout", "--term-grace", "--help",
+                                                 NULL};
 static const char *const bench_option_names[] = {"--out", "--frames", "--threads", "--quick",
                                                  "--help", NULL};
 
@@ -217,6 +230,21 @@ static int parse_long(const char *text, long min, long max, long *out) {
         return -1;
     *out = v;
     return 0;
+}
+
+/* A number of seconds in [0, 1e7] for option `name` into *out; EXIT_USAGE after
+ * saying why, else EXIT_OK. */
+static int parse_seconds(const char *name, const char *text, double *out) {
+    char *end = NULL;
+    double v = text && text[0] ? strtod(text, &end) : -1.0;
+    if (!text || !text[0] || *end || !(v >= 0.0) || v > 1e7) {
+        fprintf(stderr, "rbcloth: %s needs a number of seconds in [0, 1e7], got '%s'\n", name,
+                text ? text : "");
+        fprintf(stderr, "Try 'rbcloth %s'.\n", help_hint);
+        return EXIT_USAGE;
+    }
+    *out = v;
+    return EXIT_OK;
 }
 
 typedef struct int_option {
@@ -394,7 +422,11 @@ static int command_run(int argc, char **argv) {
 
 static int command_batch(int argc, char **argv) {
     cli_batch_options options = {.manifest_path = NULL, .out_dir = "out/batch", .jobs = 2,
-                                 .quiet = 0, .only = -1};
+                                 .quiet = 0, .only = -1, .job_timeout = 0.0, .term_grace = 5.0};
+    struct {
+        const char *name;
+        double *target;
+    } reals[] = {{"--job-timeout", &options.job_timeout}, {"--term-grace", &options.term_grace}};
     int_option ints[] = {{"-j", 1, 256, &options.jobs},
                          {"--jobs", 1, 256, &options.jobs},
                          {"--only", 0, 100000000, &options.only}};
@@ -444,8 +476,16 @@ static int command_batch(int argc, char **argv) {
             name_len = 2;
         }
         int matched = 0;
-        if (take_int_option(ints, sizeof ints / sizeof ints[0], arg, name_len, &value, argc, argv,
-                            &i, &matched))
+        for (size_t k = 0; k < sizeof reals / sizeof reals[0]; ++k) {
+            if (name_len != strlen(reals[k].name) || strncmp(arg, reals[k].name, name_len) != 0)
+                continue;
+            matched = 1;
+            if (parse_seconds(reals[k].name, value ? value : (i + 1 < argc ? argv[++i] : NULL),
+                              reals[k].target))
+                return EXIT_USAGE;
+        }
+        if (!matched && take_int_option(ints, sizeof ints / sizeof ints[0], arg, name_len, &value,
+                                        argc, argv, &i, &matched))
             return EXIT_USAGE;
         if (!matched)
             return unknown("option", arg, " for batch", batch_option_names, help_hint);

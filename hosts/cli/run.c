@@ -1,12 +1,17 @@
 /* run.c -- `rbcloth run`: simulate a scene through the plugin's function table and
  * write, per cloth, the rest mesh (OBJ) and every frame's positions (PC2), then a
- * JSON summary of the run.
+ * JSON summary of the run, last, once the others are on disk (fsync'd).
+ *
+ * SIGINT/SIGTERM stop the run at the end of the frame: the caches are destroyed,
+ * which removes their temporary files, and the exit status is 1. A second signal
+ * (a frame that does not end) removes the temporaries at once and exits.
  */
 #include "run.h"
 
 #include <cJSON.h>
 #include <errno.h>
 #include <math.h>
+#include <signal.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -43,6 +48,28 @@ static void progress_draw(uint32_t done, uint32_t total, double step_ms) {
     fprintf(stderr, "\r[%s] %u/%u frames, %.3f ms/step", bar, done, total, step_ms);
     fflush(stderr);
     progress_visible = 1;
+}
+
+/* ------------------------------------------------------------------------- */
+/* Signals                                                                   */
+/* ------------------------------------------------------------------------- */
+
+/* The signal that stops the run (0: none yet), and how many came. */
+static volatile sig_atomic_t g_stop_signal = 0, g_stop_count = 0;
+/* Every temporary file the run may have open ("<output>.tmp", and the summary's
+ * "<summary>.<pid>.tmp"), listed once the outputs are known (the count set last):
+ * the second signal unlinks them (async-signal-safe) and exits. */
+static char **g_tmp_paths = NULL;
+static size_t g_tmp_count = 0;
+
+static void on_stop_signal(int sig) {
+    g_stop_signal = sig;
+    if (g_stop_count++ == 0) return;
+    for (size_t k = 0; k < g_tmp_count; ++k) unlink(g_tmp_paths[k]);
+    static const char msg[] = "\nrbcloth: stopped by a second signal; temporary files removed\n";
+    ssize_t w = write(STDERR_FILENO, msg, sizeof msg - 1);
+    (void)w;
+    _exit(1);
 }
 
 static double now_seconds(void) {
@@ -131,6 +158,9 @@ typedef struct run_state {
     cli_timings timings;
     rbc_world_stats stats;
     uint32_t frames_done;
+    /// Shared locks on the lock files of a batch's output folder (fsutil.h) that
+    /// --out is, or is inside: -1 where there is none.
+    int lock_fds[2];
     double wall_seconds;
     /// --mode target, over the frames: what the controller chose (substeps and
     /// linear iterations per frame) and what the frames reached.
@@ -159,6 +189,8 @@ static void run_state_free(run_state *s) {
     cli_timings_free(&s->timings);
     rbc_scene_instance_destroy(s->api, &s->instance);
     rbc_scene_free(&s->scene);
+    for (int k = 0; k < 2; ++k)
+        if (s->lock_fds[k] >= 0) close(s->lock_fds[k]);
 }
 
 static int out_of_memory(const run_state *s) {
@@ -214,6 +246,25 @@ static int load_scene(run_state *s) {
     return 0;
 }
 
+/* The folder that holds `dir`, malloc'd: "a/b" -> "a", "b" -> ".", "a/.." -> "a/../..". */
+static char *parent_folder(const char *dir) {
+    size_t n = strlen(dir);
+    while (n > 1 && dir[n - 1] == '/')
+        --n;
+    size_t slash = n;
+    while (slash > 0 && dir[slash - 1] != '/')
+        --slash;
+    const char *base = dir + slash;
+    size_t base_len = n - slash;
+    if ((base_len == 1 && base[0] == '.') || (base_len == 2 && strncmp(base, "..", 2) == 0))
+        return fs_path(dir, "..", "");
+    if (slash == 0)
+        return strdup(".");
+    if (slash == 1)
+        return strdup("/");
+    return strndup(dir, slash - 1);
+}
+
 /* One cloth: NAME.obj/.pc2; several: NAME_CLOTH.obj/.pc2. */
 static int plan_outputs(run_state *s) {
     char err[512];
@@ -222,6 +273,23 @@ static int plan_outputs(run_state *s) {
         fprintf(stderr, "rbcloth: %s\n", err);
         return 1;
     }
+    /* Not into a running batch's folder, nor one of its jobs' (DIR/JOB): its
+     * workers write there. A batch started during this run is refused in turn. */
+    char *parent = parent_folder(dir);
+    if (!parent)
+        return out_of_memory(s);
+    const char *folders[2] = {dir, parent};
+    for (int k = 0; k < 2; ++k) {
+        char lock_err[1024];
+        int lk = fs_lock_dir(folders[k], 0, 0, "rbcloth run", 10.0, &s->lock_fds[k], lock_err,
+                             sizeof lock_err);
+        if (lk == FS_LOCK_BUSY) {
+            fprintf(stderr, "rbcloth: cannot write into %s: %s\n", dir, lock_err);
+            free(parent);
+            return 1;
+        }
+    }
+    free(parent);
     s->outputs = calloc(s->scene.cloth_count, sizeof *s->outputs);
     s->summary_path = fs_path(dir, s->scene.name, ".json");
     if (!s->outputs || !s->summary_path)
@@ -503,6 +571,8 @@ static int simulate_frames(run_state *s, uint32_t frames, int show_progress, dou
     double last_draw = *last_draw_io;
 
     for (uint32_t frame = 0; frame < frames; ++frame) {
+        if (g_stop_signal)
+            return 1; /* cli_run says so, once the temporaries are gone */
         /* Moving colliders and drags to where they are at the end of this frame. */
         rbc_result r = rbc_scene_apply_frame(api, &s->scene, &s->instance, frame, err,
                                              RBC_SCENE_ERROR_MAX);
@@ -576,6 +646,8 @@ static int simulate_frames(run_state *s, uint32_t frames, int show_progress, dou
     *last_draw_io = last_draw;
     s->wall_seconds = now_seconds() - start;
     progress_clear();
+    if (g_stop_signal)
+        return 1;
     if (write_torn_meshes(s))
         return 1;
 
@@ -736,7 +808,26 @@ static cJSON *build_summary(const run_state *s, json_builder *b) {
     return root;
 }
 
+/* The outputs on disk before the summary that lists them: each file, then the folder. */
+static int sync_outputs(const run_state *s) {
+    char err[1100];
+    const char *extra[2] = {s->png_path, s->html_path};
+    int rc = 0;
+    for (uint32_t i = 0; rc == 0 && i < s->scene.cloth_count; ++i) {
+        const cloth_output *o = &s->outputs[i];
+        rc = fs_sync(o->obj_path, err, sizeof err) || fs_sync(o->pc2_path, err, sizeof err) ||
+             (o->torn_obj_path && fs_sync(o->torn_obj_path, err, sizeof err));
+    }
+    for (int k = 0; rc == 0 && k < 2; ++k)
+        rc = extra[k] && fs_sync(extra[k], err, sizeof err);
+    if (rc == 0)
+        rc = fs_sync(s->options->out_dir, err, sizeof err);
+    return rc ? report(s->api, RBC_ERR_IO, err) : 0;
+}
+
 static int write_summary(const run_state *s) {
+    if (sync_outputs(s))
+        return 1;
     json_builder b = {0};
     cJSON *root = build_summary(s, &b);
     char *text = root && !b.failed ? cJSON_Print(root) : NULL;
@@ -815,16 +906,67 @@ static void print_table(const run_state *s) {
 
 /* ------------------------------------------------------------------------- */
 
+/* malloc'd path + suffix, or NULL. */
+static char *with_suffix(const char *path, const char *suffix) {
+    size_t n = strlen(path) + strlen(suffix) + 1;
+    char *r = malloc(n);
+    if (r)
+        snprintf(r, n, "%s%s", path, suffix);
+    return r;
+}
+
+/* Every temporary file the run may leave (g_tmp_paths), once the outputs are known. */
+static int list_temporaries(const run_state *s) {
+    const size_t most = 3 * (size_t)s->scene.cloth_count + 3;
+    char **list = calloc(most, sizeof *list);
+    if (!list)
+        return out_of_memory(s);
+    size_t n = 0;
+    char pid[32];
+    snprintf(pid, sizeof pid, ".%ld.tmp", (long)getpid());
+    for (uint32_t i = 0; i < s->scene.cloth_count; ++i) {
+        const cloth_output *o = &s->outputs[i];
+        list[n++] = with_suffix(o->obj_path, ".tmp");
+        list[n++] = with_suffix(o->pc2_path, ".tmp");
+        if (o->torn_obj_path)
+            list[n++] = with_suffix(o->torn_obj_path, ".tmp");
+    }
+    if (s->png_path) {
+        list[n++] = with_suffix(s->png_path, ".tmp");
+        list[n++] = with_suffix(s->html_path, ".tmp");
+    }
+    list[n++] = with_suffix(s->summary_path, pid);
+    for (size_t k = 0; k < n; ++k)
+        if (!list[k]) {
+            for (size_t i = 0; i < n; ++i) free(list[i]);
+            free(list);
+            return out_of_memory(s);
+        }
+    g_tmp_paths = list;
+    g_tmp_count = n; /* last: the handler reads the count, then the list */
+    return 0;
+}
+
 int cli_run(const cli_plugin *plugin, const cli_run_options *options) {
     run_state s;
     memset(&s, 0, sizeof s);
     s.plugin = plugin;
     s.api = plugin->api;
     s.options = options;
+    s.lock_fds[0] = s.lock_fds[1] = -1;
+
+    struct sigaction sa, old_int, old_term;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_stop_signal;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, &old_int);
+    sigaction(SIGTERM, &sa, &old_term);
 
     int rc = load_scene(&s);
     if (!rc)
         rc = plan_outputs(&s);
+    if (!rc)
+        rc = list_temporaries(&s);
     if (!rc)
         rc = create_world(&s);
     if (!rc)
@@ -837,6 +979,26 @@ int cli_run(const cli_plugin *plugin, const cli_run_options *options) {
         rc = write_summary(&s);
     if (!rc && !options->quiet)
         print_table(&s);
-    run_state_free(&s);
+    const uint32_t frames_done = s.frames_done, frames = s.scene.frames;
+    run_state_free(&s); /* destroys unfinished caches, which removes their files */
+    const int sig = g_stop_signal;
+    sigaction(SIGINT, &old_int, NULL);
+    sigaction(SIGTERM, &old_term, NULL);
+    char **list = g_tmp_paths;
+    const size_t count = g_tmp_count;
+    g_tmp_count = 0;
+    g_tmp_paths = NULL;
+    if (sig && rc) {
+        /* What the plugin's and the viewer's writers left, whatever they were doing. */
+        for (size_t k = 0; k < count; ++k)
+            unlink(list[k]);
+        progress_clear();
+        fprintf(stderr, "rbcloth: stopped by %s after %u of %u frames: no cache or summary "
+                "written, temporary files removed\n", sig == SIGINT ? "SIGINT" : "SIGTERM",
+                frames_done, frames);
+    }
+    for (size_t k = 0; k < count; ++k)
+        free(list[k]);
+    free(list);
     return rc;
 }
