@@ -58,6 +58,20 @@
 
 #include "rbcloth.h"
 
+/* An address-space limit cannot coexist with a sanitizer's shadow memory (ASan maps
+ * terabytes of it, and so would the sanitized import helper the child starts):
+ * --max-memory-mb is ignored in such builds, and says so. */
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+#define SWEEP_SANITIZED 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer) || __has_feature(thread_sanitizer)
+#define SWEEP_SANITIZED 1
+#endif
+#endif
+#ifndef SWEEP_SANITIZED
+#define SWEEP_SANITIZED 0
+#endif
+
 static char **g_files;
 static size_t g_nfiles, g_cap;
 static long long g_max_bytes = -1;
@@ -373,6 +387,10 @@ int main(int argc, char **argv) {
         }
     }
     g_import_timeout_ms = (uint32_t)(timeout * 500.0);
+    if (SWEEP_SANITIZED && g_max_mb > 0) {
+        printf("import_sweep: a sanitizer build: --max-memory-mb %lld is not applied\n", g_max_mb);
+        g_max_mb = 0;
+    }
     qsort(g_files, g_nfiles, sizeof *g_files, cmp_str);
     if (g_nfiles == 0) {
         fprintf(stderr, "import_sweep: no files under the given paths\n");
