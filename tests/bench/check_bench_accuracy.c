@@ -8,7 +8,7 @@
  * the positions it reads back: Eq. 7 is a double sum of the same float positions
  * (relative 1e-6 covers any summation order); the PD objective agrees to the
  * F_tolerance the bench derives for each row (the rounding of the library's float
- * inertial target y and spring lengths, see hosts/cli/bench_accuracy.c), and the
+ * inertial target y and spring lengths, see bench/accuracy.c), and the
  * linear residual to its residual_tolerance (1e-3 relative plus the float floor of
  * evaluating b - A p, derived per row in bench_linear_residual).
  * pareto.md must mark a Pareto front.

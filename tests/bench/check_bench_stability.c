@@ -13,7 +13,7 @@
  *     the configuration supplies: ke_ratio <= 1 + 1e-6. The bound (initial spring
  *     energy + work of gravity + what pins or a moving sphere can supply, in the
  *     sphere's frame, + the rounding of a float state) is derived in
- *     hosts/cli/bench_stability.c. A step that returns RBC_ERR_UNSTABLE is allowed:
+ *     bench/stability.c. A step that returns RBC_ERR_UNSTABLE is allowed:
  *     the library restored the state and said so.
  * Energy growth that is known and reported is listed in KNOWN_ENERGY_GROWTH.txt
  * (dimension|value|solver|why); such rows are printed, not failed, and a listed row

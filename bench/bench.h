@@ -7,8 +7,8 @@
  * Everything goes through `const rbc_api_v1 *` (ABI 1.1 entries included): the
  * benches are hosts like any other and never link the plugin.
  */
-#ifndef RBC_CLI_BENCH_H
-#define RBC_CLI_BENCH_H
+#ifndef RBC_BENCH_H
+#define RBC_BENCH_H
 
 #include <stdint.h>
 #include <stdio.h>

@@ -1,4 +1,4 @@
-/* bench_peers.c -- `rbcloth bench peers`: rbcloth's configurations on the peer scene
+/* peers.c -- `rbcloth bench peers`: rbcloth's configurations on the peer scene
  * of docs/facts.md ("The peer scene"), against the peers' figures
  * (issue 7).
  *
