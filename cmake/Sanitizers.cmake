@@ -12,7 +12,7 @@ set(RBC_SANITIZE "" CACHE STRING
     "Sanitizers for every target, as -fsanitize= takes them (address,undefined or thread); empty: none")
 option(RBC_FUZZ "Build the libFuzzer targets of tests/fuzz (needs clang)" OFF)
 # core/simd.h's target_clones make ifunc resolvers, which gcc's TSan crashes on inside
-# dlopen (docs/facts.md). simd.h (and hosts/cli/bench_perf.c) already leave the
+# dlopen (docs/facts.md). simd.h (and bench/perf.c) already leave the
 # clones out under clang, the compiler of the TSan and fuzz builds, so no switch is
 # needed: those builds run the "default" clone's code. gcc's ASan+UBSan build keeps
 # the clones (the code that ships).

@@ -1,6 +1,7 @@
 # CTest labels for every test (tests/README.md, "Labels"). Each tests/*/CMakeLists.txt
-# ends with rbc_label_tests(FOLDER): every test of that directory gets the label
-# FOLDER, then the labels below by name (appended: labels a test sets itself stay).
+# (and bench/checks/CMakeLists.txt, label bench) ends with rbc_label_tests(FOLDER):
+# every test of that directory gets the label FOLDER, then the labels below by name
+# (appended: labels a test sets itself stay).
 #
 #   quick     our own code, seconds each: `ctest -L quick -j2` answers in under a
 #             minute on 2 cores. Every test that is neither slow nor external.

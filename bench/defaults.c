@@ -1,4 +1,4 @@
-/* bench_defaults.c -- `rbcloth bench defaults`: what the default solve gives and costs
+/* defaults.c -- `rbcloth bench defaults`: what the default solve gives and costs
  * at the time steps hosts pass, beside the alternatives it was chosen from.
  *
  * Two cloths: the paper's (100 x 100 particles 1/99 m apart, pinned at vertices 0 and

@@ -1,4 +1,4 @@
-/* bench_accuracy.c -- `rbcloth bench accuracy`: the paper's two convergence
+/* accuracy.c -- `rbcloth bench accuracy`: the paper's two convergence
  * experiments (Sec. 5.1, Figs. 3 and 4) for every global solver of ABI 1.1.
  *
  *   stretched  the 100 x 100 grid started 1.5x larger in its plane, gravity 0,

@@ -31,9 +31,10 @@
 #include <string.h>
 
 #include "check.h"
+#include "csv.h"
 #include "text_file.h"
 
-enum { MAX_COLS = 32, MAX_ROWS = 4096, GRID = 100 };
+enum { MAX_ROWS = 4096, GRID = 100 };
 
 static const char header[] =
     "id,phase,solver,substeps,nonlinear,linear,omega_set,rho_set,energy_guard,threads,frames,"
@@ -89,27 +90,16 @@ int main(int argc, char **argv) {
     }
     const char *dir = argv[1];
     char path[4096];
-    snprintf(path, sizeof path, "%s/peers.csv", dir);
-    char *text = text_file_read(path);
-    CHECK(text != NULL);
-    if (!text) {
-        fprintf(stderr, "cannot read %s\n", path);
+    csv_file csv;
+    int have_csv = csv_read_in(dir, "peers.csv", &csv) == 0;
+    CHECK(have_csv);
+    if (!have_csv)
         return check_report("check_bench_peers");
-    }
+    CHECK(csv_header_is(&csv, header));
     int n = 0;
-    char *line = text, *next;
-    for (int i = 0; line && *line; ++i, line = next) {
-        next = strchr(line, '\n');
-        if (next)
-            *next++ = '\0';
-        if (i == 0) {
-            if (strcmp(line, header) != 0)
-                fprintf(stderr, "peers.csv header\n  %s\nexpected\n  %s\n", line, header);
-            CHECK(strcmp(line, header) == 0);
-            continue;
-        }
-        char *f[MAX_COLS];
-        int cols = text_split(line, ',', f, MAX_COLS);
+    for (int i = 0; i < csv.row_count; ++i) {
+        char **f = csv.rows[i].field;
+        const int cols = csv.rows[i].count;
         CHECK_EQ(cols, C_COUNT);
         if (cols != C_COUNT || n == MAX_ROWS)
             continue;
@@ -122,7 +112,8 @@ int main(int argc, char **argv) {
             char *end;
             r->v[k] = strtod(f[k], &end);
             if (*end || !isfinite(r->v[k]))
-                fprintf(stderr, "row %d: %s = '%s' is not a finite number\n", n, f[C_SOLVER], f[k]);
+                fprintf(stderr, "%s:%d: %s = '%s' is not a finite number\n", csv.path,
+                        csv.rows[i].line, f[C_SOLVER], f[k]);
             CHECK(*end == '\0' && isfinite(r->v[k]));
         }
     }
@@ -189,6 +180,6 @@ int main(int argc, char **argv) {
         CHECK(strstr(md, "XPBD 11x1") != NULL);
     }
     free(md);
-    free(text);
+    csv_free(&csv);
     return check_report("check_bench_peers");
 }

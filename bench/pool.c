@@ -1,4 +1,4 @@
-/* bench_pool.c -- `rbcloth bench pool`: what the default thread count costs on a
+/* pool.c -- `rbcloth bench pool`: what the default thread count costs on a
  * machine whose cores other work holds (issue 17: an engine's job system always
  * holds the cores).
  *

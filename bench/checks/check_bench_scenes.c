@@ -22,9 +22,8 @@
 #include <string.h>
 
 #include "check.h"
+#include "csv.h"
 #include "text_file.h"
-
-enum { MAX_COLS = 40, MAX_ROWS = 32 };
 
 static const char header[] =
     "scene,threads,frames,substeps,particles,springs,colliders,step_ms_median,step_ms_p90,"
@@ -83,28 +82,17 @@ int main(int argc, char **argv) {
         return 2;
     }
     char path[4096];
-    snprintf(path, sizeof path, "%s/scenes.csv", argv[1]);
-    char *text = text_file_read(path);
-    if (!text) {
-        fprintf(stderr, "cannot open %s\n", path);
+    csv_file csv;
+    if (csv_read_in(argv[1], "scenes.csv", &csv) != 0) {
         CHECK(!"scenes.csv exists");
         return check_report("bench_scenes");
     }
+    CHECK(csv_header_is(&csv, header));
     int seen[SCENE_COUNT][3] = {{0}};
     int n = 0;
-    char *line = text, *next;
-    for (int i = 0; line && *line; ++i, line = next) {
-        next = strchr(line, '\n');
-        if (next)
-            *next++ = '\0';
-        if (i == 0) {
-            if (strcmp(line, header) != 0)
-                fprintf(stderr, "scenes.csv header\n  %s\nexpected\n  %s\n", line, header);
-            CHECK(strcmp(line, header) == 0);
-            continue;
-        }
-        char *f[MAX_COLS];
-        int cols = text_split(line, ',', f, MAX_COLS);
+    for (int i = 0; i < csv.row_count; ++i) {
+        char **f = csv.rows[i].field;
+        const int cols = csv.rows[i].count, line = csv.rows[i].line;
         CHECK_EQ(cols, C_COUNT);
         if (cols != C_COUNT)
             continue;
@@ -114,10 +102,10 @@ int main(int argc, char **argv) {
             if (strcmp(f[C_SCENE], scenes[k].name) == 0)
                 s = k;
         if (s < 0)
-            fprintf(stderr, "scenes.csv row %d: unknown scene '%s'\n", n, f[C_SCENE]);
+            fprintf(stderr, "%s:%d: unknown scene '%s'\n", csv.path, line, f[C_SCENE]);
         CHECK(s >= 0);
         if (f[C_NOTE][0])
-            fprintf(stderr, "scenes.csv row %d (%s): note '%s'\n", n, f[C_SCENE], f[C_NOTE]);
+            fprintf(stderr, "%s:%d (%s): note '%s'\n", csv.path, line, f[C_SCENE], f[C_NOTE]);
         CHECK(f[C_NOTE][0] == '\0');
         CHECK(f[C_PAPER][0] != '\0' && f[C_CPU][0] != '\0');
         double v[C_COUNT];
@@ -128,22 +116,22 @@ int main(int argc, char **argv) {
                 continue;
             }
             if (!parse_value(f[k], &v[k], &na[k])) {
-                fprintf(stderr, "scenes.csv row %d (%s): column %d = '%s' is not a finite number\n",
-                        n, f[C_SCENE], k + 1, f[k]);
+                fprintf(stderr, "%s:%d (%s): column %d = '%s' is not a finite number\n",
+                        csv.path, line, f[C_SCENE], k + 1, f[k]);
                 CHECK(!"finite numbers");
             }
         }
         /* n/a only where the bench may say so: no analytic collider, or no paper figure. */
         for (int k = C_THREADS; k <= C_CORES; ++k)
             if (na[k] && k != C_PEN && k != C_PAPER_SUB && k != C_PAPER_FRAME) {
-                fprintf(stderr, "scenes.csv row %d (%s): column %d is n/a\n", n, f[C_SCENE], k + 1);
+                fprintf(stderr, "%s:%d (%s): column %d is n/a\n", csv.path, line, f[C_SCENE], k + 1);
                 CHECK(!"a measured value");
             }
         int positive[] = {C_THREADS, C_FRAMES, C_SUBSTEPS, C_PARTICLES, C_SPRINGS, C_STEP, C_STEP90,
                           C_SUB, C_SUB90, C_WALL, C_FPS, C_CORES};
         for (size_t k = 0; k < sizeof positive / sizeof positive[0]; ++k)
             if (!(v[positive[k]] > 0.0)) {
-                fprintf(stderr, "scenes.csv row %d (%s): column %d = %g is not positive\n", n,
+                fprintf(stderr, "%s:%d (%s): column %d = %g is not positive\n", csv.path, line,
                         f[C_SCENE], positive[k] + 1, v[positive[k]]);
                 CHECK(!"positive");
             }
@@ -169,7 +157,7 @@ int main(int argc, char **argv) {
         if (v[C_THREADS] == 1 || v[C_THREADS] == 2)
             seen[s][(int)v[C_THREADS]]++;
     }
-    free(text);
+    csv_free(&csv);
     printf("scenes.csv: %d rows\n", n);
     for (int s = 0; s < SCENE_COUNT; ++s)
         for (int t = 1; t <= 2; ++t) {

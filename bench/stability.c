@@ -1,4 +1,4 @@
-/* bench_stability.c -- `rbcloth bench stability`: a stability map of every global
+/* stability.c -- `rbcloth bench stability`: a stability map of every global
  * solver over stress dimensions (stiffness k h^2/m, time step, mass ratio, size,
  * degenerate springs, a 10x stretched start, pins pulled apart, a fast sphere).
  *
@@ -669,7 +669,7 @@ static int write_md(stab_ctx *ctx) {
     md_map(ctx, f, 0);
     fprintf(f, "\n## Kinetic energy against the energy supplied\n\n"
                "ke_ratio = max over frames of KE / (E_spring(0) + E_drive + max(W_gravity, 0)); "
-               "<= 1 for physically bounded motion (see hosts/cli/bench_stability.c).\n\n");
+               "<= 1 for physically bounded motion (see bench/stability.c).\n\n");
     md_map(ctx, f, 1);
     fprintf(f, "\n## Largest strain seen\n\nmax over frames and springs of | |p_a - p_b| / L - 1 |.\n\n");
     md_map(ctx, f, 2);

@@ -1,4 +1,4 @@
-/* bench_common.c -- helpers shared by the benches (bench.h). */
+/* common.c -- helpers shared by the benches (bench.h). */
 #include "bench.h"
 #include "scene.h"
 

@@ -23,9 +23,10 @@
 #include <string.h>
 
 #include "check.h"
+#include "csv.h"
 #include "text_file.h"
 
-enum { MAX_COLS = 32, MAX_ROWS = 64 };
+enum { MAX_ROWS = 64 };
 
 static const char header[] =
     "mesh,solver,particles,springs,colors,threads,frames,linear_iterations,step_ms,"
@@ -75,28 +76,17 @@ int main(int argc, char **argv) {
         return 2;
     }
     char path[4096];
-    snprintf(path, sizeof path, "%s/perf.csv", argv[1]);
-    char *text = text_file_read(path);
-    if (!text) {
-        fprintf(stderr, "cannot open %s\n", path);
+    csv_file csv;
+    if (csv_read_in(argv[1], "perf.csv", &csv) != 0) {
         CHECK(!"perf.csv exists");
         return check_report("bench_perf");
     }
+    CHECK(csv_header_is(&csv, header));
     static row rows[MAX_ROWS];
     int n = 0;
-    char *line = text, *next;
-    for (int i = 0; line && *line; ++i, line = next) {
-        next = strchr(line, '\n');
-        if (next)
-            *next++ = '\0';
-        if (i == 0) {
-            if (strcmp(line, header) != 0)
-                fprintf(stderr, "perf.csv header\n  %s\nexpected\n  %s\n", line, header);
-            CHECK(strcmp(line, header) == 0);
-            continue;
-        }
-        char *f[MAX_COLS];
-        int cols = text_split(line, ',', f, MAX_COLS);
+    for (int i = 0; i < csv.row_count; ++i) {
+        char **f = csv.rows[i].field;
+        const int cols = csv.rows[i].count, line = csv.rows[i].line;
         CHECK_EQ(cols, C_COUNT);
         if (cols != C_COUNT || n == MAX_ROWS)
             continue;
@@ -117,7 +107,7 @@ int main(int argc, char **argv) {
                 continue;
             }
             if (!parse_number(f[k], &r->v[k])) {
-                fprintf(stderr, "perf.csv row %d: column %d = '%s' is not a finite number\n", n, k + 1, f[k]);
+                fprintf(stderr, "%s:%d: column %d = '%s' is not a finite number\n", csv.path, line, k + 1, f[k]);
                 CHECK(!"finite numbers");
                 r->v[k] = NAN;
             }
@@ -129,7 +119,7 @@ int main(int argc, char **argv) {
                           C_CORES};
         for (size_t k = 0; k < sizeof positive / sizeof positive[0]; ++k)
             if (!(v[positive[k]] > 0.0)) {
-                fprintf(stderr, "perf.csv row %d (%s %s): column %d = %g is not positive\n", n,
+                fprintf(stderr, "%s:%d (%s %s): column %d = %g is not positive\n", csv.path, line,
                         r->mesh, r->solver, positive[k] + 1, v[positive[k]]);
                 CHECK(!"positive");
             }
@@ -141,8 +131,8 @@ int main(int argc, char **argv) {
         /* particle updates/s = particles x iterations / step time */
         double updates = v[C_PARTICLES] * v[C_ITERATIONS] / (1e-3 * v[C_STEP]);
         if (rel(v[C_UPDATES], updates) > ROUND2)
-            fprintf(stderr, "perf.csv row %d (%s %s, %g particles): %g updates/s, but %g x %g / %g ms = %.9g\n",
-                    n, r->mesh, r->solver, v[C_PARTICLES], v[C_UPDATES], v[C_PARTICLES],
+            fprintf(stderr, "%s:%d (%s %s, %g particles): %g updates/s, but %g x %g / %g ms = %.9g\n",
+                    csv.path, line, r->mesh, r->solver, v[C_PARTICLES], v[C_UPDATES], v[C_PARTICLES],
                     v[C_ITERATIONS], v[C_STEP], updates);
         CHECK(rel(v[C_UPDATES], updates) <= ROUND2);
         CHECK(rel(v[C_NS] * v[C_UPDATES], 1e9) <= ROUND2);
@@ -154,7 +144,7 @@ int main(int argc, char **argv) {
         if (!strcmp(r->solver, "rbgs"))
             CHECK_EQ(v[C_COLORS], 2);
     }
-    free(text);
+    csv_free(&csv);
     printf("perf.csv: %d rows\n", n);
 
     /* The quick run's configurations, each with 1 and 2 threads. */

@@ -13,7 +13,7 @@
  *     the configuration supplies: ke_ratio <= 1 + 1e-6. The bound (initial spring
  *     energy + work of gravity + what pins or a moving sphere can supply, in the
  *     sphere's frame, + the rounding of a float state) is derived in
- *     hosts/cli/bench_stability.c. A step that returns RBC_ERR_UNSTABLE is allowed:
+ *     bench/stability.c. A step that returns RBC_ERR_UNSTABLE is allowed:
  *     the library restored the state and said so.
  * Energy growth that is known and reported is listed in KNOWN_ENERGY_GROWTH.txt
  * (dimension|value|solver|why); such rows are printed, not failed, and a listed row
@@ -26,21 +26,18 @@
 #include <string.h>
 
 #include "check.h"
+#include "csv.h"
 #include "text_file.h"
 
-enum { MAX_COLS = 32, MAX_ROWS = 4096, MAX_KNOWN = 256, SOLVERS = 8 };
+enum { MAX_LINES = 4096, MAX_KNOWN = 256, SOLVERS = 8 };
 
-typedef struct row {
-    char *field[MAX_COLS];
-    int count;
-} row;
-
-static int col(row *header, const char *name) {
-    for (int k = 0; k < header->count; ++k)
-        if (strcmp(header->field[k], name) == 0)
-            return k;
-    fprintf(stderr, "stability.csv has no column %s\n", name);
-    exit(1);
+static int col(const csv_file *csv, const char *name) {
+    int k = csv_column(csv, name);
+    if (k < 0) {
+        fprintf(stderr, "%s has no column %s\n", csv->path, name);
+        exit(1);
+    }
+    return k;
 }
 
 typedef struct known {
@@ -53,17 +50,21 @@ int main(int argc, char **argv) {
         fprintf(stderr, "usage: %s STABILITY.csv KNOWN_ENERGY_GROWTH.txt\n", argv[0]);
         return 2;
     }
-    char *csv = text_file_read(argv[1]);
+    csv_file csv;
+    int have_csv = csv_read(argv[1], &csv) == 0;
     char *list = text_file_read(argv[2]);
-    CHECK(csv != NULL);
+    CHECK(have_csv);
     CHECK(list != NULL);
-    if (!csv || !list)
+    if (!have_csv || !list) {
+        csv_free(&csv);
+        free(list);
         return check_report("bench_stability");
+    }
 
     known known_rows[MAX_KNOWN];
     int known_count = 0;
-    char *lines[MAX_ROWS];
-    int nl = text_split(list, '\n', lines, MAX_ROWS);
+    char *lines[MAX_LINES];
+    int nl = text_split(list, '\n', lines, MAX_LINES);
     for (int i = 0; i < nl && known_count < MAX_KNOWN; ++i) {
         if (!lines[i][0] || lines[i][0] == '#')
             continue;
@@ -76,26 +77,25 @@ int main(int argc, char **argv) {
         known_rows[known_count++] = (known){f[0], f[1], f[2], f[3], 0};
     }
 
-    static row rows[MAX_ROWS];
-    int n = text_split(csv, '\n', lines, MAX_ROWS);
-    int row_count = 0;
-    for (int i = 0; i < n; ++i)
-        if (lines[i][0])
-            rows[row_count].count = text_split(lines[i], ',', rows[row_count].field, MAX_COLS), ++row_count;
-    CHECK(row_count > 1);
-    if (row_count < 2)
+    const csv_row *h = &csv.header, *rows = csv.rows;
+    const int row_count = csv.row_count;
+    CHECK(row_count > 0);
+    if (row_count < 1) {
+        csv_free(&csv);
+        free(list);
         return check_report("bench_stability");
-    row *h = &rows[0];
-    const int c_dim = col(h, "dimension"), c_val = col(h, "value"), c_sol = col(h, "solver"),
-              c_status = col(h, "status"), c_nonfinite = col(h, "nonfinite_frame"),
-              c_ratio = col(h, "ke_ratio"), c_eq7 = col(h, "final_eq7"),
-              c_strain = col(h, "peak_max_strain"), c_run = col(h, "frames_run"),
-              c_planned = col(h, "frames_planned"), c_unst = col(h, "first_unstable_frame"),
-              c_clamped = col(h, "clamped_steps"), c_note = col(h, "note");
+    }
+    const int c_dim = col(&csv, "dimension"), c_val = col(&csv, "value"),
+              c_sol = col(&csv, "solver"), c_status = col(&csv, "status"),
+              c_nonfinite = col(&csv, "nonfinite_frame"), c_ratio = col(&csv, "ke_ratio"),
+              c_eq7 = col(&csv, "final_eq7"), c_strain = col(&csv, "peak_max_strain"),
+              c_run = col(&csv, "frames_run"), c_planned = col(&csv, "frames_planned"),
+              c_unst = col(&csv, "first_unstable_frame"), c_clamped = col(&csv, "clamped_steps"),
+              c_note = col(&csv, "note");
 
     int growth_known = 0, unstable = 0, clamped = 0;
-    for (int i = 1; i < row_count; ++i) {
-        row *r = &rows[i];
+    for (int i = 0; i < row_count; ++i) {
+        const csv_row *r = &rows[i];
         CHECK_EQ(r->count, h->count);
         if (r->count != h->count)
             continue;
@@ -174,7 +174,7 @@ int main(int argc, char **argv) {
     };
     for (size_t q = 0; q < sizeof required / sizeof required[0]; ++q) {
         int found = 0;
-        for (int i = 1; i < row_count; ++i)
+        for (int i = 0; i < row_count; ++i)
             if (rows[i].count == h->count && strcmp(rows[i].field[c_dim], required[q][0]) == 0 &&
                 strcmp(rows[i].field[c_val], required[q][1]) == 0)
                 ++found;
@@ -185,8 +185,8 @@ int main(int argc, char **argv) {
     }
     printf("%d rows: %d unstable-reported (allowed), %d clamped-reported (allowed), %d known "
            "energy growth\n",
-           row_count - 1, unstable, clamped, growth_known);
-    free(csv);
+           row_count, unstable, clamped, growth_known);
+    csv_free(&csv);
     free(list);
     return check_report("bench_stability");
 }

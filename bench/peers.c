@@ -1,4 +1,4 @@
-/* bench_peers.c -- `rbcloth bench peers`: rbcloth's configurations on the peer scene
+/* peers.c -- `rbcloth bench peers`: rbcloth's configurations on the peer scene
  * of docs/facts.md ("The peer scene"), against the peers' figures
  * (issue 7).
  *
@@ -306,7 +306,7 @@ static int run_config(peers_ctx *ctx, const peer_config *c, peer_row *out) {
                 out->eq7_host = bench_eq7(&ctx->mesh, out->positions);
                 /* Both are double sums over the same float positions; the library's
                  * rest lengths are floats (2^-24 relative), which moves E by far
-                 * less than 1e-4 of itself here (tests/bench derives the bound). */
+                 * less than 1e-4 of itself here (bench/checks derives the bound). */
                 if (rel_diff(out->eq7_host, out->eq7) > 1e-4 && ++ctx->stats_mismatches <= 10)
                     fprintf(stderr,
                             "rbcloth: bench peers: stats check: library Eq. 7 %.9g, host "

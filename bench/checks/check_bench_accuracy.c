@@ -8,7 +8,7 @@
  * the positions it reads back: Eq. 7 is a double sum of the same float positions
  * (relative 1e-6 covers any summation order); the PD objective agrees to the
  * F_tolerance the bench derives for each row (the rounding of the library's float
- * inertial target y and spring lengths, see hosts/cli/bench_accuracy.c), and the
+ * inertial target y and spring lengths, see bench/accuracy.c), and the
  * linear residual to its residual_tolerance (1e-3 relative plus the float floor of
  * evaluating b - A p, derived per row in bench_linear_residual).
  * pareto.md must mark a Pareto front.
@@ -19,6 +19,7 @@
 #include <string.h>
 
 #include "check.h"
+#include "csv.h"
 #include "text_file.h"
 
 enum { MAX_COLS = 32 };
@@ -44,29 +45,21 @@ static double rel(double a, double b) {
 
 /* Check one CSV; for the gap file also the stats agreement. Returns the row count. */
 static int check_csv(const char *dir, const char *name, const char *header, int gap) {
-    char *text = read_file(dir, name);
-    CHECK(text != NULL);
-    if (!text)
+    csv_file csv;
+    int have = csv_read_in(dir, name, &csv) == 0;
+    CHECK(have);
+    if (!have)
         return 0;
-    char *line = text, *next;
-    int rows = 0, cols = 0;
+    CHECK(csv_header_is(&csv, header));
+    static char copy[1024];
+    snprintf(copy, sizeof copy, "%s", header);
     char *head[MAX_COLS];
+    const int cols = text_split(copy, ',', head, MAX_COLS);
+    int rows = 0;
     int seen[2] = {0, 0}; /* stretched, hanging */
-    for (int i = 0; line && *line; ++i, line = next) {
-        next = strchr(line, '\n');
-        if (next)
-            *next++ = '\0';
-        if (i == 0) {
-            if (strcmp(line, header) != 0)
-                fprintf(stderr, "%s: header\n  %s\nexpected\n  %s\n", name, line, header);
-            CHECK(strcmp(line, header) == 0);
-            static char copy[1024];
-            snprintf(copy, sizeof copy, "%s", header);
-            cols = text_split(copy, ',', head, MAX_COLS);
-            continue;
-        }
-        char *f[MAX_COLS];
-        int n = text_split(line, ',', f, MAX_COLS);
+    for (int i = 0; i < csv.row_count; ++i) {
+        char **f = csv.rows[i].field;
+        const int n = csv.rows[i].count, line = csv.rows[i].line;
         CHECK_EQ(n, cols);
         if (n != cols)
             continue;
@@ -80,7 +73,7 @@ static int check_csv(const char *dir, const char *name, const char *header, int 
             char *end;
             v[k] = strtod(f[k], &end);
             if (!(isfinite(v[k]) && end != f[k] && *end == '\0')) {
-                fprintf(stderr, "%s row %d: %s = '%s' is not a finite number\n", name, rows, head[k], f[k]);
+                fprintf(stderr, "%s:%d: %s = '%s' is not a finite number\n", csv.path, line, head[k], f[k]);
                 CHECK(!"finite numbers");
             }
         }
@@ -89,20 +82,20 @@ static int check_csv(const char *dir, const char *name, const char *header, int 
             /* ... F_linear_star gap_linear F_tolerance F_star_tolerance */
             int bad = fabs(v[6] - v[10]) > v[18] || fabs(v[7] - v[11]) > v[19] || rel(v[12], v[13]) > 1e-6;
             if (bad)
-                fprintf(stderr, "%s row %d (%s %s frame %s): F %.12g / %.12g (tol %.3g), F* %.12g / %.12g (tol %.3g), Eq. 7 %.12g / %.12g (host / library)\n",
-                        name, rows, f[0], f[1], f[3], v[6], v[10], v[18], v[7], v[11], v[19], v[12], v[13]);
+                fprintf(stderr, "%s:%d (%s %s frame %s): F %.12g / %.12g (tol %.3g), F* %.12g / %.12g (tol %.3g), Eq. 7 %.12g / %.12g (host / library)\n",
+                        csv.path, line, f[0], f[1], f[3], v[6], v[10], v[18], v[7], v[11], v[19], v[12], v[13]);
             CHECK(fabs(v[6] - v[10]) <= v[18]);
             CHECK(fabs(v[7] - v[11]) <= v[19]);
             CHECK(rel(v[12], v[13]) <= 1e-6);
             if (fabs(v[14] - v[15]) > v[20])
-                fprintf(stderr, "%s row %d (%s %s frame %s): linear residual host %.9g, library %.9g (tol %.3g)\n",
-                        name, rows, f[0], f[1], f[3], v[14], v[15], v[20]);
+                fprintf(stderr, "%s:%d (%s %s frame %s): linear residual host %.9g, library %.9g (tol %.3g)\n",
+                        csv.path, line, f[0], f[1], f[3], v[14], v[15], v[20]);
             CHECK(fabs(v[14] - v[15]) <= v[20]);
         }
     }
     CHECK(rows > 0);
     CHECK(seen[0] && seen[1]);
-    free(text);
+    csv_free(&csv);
     return rows;
 }
 

@@ -7,8 +7,8 @@
  * Everything goes through `const rbc_api_v1 *` (ABI 1.1 entries included): the
  * benches are hosts like any other and never link the plugin.
  */
-#ifndef RBC_CLI_BENCH_H
-#define RBC_CLI_BENCH_H
+#ifndef RBC_BENCH_H
+#define RBC_BENCH_H
 
 #include <stdint.h>
 #include <stdio.h>
@@ -38,7 +38,7 @@ int cli_bench_accuracy(const cli_plugin *plugin, const cli_bench_options *option
 /// `rbcloth bench stability`: a stability map of every solver over stress
 /// dimensions. Returns 0, or 1 after a message; a NaN reaching the host is
 /// reported on stderr and in the outputs but still returns 0 (the map is the
-/// result; tests/bench checks it).
+/// result; bench/checks checks it).
 int cli_bench_stability(const cli_plugin *plugin, const cli_bench_options *options);
 
 /// `rbcloth bench perf`: ms per frame, per stage, particle updates per second, setup

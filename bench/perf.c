@@ -1,4 +1,4 @@
-/* bench_perf.c -- `rbcloth bench perf`: what a frame costs and how it scales
+/* perf.c -- `rbcloth bench perf`: what a frame costs and how it scales
  * (issue 4). Everything runs through the function table, as any host would.
  *
  * Setup: the paper's hanging cloth (samples/scenes/hanging_cloth.json) at other

@@ -1,4 +1,4 @@
-/* bench_scenes.c -- `rbcloth bench scenes`: the paper's test cases (Fig. 1, Sec. 5.2)
+/* scenes.c -- `rbcloth bench scenes`: the paper's test cases (Fig. 1, Sec. 5.2)
  * as shipped in samples/scenes, timed with their collision handling, beside the
  * figures the paper reports for them (measured elsewhere: a GTX 970 GPU).
  *
