@@ -48,7 +48,7 @@ check-long: build
 #                ASan + UBSan); whatever they find lands in tests/fuzz/regress/
 #   fuzz         one target by hand: make fuzz FUZZ_TARGET=cloth FUZZ_SECONDS=3600
 #                (KEEP_GOING=1 goes on past what it finds)
-#   check-sanitizers  all three (not yet in .ci/run: see tests/README.md), then their times
+#   check-sanitizers  all three (.ci/run calls it after `make test`), then their times
 ASAN_BUILD ?= build-san-asan
 TSAN_BUILD ?= build-san-tsan
 FUZZ_BUILD ?= build-san-fuzz

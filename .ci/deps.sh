@@ -14,8 +14,8 @@ build_pkgs=(cmake make gcc libc6-dev pkg-config libcjson-dev libsuitesparse-dev 
 # chromium: tests/viewer loads the player page in headless Chromium (software WebGL)
 # to check that it draws and plays. blender: tests/blender brings a run's cache into
 # Blender with the README's settings.
-# clang-14, libclang-rt-14-dev, llvm-14: `make check-sanitizers` (not yet run by
-# .ci/run; tests/README.md): ThreadSanitizer and libFuzzer need clang (libclang-rt-14-dev has libFuzzer and
+# clang-14, libclang-rt-14-dev, llvm-14: `make check-sanitizers` (which .ci/run
+# calls after `make test`; tests/README.md): ThreadSanitizer and libFuzzer need clang (libclang-rt-14-dev has libFuzzer and
 # the sanitizer runtimes), llvm-14 the llvm-symbolizer that puts names on their stacks.
 # gcc's own ASan/UBSan runtimes (libasan8, libubsan1) come with gcc.
 test_pkgs=(abigail-tools assimp-testmodels valgrind slurm-wlm munge chromium blender
