@@ -1,6 +1,6 @@
 /* text_file.h -- small helpers for tests that check files a program wrote: read a
- * whole file (text or binary) into a NUL-terminated buffer, and split a line into
- * fields in place. */
+ * whole file (text or binary) into a NUL-terminated buffer, split a line into
+ * fields in place, and write a test's input file into its folder. */
 #ifndef RBC_TEST_TEXT_FILE_H
 #define RBC_TEST_TEXT_FILE_H
 #include <stdio.h>
@@ -43,5 +43,23 @@ static inline int text_split(char *line, char sep, char **out, int max) {
             out[n++] = p + 1;
         }
     return n;
+}
+
+/* Write text to dir/name and return that path, which stays valid for the next 31
+ * calls (a test holds a few inputs at once). A test that cannot write its own input
+ * has nothing to check: it exits 2. */
+static inline const char *text_file_write_in(const char *dir, const char *name, const char *text) {
+    static char paths[32][512];
+    static int next;
+    char *p = paths[next++ % 32];
+    snprintf(p, 512, "%s/%s", dir, name);
+    FILE *f = fopen(p, "wb");
+    if (!f) {
+        perror(p);
+        exit(2);
+    }
+    fputs(text, f);
+    fclose(f);
+    return p;
 }
 #endif

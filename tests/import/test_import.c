@@ -14,22 +14,13 @@
 
 #include "check.h"
 #include "rbcloth.h"
+#include "text_file.h"
 
 static char g_dir[256];
 
+/* Every input goes in this test's temporary folder. */
 static const char *write_file(const char *name, const char *text) {
-    static char paths[32][512];
-    static int next;
-    char *p = paths[next++ % 32];
-    snprintf(p, 512, "%s/%s", g_dir, name);
-    FILE *f = fopen(p, "wb");
-    if (!f) {
-        perror(p);
-        exit(2);
-    }
-    fputs(text, f);
-    fclose(f);
-    return p;
+    return text_file_write_in(g_dir, name, text);
 }
 
 /* An nx x ny grid in the plane z = 0 (y up), spacing h: vertex (i, j) is the

@@ -31,6 +31,7 @@
 
 #include "check.h"
 #include "rbcloth.h"
+#include "text_file.h"
 
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
 #define SANITIZED 1
@@ -49,21 +50,6 @@ static double now_s(void) {
     struct timespec t;
     clock_gettime(CLOCK_MONOTONIC, &t);
     return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
-static const char *write_file(const char *name, const char *text) {
-    static char paths[8][512];
-    static int next;
-    char *p = paths[next++ % 8];
-    snprintf(p, 512, "%s/%s", g_dir, name);
-    FILE *f = fopen(p, "wb");
-    if (!f) {
-        perror(p);
-        exit(2);
-    }
-    fputs(text, f);
-    fclose(f);
-    return p;
 }
 
 static const char grid_obj[] = "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 1 0\nv 1 1 0\nv 2 1 0\n"
@@ -139,7 +125,7 @@ static void test_memory_limit(void) {
             int a = 1 + i + 60 * j;
             p += sprintf(p, "f %d %d %d %d\n", a, a + 1, a + 61, a + 60);
         }
-    const char *path = write_file("grid60.obj", s);
+    const char *path = text_file_write_in(g_dir, "grid60.obj", s);
     free(s);
     rbc_mesh_import_def def;
     rbc_mesh_import_def_init(&def, sizeof def);
@@ -310,7 +296,7 @@ int main(int argc, char **argv) {
         perror("mkdtemp");
         return 2;
     }
-    const char *grid = write_file("grid.obj", grid_obj);
+    const char *grid = text_file_write_in(g_dir, "grid.obj", grid_obj);
     test_crashers(argv[1]);
     test_memory_limit();
     test_helper_missing(grid);

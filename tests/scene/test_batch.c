@@ -19,81 +19,24 @@
  */
 #define _POSIX_C_SOURCE 200809L
 #include <cJSON.h>
-#include <dirent.h>
 #include <signal.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
-#include <time.h>
-#include <unistd.h>
 
 #include "check.h"
+#include "files.h"
+#include "proc.h"
 #include "text_file.h"
 
 static const char *g_cli, *g_meshes, *g_out;
 
-static char *fmt(const char *f, const char *a, const char *b) {
-    static char buf[8][2048];
-    static int next = 0;
-    char *p = buf[next++ % 8];
-    snprintf(p, sizeof buf[0], f, a, b);
-    return p;
-}
-
-static int exists(const char *path) {
-    struct stat st;
-    return stat(path, &st) == 0;
-}
-
-static void write_text(const char *path, const char *text) {
-    FILE *f = fopen(path, "w");
-    CHECK(f != NULL);
-    if (!f) return;
-    fputs(text, f);
-    fclose(f);
-}
-
-/* Files whose name contains ".tmp" under dir (recursive). */
-static int count_tmp(const char *dir) {
-    DIR *d = opendir(dir);
-    if (!d) return 0;
-    int n = 0;
-    struct dirent *e;
-    while ((e = readdir(d)) != NULL) {
-        if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0) continue;
-        char p[2048];
-        snprintf(p, sizeof p, "%s/%s", dir, e->d_name);
-        if (strstr(e->d_name, ".tmp")) {
-            fprintf(stderr, "left behind: %s\n", p);
-            n++;
-        }
-        struct stat st;
-        if (stat(p, &st) == 0 && S_ISDIR(st.st_mode)) n += count_tmp(p);
-    }
-    closedir(d);
-    return n;
-}
-
 /* Start `rbcloth batch MANIFEST -j 2 --out OUT --quiet`, stdout+stderr to log. */
 static pid_t start_batch(const char *manifest, const char *out, const char *log) {
-    pid_t pid = fork();
-    if (pid == 0) {
-        FILE *f = freopen(log, "w", stdout);
-        (void)f;
-        dup2(STDOUT_FILENO, STDERR_FILENO);
-        execl(g_cli, g_cli, "batch", manifest, "-j", "2", "--out", out, "--quiet", (char *)NULL);
-        _exit(127);
-    }
-    return pid;
-}
-
-static int wait_exit(pid_t pid) {
-    int st = 0;
-    if (waitpid(pid, &st, 0) != pid) return -1;
-    return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
+    const char *args[] = {"batch", manifest, "-j", "2", "--out", out, "--quiet", NULL};
+    return proc_start(g_cli, NULL, log, args);
 }
 
 static uint32_t le32(const unsigned char *p) {
@@ -196,32 +139,26 @@ static void check_report_json(const char *out, const char *const *names,
     CHECK(exists(fmt("%s/%s", out, "batch_report.md")));
 }
 
-static int log_contains(const char *log, const char *needle) {
-    size_t size = 0;
-    char *text = (char *)file_read_bytes(log, &size);
-    int found = text && strstr(text, needle) != NULL;
-    if (!found) fprintf(stderr, "%s does not contain '%s':\n%s\n", log, needle, text ? text : "");
-    free(text);
-    return found;
-}
-
 static void test_failures_and_resume(void) {
-    char out[1024], manifest[1100], log[1100], json[4096];
+    char out[1024], manifest[1100], log[1100];
     snprintf(out, sizeof out, "%s/mixed", g_out);
     snprintf(manifest, sizeof manifest, "%s/mixed.json", g_out);
     snprintf(log, sizeof log, "%s/mixed.log", g_out);
-    snprintf(json, sizeof json,
-             "{\"defaults\": {\"frames\": 12, \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
-             " \"jobs\": [\n"
-             "  {\"name\": \"grid\", \"mesh\": \"%s/grid_20x20.obj\", \"pins\": {\"top_axis\": \"z\"}},\n"
-             "  {\"name\": \"missing\", \"mesh\": \"%s/no_such_mesh.obj\"},\n"
-             "  {\"name\": \"patch\", \"mesh\": \"%s/tri_patch.obj\", \"solver\": \"multicolor_gs\","
-             " \"pins\": {\"top_axis\": \"y\"}, \"frames\": 7},\n"
-             "  {\"name\": \"scene\", \"scene\": \"default\", \"frames\": 3, \"outputs\": [\"pc2\", \"mdd\"]}\n"
-             " ]}\n",
-             g_meshes, g_meshes, g_meshes);
-    write_text(manifest, json);
-    CHECK_EQ(wait_exit(start_batch(manifest, out, log)), 1);
+    write_text_sub(manifest,
+                   "{\"defaults\": {\"frames\": 12,"
+                   " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
+                   " \"jobs\": [\n"
+                   "  {\"name\": \"grid\", \"mesh\": \"%s/grid_20x20.obj\","
+                   " \"pins\": {\"top_axis\": \"z\"}},\n"
+                   "  {\"name\": \"missing\", \"mesh\": \"%s/no_such_mesh.obj\"},\n"
+                   "  {\"name\": \"patch\", \"mesh\": \"%s/tri_patch.obj\","
+                   " \"solver\": \"multicolor_gs\", \"pins\": {\"top_axis\": \"y\"},"
+                   " \"frames\": 7},\n"
+                   "  {\"name\": \"scene\", \"scene\": \"default\", \"frames\": 3,"
+                   " \"outputs\": [\"pc2\", \"mdd\"]}\n"
+                   " ]}\n",
+                   g_meshes);
+    CHECK_EQ(proc_wait(start_batch(manifest, out, log)), 1);
     CHECK(log_contains(log, "missing: failed: import: RBC_ERR_IO"));
     CHECK(log_contains(log, "no_such_mesh.obj"));
     check_caches(out, "grid", 441, 12, 1, 1);
@@ -234,7 +171,7 @@ static void test_failures_and_resume(void) {
     check_report_json(out, names, first, 4);
 
     /* Rerun: finished jobs skipped, the missing mesh still fails. */
-    CHECK_EQ(wait_exit(start_batch(manifest, out, log)), 1);
+    CHECK_EQ(proc_wait(start_batch(manifest, out, log)), 1);
     CHECK(log_contains(log, "skipped grid"));
     CHECK(log_contains(log, "0 ok, 3 skipped, 1 failed"));
     static const char *const second[] = {"skipped", "failed", "skipped", "skipped"};
@@ -242,33 +179,27 @@ static void test_failures_and_resume(void) {
 }
 
 static void test_interrupt(void) {
-    char out[1024], manifest[1100], log[1100], json[4096];
+    char out[1024], manifest[1100], log[1100];
     snprintf(out, sizeof out, "%s/interrupted", g_out);
     snprintf(manifest, sizeof manifest, "%s/interrupted.json", g_out);
     snprintf(log, sizeof log, "%s/interrupted.log", g_out);
-    snprintf(json, sizeof json,
-             "{\"jobs\": [\n"
-             "  {\"name\": \"long\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000,"
-             " \"pins\": {\"top_axis\": \"z\"}, \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
-             "  {\"name\": \"short\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 10,"
-             " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
-             "  {\"name\": \"later\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 1000000}\n"
-             " ]}\n",
-             g_meshes, g_meshes, g_meshes);
-    write_text(manifest, json);
+    write_text_sub(manifest,
+                   "{\"jobs\": [\n"
+                   "  {\"name\": \"long\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000,"
+                   " \"pins\": {\"top_axis\": \"z\"},"
+                   " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
+                   "  {\"name\": \"short\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 10,"
+                   " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
+                   "  {\"name\": \"later\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 1000000}\n"
+                   " ]}\n",
+                   g_meshes);
     pid_t pid = start_batch(manifest, out, log);
     /* Wait until the short job has finished ("later" then runs), at most 10 s. */
-    int seen = 0;
-    for (int k = 0; k < 500 && !seen; ++k) {
-        struct timespec ts = {0, 20 * 1000 * 1000};
-        nanosleep(&ts, NULL);
-        seen = exists(fmt("%s/%s", out, "short/short.result.json"));
-    }
+    int seen = wait_for_files(fmt("%s/%s", out, "short/short.result.json"), NULL, 500, 0.02);
     CHECK(seen);
-    struct timespec ts = {0, 200 * 1000 * 1000}; /* let the long jobs write tmp files */
-    nanosleep(&ts, NULL);
+    nap(0.2); /* let the long jobs write tmp files */
     kill(pid, SIGINT);
-    CHECK_EQ(wait_exit(pid), 1);
+    CHECK_EQ(proc_wait(pid), 1);
     CHECK(log_contains(log, "long: interrupted"));
     check_caches(out, "short", 45, 10, 1, 1);
     CHECK(!exists(fmt("%s/%s", out, "long/long.pc2")));
@@ -279,84 +210,37 @@ static void test_interrupt(void) {
     check_report_json(out, names, statuses, 3);
 }
 
-/* The oldest child of `parent` (the first forked): the pid whose /proc/PID/stat names
- * parent as its parent, with the smallest start time; 0 if none. (/proc/PID/task/
- * TID/children needs a kernel option this machine lacks.) */
-static long child_of(pid_t parent) {
-    DIR *d = opendir("/proc");
-    if (!d) return 0;
-    long best = 0;
-    unsigned long long best_start = ~0ull;
-    struct dirent *e;
-    while ((e = readdir(d)) != NULL) {
-        long p = strtol(e->d_name, NULL, 10);
-        if (p <= 0) continue;
-        /* /proc files report size 0: read them with fread, not by their size. */
-        FILE *f = fopen(fmt("/proc/%s/%s", e->d_name, "stat"), "r");
-        if (!f) continue;
-        char *st = calloc(1, 4096);
-        size_t got = st ? fread(st, 1, 4095, f) : 0;
-        fclose(f);
-        if (!st || !got) {
-            free(st);
-            continue;
-        }
-        /* pid (comm) state ppid ... field 22 starttime; comm may hold spaces. */
-        char *rp = strrchr(st, ')');
-        long ppid = 0;
-        unsigned long long start = 0;
-        if (rp) {
-            char *q = rp + 2; /* state */
-            int field = 3;
-            for (char *tok = strtok(q, " "); tok; tok = strtok(NULL, " "), ++field) {
-                if (field == 4) ppid = strtol(tok, NULL, 10);
-                if (field == 22) {
-                    start = strtoull(tok, NULL, 10);
-                    break;
-                }
-            }
-        }
-        free(st);
-        if (ppid == (long)parent && start < best_start) best = p, best_start = start;
-    }
-    closedir(d);
-    return best;
-}
-
 /* A worker killed with SIGKILL in the middle of its frames (a job the OOM killer or a
  * user ends): the batch reports it crashed, removes its temporary files, runs the
  * rest, and exits 1. The worker is found as the batch's child process. */
 static void test_killed_job(void) {
-    char out[1024], manifest[1100], log[1100], json[4096];
+    char out[1024], manifest[1100], log[1100];
     snprintf(out, sizeof out, "%s/killed", g_out);
     snprintf(manifest, sizeof manifest, "%s/killed.json", g_out);
     snprintf(log, sizeof log, "%s/killed.log", g_out);
-    snprintf(json, sizeof json,
-             "{\"jobs\": [\n"
-             "  {\"name\": \"victim\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000,"
-             " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
-             "  {\"name\": \"after\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 10,"
-             " \"outputs\": [\"pc2\"]}\n"
-             " ]}\n",
-             g_meshes, g_meshes);
-    write_text(manifest, json);
+    write_text_sub(manifest,
+                   "{\"jobs\": [\n"
+                   "  {\"name\": \"victim\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000,"
+                   " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
+                   "  {\"name\": \"after\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 10,"
+                   " \"outputs\": [\"pc2\"]}\n"
+                   " ]}\n",
+                   g_meshes);
     pid_t pid = start_batch(manifest, out, log); /* the victim is forked first */
     long worker = 0;
     for (int k = 0; k < 500 && worker <= 0; ++k) { /* at most 10 s */
-        struct timespec ts = {0, 20 * 1000 * 1000};
-        nanosleep(&ts, NULL);
+        nap(0.02);
         if (!exists(fmt("%s/%s", out, "victim"))) continue; /* the victim has started */
-        worker = child_of(pid);
+        worker = proc_first_child(pid);
     }
     CHECK(worker > 0);
     if (worker > 0) {
-        struct timespec ts = {0, 300 * 1000 * 1000}; /* some frames into its tmp files */
-        nanosleep(&ts, NULL);
+        nap(0.3); /* some frames into its tmp files */
         kill((pid_t)worker, SIGKILL);
     } else {
         kill(pid, SIGINT); /* never leave the batch running */
     }
-    CHECK_EQ(wait_exit(pid), 1);
+    CHECK_EQ(proc_wait(pid), 1);
     CHECK(log_contains(log, "victim: crashed: signal 9"));
     CHECK(exists(fmt("%s/%s", out, "after/after.pc2")));
     CHECK(!exists(fmt("%s/%s", out, "victim/victim.pc2")));
@@ -365,20 +249,7 @@ static void test_killed_job(void) {
 
 /* Run RBCLOTH with the given arguments (NULL-terminated), stdout+stderr to log. */
 static int run_cli(const char *log, const char *const *args) {
-    char *argv[32];
-    int n = 0;
-    argv[n++] = (char *)g_cli;
-    for (; args[n - 1] && n < 31; ++n) argv[n] = (char *)args[n - 1];
-    argv[n] = NULL;
-    pid_t pid = fork();
-    if (pid == 0) {
-        FILE *f = freopen(log, "w", stdout);
-        (void)f;
-        dup2(STDOUT_FILENO, STDERR_FILENO);
-        execv(g_cli, argv);
-        _exit(127);
-    }
-    return wait_exit(pid);
+    return proc_wait(proc_start(g_cli, NULL, log, args));
 }
 
 static void copy_file(const char *from, const char *to) {
@@ -439,19 +310,18 @@ static void test_folder(void) {
 }
 
 static void test_only_and_report(void) {
-    char out[1024], manifest[1100], log[1100], json[4096];
+    char out[1024], manifest[1100], log[1100];
     snprintf(out, sizeof out, "%s/only", g_out);
     snprintf(manifest, sizeof manifest, "%s/only.json", g_out);
     snprintf(log, sizeof log, "%s/only.log", g_out);
-    snprintf(json, sizeof json,
-             "{\"defaults\": {\"frames\": 5},\n"
-             " \"jobs\": [\n"
-             "  {\"name\": \"strip\", \"mesh\": \"%s/strip_8x4.obj\"},\n"
-             "  {\"name\": \"missing\", \"mesh\": \"%s/no_such_mesh.obj\"},\n"
-             "  {\"name\": \"patch\", \"mesh\": \"%s/tri_patch.obj\"}\n"
-             " ]}\n",
-             g_meshes, g_meshes, g_meshes);
-    write_text(manifest, json);
+    write_text_sub(manifest,
+                   "{\"defaults\": {\"frames\": 5},\n"
+                   " \"jobs\": [\n"
+                   "  {\"name\": \"strip\", \"mesh\": \"%s/strip_8x4.obj\"},\n"
+                   "  {\"name\": \"missing\", \"mesh\": \"%s/no_such_mesh.obj\"},\n"
+                   "  {\"name\": \"patch\", \"mesh\": \"%s/tri_patch.obj\"}\n"
+                   " ]}\n",
+                   g_meshes);
     const char *task0[] = {"batch", manifest, "--only", "0", "--out", out, "--quiet", NULL};
     CHECK_EQ(run_cli(log, task0), 0);
     CHECK(exists(fmt("%s/%s", out, "strip/strip.result.json")));
@@ -486,9 +356,7 @@ int main(int argc, char **argv) {
     g_cli = argv[1];
     g_meshes = argv[2];
     g_out = argv[3];
-    char cmd[2048];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s'", g_out, g_out);
-    if (system(cmd) != 0) return 2;
+    if (fresh_dir(g_out) != 0) return 2;
     test_failures_and_resume();
     test_interrupt();
     test_killed_job();

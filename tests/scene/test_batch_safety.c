@@ -25,172 +25,56 @@
  */
 #define _POSIX_C_SOURCE 200809L
 #include <dirent.h>
-#include <errno.h>
-#include <fcntl.h>
 #include <signal.h>
-#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
-#include <time.h>
 #include <unistd.h>
 
 #include "check.h"
+#include "files.h"
+#include "proc.h"
 #include "text_file.h"
 
 static const char *g_cli, *g_meshes, *g_out;
 
-static double now_seconds(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static void nap(double seconds) {
-    struct timespec ts = {(time_t)seconds, (long)((seconds - (double)(time_t)seconds) * 1e9)};
-    nanosleep(&ts, NULL);
-}
-
-static char *fmt(const char *f, const char *a, const char *b) {
-    static char buf[16][2048];
-    static int next = 0;
-    char *p = buf[next++ % 16];
-    snprintf(p, sizeof buf[0], f, a, b);
-    return p;
-}
-
-static int exists(const char *path) {
-    struct stat st;
-    return stat(path, &st) == 0;
-}
-
-static void write_text(const char *path, const char *text) {
-    FILE *f = fopen(path, "w");
-    CHECK(f != NULL);
-    if (!f) return;
-    fputs(text, f);
-    fclose(f);
-}
-
-static int contains(const char *log, const char *needle, int say) {
-    char *text = (char *)file_read_bytes(log, NULL);
-    int found = text && strstr(text, needle) != NULL;
-    if (!found && say)
-        fprintf(stderr, "%s does not contain '%s':\n%s\n", log, needle, text ? text : "");
-    free(text);
-    return found;
-}
-
-static int log_contains(const char *log, const char *needle) { return contains(log, needle, 1); }
-
 /* Start RBCLOTH ARGS... (NULL-terminated) in folder cwd (NULL: this one), stdout
  * and stderr to log. */
 static pid_t start(const char *cwd, const char *log, const char *const *args) {
-    char *argv[40];
-    int n = 0;
-    argv[n++] = (char *)g_cli;
-    for (; args[n - 1] && n < 39; ++n) argv[n] = (char *)args[n - 1];
-    argv[n] = NULL;
-    pid_t pid = fork();
-    if (pid == 0) {
-        if (cwd && chdir(cwd) != 0) _exit(126);
-        int fd = open(log, O_WRONLY | O_CREAT | O_TRUNC, 0644);
-        if (fd >= 0) {
-            dup2(fd, STDOUT_FILENO);
-            dup2(fd, STDERR_FILENO);
-            close(fd);
-        }
-        execv(g_cli, argv);
-        _exit(127);
-    }
-    return pid;
-}
-
-/* Its exit status (128 + signal when killed), or -1 after `limit` seconds, when it
- * is killed so that no test leaves a process behind. */
-static int wait_exit(pid_t pid, double limit) {
-    const double t0 = now_seconds();
-    for (;;) {
-        int st = 0;
-        pid_t r = waitpid(pid, &st, WNOHANG);
-        if (r == pid) return WIFEXITED(st) ? WEXITSTATUS(st) : 128 + WTERMSIG(st);
-        if (r < 0) return -1;
-        if (now_seconds() - t0 > limit) {
-            fprintf(stderr, "pid %ld still running after %.0f s: killed\n", (long)pid, limit);
-            kill(pid, SIGKILL);
-            waitpid(pid, &st, 0);
-            return -1;
-        }
-        nap(0.01);
-    }
+    return proc_start(g_cli, cwd, log, args);
 }
 
 static int run_cli(const char *cwd, const char *log, const char *const *args, double limit) {
-    return wait_exit(start(cwd, log, args), limit);
+    return proc_wait_for(start(cwd, log, args), limit);
 }
 
-/* /proc/PID/stat: its parent and state ('Z' zombie); 0 when there is no such pid. */
-static int proc_stat(long pid, long *ppid, char *state) {
-    char path[64];
-    snprintf(path, sizeof path, "/proc/%ld/stat", pid);
-    FILE *f = fopen(path, "r");
-    if (!f) return 0;
-    char text[1024];
-    size_t n = fread(text, 1, sizeof text - 1, f); /* /proc files report size 0 */
-    fclose(f);
-    text[n] = '\0';
-    const char *rp = strrchr(text, ')'); /* pid (comm) state ppid ...; comm may hold spaces */
-    if (!rp || sscanf(rp + 2, "%c %ld", state, ppid) != 2) return 0;
-    return 1;
+/* Start RBCLOTH ARGS... with its output in log, wait (at most 1000 naps of 10 ms)
+ * until path a, and b unless NULL, show how far it got, then `settle` seconds more
+ * (0: none); its pid. */
+static pid_t start_until(const char *log, const char *const *args, const char *a, const char *b,
+                         double settle) {
+    pid_t pid = start(NULL, log, args);
+    int seen = wait_for_files(a, b, 1000, 0.01);
+    if (!seen) fprintf(stderr, "%s%s%s did not appear\n", a, b ? " or " : "", b ? b : "");
+    CHECK(seen);
+    if (settle > 0) nap(settle);
+    return pid;
 }
 
-/* Whether pid runs (a zombie has exited). */
-static int alive(long pid) {
-    long ppid;
-    char state;
-    return proc_stat(pid, &ppid, &state) && state != 'Z' && state != 'X';
-}
+/* A case's manifest g_out/MANIFEST (json, whose each %s is the mesh folder), its
+ * --out folder g_out/OUT and its log g_out/LOG. */
+struct batch_case {
+    char manifest[1100], out[1100], log[1100];
+};
 
-/* The children of `parent` (its workers), at most `cap`. */
-static int children(pid_t parent, long *out, int cap) {
-    DIR *d = opendir("/proc");
-    if (!d) return 0;
-    int n = 0;
-    struct dirent *e;
-    while ((e = readdir(d)) != NULL && n < cap) {
-        long p = strtol(e->d_name, NULL, 10), ppid;
-        char state;
-        if (p > 0 && proc_stat(p, &ppid, &state) && ppid == (long)parent && state != 'Z')
-            out[n++] = p;
-    }
-    closedir(d);
-    return n;
+static void setup_case(struct batch_case *c, const char *manifest, const char *out,
+                       const char *log, const char *json) {
+    snprintf(c->manifest, sizeof c->manifest, "%s/%s", g_out, manifest);
+    snprintf(c->out, sizeof c->out, "%s/%s", g_out, out);
+    snprintf(c->log, sizeof c->log, "%s/%s", g_out, log);
+    write_text_sub(c->manifest, json, g_meshes);
 }
-
-/* Files whose name contains ".tmp" under dir (recursive), named on stderr if `say`. */
-static int count_tmp_in(const char *dir, int say) {
-    DIR *d = opendir(dir);
-    if (!d) return 0;
-    int n = 0;
-    struct dirent *e;
-    while ((e = readdir(d)) != NULL) {
-        if (strcmp(e->d_name, ".") == 0 || strcmp(e->d_name, "..") == 0) continue;
-        char p[2048];
-        snprintf(p, sizeof p, "%s/%s", dir, e->d_name);
-        if (strstr(e->d_name, ".tmp")) {
-            if (say) fprintf(stderr, "left behind: %s\n", p);
-            n++;
-        }
-        struct stat st;
-        if (stat(p, &st) == 0 && S_ISDIR(st.st_mode)) n += count_tmp_in(p, say);
-    }
-    closedir(d);
-    return n;
-}
-
-static int count_tmp(const char *dir) { return count_tmp_in(dir, 1); }
 
 /* Compare every file under ref/rel with the same file under got/rel, and the other
  * way round for presence; results (.result.json, .status.json: timings) are left
@@ -246,66 +130,52 @@ static void compare_trees(const char *ref, const char *got, const char *rel, int
 /* ------------------------------------------------------------------------- */
 
 /* Four jobs, -j 2, about a second in all; "first" ends well before the others. */
-static void write_four_jobs(const char *manifest) {
-    char json[4096];
-    snprintf(json, sizeof json,
-             "{\"defaults\": {\"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
-             " \"jobs\": [\n"
-             "  {\"name\": \"first\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 20},\n"
-             "  {\"name\": \"grid\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 500,"
-             " \"pins\": {\"top_axis\": \"z\"}, \"outputs\": [\"pc2\", \"mdd\"]},\n"
-             "  {\"name\": \"scene\", \"scene\": \"default\", \"frames\": 60,"
-             " \"outputs\": [\"pc2\", \"mdd\"]},\n"
-             "  {\"name\": \"patch\", \"mesh\": \"%s/tri_patch.obj\", \"frames\": 400,"
-             " \"pins\": {\"top_axis\": \"y\"}}\n"
-             " ]}\n",
-             g_meshes, g_meshes, g_meshes);
-    write_text(manifest, json);
-}
+static const char four_jobs[] =
+    "{\"defaults\": {\"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
+    " \"jobs\": [\n"
+    "  {\"name\": \"first\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 20},\n"
+    "  {\"name\": \"grid\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 500,"
+    " \"pins\": {\"top_axis\": \"z\"}, \"outputs\": [\"pc2\", \"mdd\"]},\n"
+    "  {\"name\": \"scene\", \"scene\": \"default\", \"frames\": 60,"
+    " \"outputs\": [\"pc2\", \"mdd\"]},\n"
+    "  {\"name\": \"patch\", \"mesh\": \"%s/tri_patch.obj\", \"frames\": 400,"
+    " \"pins\": {\"top_axis\": \"y\"}}\n"
+    " ]}\n";
 
 static void test_parent_kill(void) {
-    char manifest[1100], ref[1100], out[1100], log[1100];
-    snprintf(manifest, sizeof manifest, "%s/four.json", g_out);
+    struct batch_case c;
+    setup_case(&c, "four.json", "killed", "killed.log", four_jobs);
+    char ref[1100];
     snprintf(ref, sizeof ref, "%s/reference", g_out);
-    snprintf(out, sizeof out, "%s/killed", g_out);
-    snprintf(log, sizeof log, "%s/killed.log", g_out);
-    write_four_jobs(manifest);
-    const char *ref_args[] = {"batch", manifest, "-j", "2", "--out", ref, "--quiet", NULL};
+    const char *ref_args[] = {"batch", c.manifest, "-j", "2", "--out", ref, "--quiet", NULL};
     CHECK_EQ(run_cli(NULL, fmt("%s/%s", g_out, "reference.log"), ref_args, 60), 0);
 
-    const char *args[] = {"batch", manifest, "-j", "2", "--out", out, "--quiet", NULL};
-    pid_t pid = start(NULL, log, args);
+    const char *args[] = {"batch", c.manifest, "-j", "2", "--out", c.out, "--quiet", NULL};
     /* Once "first" is done, two long jobs run with their temporaries open. */
-    int seen = 0;
-    for (int k = 0; k < 1000 && !seen; ++k) {
-        nap(0.01);
-        seen = exists(fmt("%s/%s", out, "first/first.result.json"));
-    }
-    CHECK(seen);
-    nap(0.2);
+    pid_t pid = start_until(c.log, args, fmt("%s/%s", c.out, "first/first.result.json"), NULL, 0.2);
     long workers[8];
-    int n = children(pid, workers, 8);
+    int n = proc_children(pid, workers, 8);
     CHECK(n > 0);
-    CHECK(count_tmp_in(out, 0) > 0); /* in the middle of writing */
+    CHECK(count_tmp_in(c.out, 0) > 0); /* in the middle of writing */
     kill(pid, SIGKILL);
-    CHECK_EQ(wait_exit(pid, 10), 128 + SIGKILL);
+    CHECK_EQ(proc_wait_for(pid, 10), 128 + SIGKILL);
     /* Resume at once. */
     char log2[1100];
     snprintf(log2, sizeof log2, "%s/resumed.log", g_out);
     pid_t again = start(NULL, log2, args);
     nap(0.3);
     for (int k = 0; k < n; ++k) {
-        if (alive(workers[k]))
+        if (proc_alive(workers[k]))
             fprintf(stderr, "worker %ld of the killed batch is alive\n", workers[k]);
-        CHECK(!alive(workers[k]));
+        CHECK(!proc_alive(workers[k]));
     }
-    CHECK_EQ(wait_exit(again, 60), 0);
+    CHECK_EQ(proc_wait_for(again, 60), 0);
     CHECK(log_contains(log2, "skipped first"));
-    for (int k = 0; k < n; ++k) CHECK(!alive(workers[k]));
-    CHECK_EQ(count_tmp(out), 0);
+    for (int k = 0; k < n; ++k) CHECK(!proc_alive(workers[k]));
+    CHECK_EQ(count_tmp(c.out), 0);
     int compared = 0, mismatches = 0;
     static const char *const jobs[] = {"first", "grid", "scene", "patch"};
-    for (int k = 0; k < 4; ++k) compare_trees(ref, out, jobs[k], &compared, &mismatches);
+    for (int k = 0; k < 4; ++k) compare_trees(ref, c.out, jobs[k], &compared, &mismatches);
     /* first: obj, pc2, mdd, 20 frames, png, html; the others obj, pc2, mdd, png, html
      * (patch: and 400 frames). */
     CHECK_EQ(compared, 25 + 5 + 5 + 405);
@@ -313,25 +183,15 @@ static void test_parent_kill(void) {
 }
 
 static void test_lock(void) {
-    char manifest[1100], out[1100], log[1100], json[4096];
-    snprintf(manifest, sizeof manifest, "%s/long.json", g_out);
-    snprintf(out, sizeof out, "%s/locked", g_out);
-    snprintf(log, sizeof log, "%s/first.log", g_out);
-    snprintf(json, sizeof json,
-             "{\"jobs\": [\n"
-             "  {\"name\": \"long\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000},\n"
-             "  {\"name\": \"short\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 5}\n"
-             " ]}\n",
-             g_meshes, g_meshes);
-    write_text(manifest, json);
-    const char *args[] = {"batch", manifest, "-j", "1", "--out", out, "--quiet", NULL};
-    pid_t pid = start(NULL, log, args);
-    int seen = 0;
-    for (int k = 0; k < 1000 && !seen; ++k) {
-        nap(0.01);
-        seen = exists(fmt("%s/%s", out, "long/long.pc2.tmp"));
-    }
-    CHECK(seen);
+    struct batch_case c;
+    setup_case(&c, "long.json", "locked", "first.log",
+               "{\"jobs\": [\n"
+               "  {\"name\": \"long\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000},\n"
+               "  {\"name\": \"short\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 5}\n"
+               " ]}\n");
+    const char *out = c.out;
+    const char *args[] = {"batch", c.manifest, "-j", "1", "--out", out, "--quiet", NULL};
+    pid_t pid = start_until(c.log, args, fmt("%s/%s", out, "long/long.pc2.tmp"), NULL, 0);
     /* A second batch on the folder: refused at once, naming it and the holder. */
     char second[1100], expect[4096];
     snprintf(second, sizeof second, "%s/second.log", g_out);
@@ -342,9 +202,9 @@ static void test_lock(void) {
              out, (long)pid);
     CHECK(log_contains(second, expect));
     CHECK(log_contains(second, "wait for it to end or choose another --out"));
-    CHECK(!contains(second, "rbcloth batch: 2 jobs", 0));
+    CHECK(!file_contains(second, "rbcloth batch: 2 jobs", 0));
     /* So is an array task of the same folder, and `rbcloth run` into a job's folder. */
-    const char *task[] = {"batch", manifest, "--only", "1", "--out", out, "--quiet", NULL};
+    const char *task[] = {"batch", c.manifest, "--only", "1", "--out", out, "--quiet", NULL};
     CHECK_EQ(run_cli(NULL, second, task, 30), 1);
     CHECK(log_contains(second, "is in use by another rbcloth"));
     CHECK(!exists(fmt("%s/%s", out, "short/short.result.json")));
@@ -355,7 +215,7 @@ static void test_lock(void) {
     CHECK(log_contains(second, expect));
     CHECK(!exists(fmt("%s/%s", out, "long/hanging_cloth.json")));
     kill(pid, SIGTERM);
-    CHECK_EQ(wait_exit(pid, 30), 1);
+    CHECK_EQ(proc_wait_for(pid, 30), 1);
     /* Free again once it ended: the short job runs. */
     CHECK_EQ(run_cli(NULL, second, task, 30), 0);
     CHECK(exists(fmt("%s/%s", out, "short/short.result.json")));
@@ -363,36 +223,30 @@ static void test_lock(void) {
     /* Array tasks share a folder: a task ends while another one runs there. */
     char tasks[1100];
     snprintf(tasks, sizeof tasks, "%s/tasks", g_out);
-    const char *task0[] = {"batch", manifest, "--only", "0", "--out", tasks, "--quiet", NULL};
-    const char *task1[] = {"batch", manifest, "--only", "1", "--out", tasks, "--quiet", NULL};
-    pid_t t = start(NULL, fmt("%s/%s", g_out, "task0.log"), task0);
-    seen = 0;
-    for (int k = 0; k < 1000 && !seen; ++k) {
-        nap(0.01);
-        seen = exists(fmt("%s/%s", tasks, "long/long.pc2.tmp"));
-    }
-    CHECK(seen);
+    const char *task0[] = {"batch", c.manifest, "--only", "0", "--out", tasks, "--quiet", NULL};
+    const char *task1[] = {"batch", c.manifest, "--only", "1", "--out", tasks, "--quiet", NULL};
+    pid_t t = start_until(fmt("%s/%s", g_out, "task0.log"), task0,
+                          fmt("%s/%s", tasks, "long/long.pc2.tmp"), NULL, 0);
     CHECK_EQ(run_cli(NULL, fmt("%s/%s", g_out, "task1.log"), task1, 30), 0);
     CHECK(exists(fmt("%s/%s", tasks, "short/short.result.json")));
     kill(t, SIGTERM);
-    CHECK_EQ(wait_exit(t, 30), 1);
+    CHECK_EQ(proc_wait_for(t, 30), 1);
     CHECK_EQ(count_tmp(out) + count_tmp(tasks), 0);
 }
 
 static void test_abs_out(void) {
-    char work[1100], manifest[1200], log[1100], abs_out[4096], json[4096];
+    char work[1100], manifest[1200], log[1100], abs_out[4096];
     snprintf(work, sizeof work, "%s/workdir", g_out);
     snprintf(manifest, sizeof manifest, "%s/two.json", work);
     snprintf(log, sizeof log, "%s/abs.log", g_out);
     mkdir(work, 0755);
-    snprintf(json, sizeof json,
-             "{\"defaults\": {\"frames\": 6, \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
-             " \"jobs\": [\n"
-             "  {\"name\": \"strip\", \"mesh\": \"%s/strip_8x4.obj\"},\n"
-             "  {\"name\": \"scene\", \"scene\": \"default\", \"frames\": 2}\n"
-             " ]}\n",
-             g_meshes);
-    write_text(manifest, json);
+    write_text_sub(manifest,
+                   "{\"defaults\": {\"frames\": 6, \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
+                   " \"jobs\": [\n"
+                   "  {\"name\": \"strip\", \"mesh\": \"%s/strip_8x4.obj\"},\n"
+                   "  {\"name\": \"scene\", \"scene\": \"default\", \"frames\": 2}\n"
+                   " ]}\n",
+                   g_meshes);
     /* From workdir with a relative --out ... */
     const char *rel[] = {"batch", "two.json", "--out", "rel/out", "--quiet", NULL};
     CHECK_EQ(run_cli(work, log, rel, 60), 0);
@@ -421,21 +275,17 @@ static void test_abs_out(void) {
 }
 
 static void test_job_timeout(void) {
-    char manifest[1100], out[1100], log[1100], json[4096];
-    snprintf(manifest, sizeof manifest, "%s/slow.json", g_out);
-    snprintf(out, sizeof out, "%s/timeout", g_out);
-    snprintf(log, sizeof log, "%s/timeout.log", g_out);
-    snprintf(json, sizeof json,
-             "{\"jobs\": [\n"
-             "  {\"name\": \"slow\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000,"
-             " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
-             "  {\"name\": \"fast\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 10},\n"
-             "  {\"name\": \"own\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 1000000,"
-             " \"timeout\": 0.5}\n"
-             " ]}\n",
-             g_meshes, g_meshes, g_meshes);
-    write_text(manifest, json);
-    const char *args[] = {"batch", manifest, "-j", "1", "--job-timeout", "1", "--out", out,
+    struct batch_case c;
+    setup_case(&c, "slow.json", "timeout", "timeout.log",
+               "{\"jobs\": [\n"
+               "  {\"name\": \"slow\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000,"
+               " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
+               "  {\"name\": \"fast\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 10},\n"
+               "  {\"name\": \"own\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 1000000,"
+               " \"timeout\": 0.5}\n"
+               " ]}\n");
+    const char *out = c.out, *log = c.log;
+    const char *args[] = {"batch", c.manifest, "-j", "1", "--job-timeout", "1", "--out", out,
                           "--quiet", NULL};
     double t0 = now_seconds();
     CHECK_EQ(run_cli(NULL, log, args, 60), 1);
@@ -455,50 +305,39 @@ static void test_job_timeout(void) {
     const char *typo[] = {"batch", fmt("%s/%s", g_out, "typo.json"), "--out", out, NULL};
     CHECK_EQ(run_cli(NULL, log, typo, 30), 1);
     CHECK(log_contains(log, "jobs[0].timout: unknown key; did you mean \"timeout\"?"));
-    const char *bad[] = {"batch", manifest, "--job-timeout", "-1", NULL};
+    const char *bad[] = {"batch", c.manifest, "--job-timeout", "-1", NULL};
     CHECK_EQ(run_cli(NULL, log, bad, 30), 2);
     CHECK(log_contains(log, "--job-timeout needs a number of seconds"));
 }
 
 static void test_sigterm(void) {
-    char manifest[1100], out[1100], log[1100], json[4096];
-    snprintf(manifest, sizeof manifest, "%s/stuck.json", g_out);
-    snprintf(out, sizeof out, "%s/sigterm", g_out);
-    snprintf(log, sizeof log, "%s/sigterm.log", g_out);
     /* "stuck": one frame of 1024 substeps x 4096 iterations on 10,000 vertices takes
      * minutes, so its worker never reaches its check of the signal, like a job
      * inside an importer. "long": many short frames; it stops at the next one. */
-    snprintf(json, sizeof json,
-             "{\"jobs\": [\n"
-             "  {\"name\": \"stuck\", \"scene\": \"default\", \"frames\": 3, \"substeps\": 1024,"
-             " \"iterations\": 4096, \"outputs\": [\"pc2\", \"mdd\"]},\n"
-             "  {\"name\": \"long\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000,"
-             " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
-             "  {\"name\": \"later\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 5}\n"
-             " ]}\n",
-             g_meshes, g_meshes);
-    write_text(manifest, json);
-    const char *args[] = {"batch", manifest, "-j", "2", "--term-grace", "1", "--out", out,
+    struct batch_case c;
+    setup_case(&c, "stuck.json", "sigterm", "sigterm.log",
+               "{\"jobs\": [\n"
+               "  {\"name\": \"stuck\", \"scene\": \"default\", \"frames\": 3, \"substeps\": 1024,"
+               " \"iterations\": 4096, \"outputs\": [\"pc2\", \"mdd\"]},\n"
+               "  {\"name\": \"long\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000,"
+               " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
+               "  {\"name\": \"later\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 5}\n"
+               " ]}\n");
+    const char *out = c.out, *log = c.log;
+    const char *args[] = {"batch", c.manifest, "-j", "2", "--term-grace", "1", "--out", out,
                           "--quiet", NULL};
-    pid_t pid = start(NULL, log, args);
-    int seen = 0;
-    for (int k = 0; k < 1000 && !seen; ++k) {
-        nap(0.01);
-        seen = exists(fmt("%s/%s", out, "stuck/stuck.pc2.tmp")) &&
-               exists(fmt("%s/%s", out, "long/long.pc2.tmp"));
-    }
-    CHECK(seen);
-    nap(0.3);
+    pid_t pid = start_until(log, args, fmt("%s/%s", out, "stuck/stuck.pc2.tmp"),
+                            fmt("%s/%s", out, "long/long.pc2.tmp"), 0.3);
     long workers[8];
-    int n = children(pid, workers, 8);
+    int n = proc_children(pid, workers, 8);
     CHECK_EQ(n, 2);
     double t0 = now_seconds();
     kill(pid, SIGTERM);
-    CHECK_EQ(wait_exit(pid, 60), 1);
+    CHECK_EQ(proc_wait_for(pid, 60), 1);
     const double took = now_seconds() - t0;
     if (took >= 1.0 + 3.0) fprintf(stderr, "the batch took %.2f s to stop\n", took);
     CHECK(took < 1.0 + 3.0); /* the grace period, then the reports */
-    for (int k = 0; k < n; ++k) CHECK(!alive(workers[k]));
+    for (int k = 0; k < n; ++k) CHECK(!proc_alive(workers[k]));
     CHECK(log_contains(log, "stuck: interrupted: stopped by a signal: killed, still running 1 s "
                             "after SIGTERM"));
     CHECK(log_contains(log, "long: interrupted: stopped by a signal"));
@@ -515,16 +354,9 @@ static void test_run_sigint(void) {
         snprintf(log, sizeof log, "%s/run_%d.log", g_out, k);
         const char *args[] = {"run", "--frames", "1000000", "--threads", k ? "2" : "1", "--quiet",
                               "--out", out, NULL};
-        pid_t pid = start(NULL, log, args);
-        int seen = 0;
-        for (int i = 0; i < 1000 && !seen; ++i) {
-            nap(0.01);
-            seen = exists(fmt("%s/%s", out, "hanging_cloth.pc2.tmp"));
-        }
-        CHECK(seen);
-        nap(0.3);
+        pid_t pid = start_until(log, args, fmt("%s/%s", out, "hanging_cloth.pc2.tmp"), NULL, 0.3);
         kill(pid, sigs[k]);
-        CHECK_EQ(wait_exit(pid, 10), 1);
+        CHECK_EQ(proc_wait_for(pid, 10), 1);
         CHECK(log_contains(log, k ? "rbcloth: stopped by SIGTERM after "
                                   : "rbcloth: stopped by SIGINT after "));
         CHECK(log_contains(log, "temporary files removed"));
@@ -537,18 +369,12 @@ static void test_run_sigint(void) {
     snprintf(log, sizeof log, "%s/run_stuck.log", g_out);
     const char *args[] = {"run", "--frames", "3", "--substeps", "1024", "--iterations", "4096",
                           "--threads", "1", "--quiet", "--out", out, NULL};
-    pid_t pid = start(NULL, log, args);
-    int seen = 0;
-    for (int i = 0; i < 1000 && !seen; ++i) {
-        nap(0.01);
-        seen = exists(fmt("%s/%s", out, "hanging_cloth.pc2.tmp"));
-    }
-    CHECK(seen);
-    nap(0.5); /* inside the first frame */
+    /* 0.5 s: inside the first frame */
+    pid_t pid = start_until(log, args, fmt("%s/%s", out, "hanging_cloth.pc2.tmp"), NULL, 0.5);
     kill(pid, SIGINT);
     nap(0.3);
     kill(pid, SIGINT);
-    CHECK_EQ(wait_exit(pid, 5), 1);
+    CHECK_EQ(proc_wait_for(pid, 5), 1);
     CHECK(log_contains(log, "stopped by a second signal; temporary files removed"));
     CHECK_EQ(count_tmp(out), 0);
 }
@@ -562,9 +388,7 @@ int main(int argc, char **argv) {
     g_cli = argv[2];
     g_meshes = argv[3];
     g_out = argv[4];
-    char cmd[2048];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s' && mkdir -p '%s'", g_out, g_out);
-    if (system(cmd) != 0) return 2;
+    if (fresh_dir(g_out) != 0) return 2;
     static const struct {
         const char *name;
         void (*run)(void);
