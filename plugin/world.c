@@ -1,10 +1,11 @@
-/* world.c -- the ABI's worlds, cloths and colliders over core/: id tables, def
- * validation, error messages and logging. Every function validates all of its input
- * before it changes anything, so a failing call leaves the world as it was. */
+/* world.c -- the ABI's worlds over core/'s solver: create, destroy, step (and the
+ * warnings a step logs), iterations, gravity, solver settings, stats, and the calls
+ * that act on the whole world (the collision and contact callbacks, picking, wind).
+ * Also what every object's file uses: the world's error and log hook, and the world
+ * lookup. Every function validates all of its input before it changes anything, so
+ * a failing call leaves the world as it was. */
 #include <math.h>
-#include <pthread.h>
 #include <stdarg.h>
-#include <stdatomic.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -15,248 +16,42 @@
 #include "rbcloth.h"
 #include "solver.h"
 #include "strain.h"
+#include "world.h"
 
 #define RBC_MAX_WORLDS 1024u
 #define RBC_MAX_THREADS 64u
 
-typedef struct rbc_world {
-    rbc_solver solver;
-    rbc_allocator alloc;
-    rbc_world_def def;
-    uint32_t id;
-} rbc_world;
-
-/* Ids of worlds, cloths and colliders (registry.h). Cloth and collider ids are
- * unique across worlds, so a foreign id is told apart from a live one. */
+/* Ids of worlds (registry.h); cloth.c and collider.c hold the cloths' and the
+ * colliders'. */
 static rbc_reg_entry g_world_entries[RBC_MAX_WORLDS];
-static rbc_reg_entry g_cloth_entries[RBC_MAX_SLOTS];
-static rbc_reg_entry g_collider_entries[RBC_MAX_SLOTS];
-static rbc_registry g_worlds = RBC_REGISTRY_INIT(RBC_KIND_WORLD, RBC_MAX_WORLDS, g_world_entries);
-static rbc_registry g_cloths = RBC_REGISTRY_INIT(RBC_KIND_CLOTH, RBC_MAX_SLOTS, g_cloth_entries);
-static rbc_registry g_colliders =
-    RBC_REGISTRY_INIT(RBC_KIND_COLLIDER, RBC_MAX_SLOTS, g_collider_entries);
+rbc_registry rbc_plugin_worlds = RBC_REGISTRY_INIT(RBC_KIND_WORLD, RBC_MAX_WORLDS, g_world_entries);
 
 /* ------------------------------------------------------------------------- */
-/* Helpers                                                                   */
+/* Errors, logging and the world lookup                                      */
 /* ------------------------------------------------------------------------- */
 
-static void world_log(rbc_world *w, rbc_log_level level, const char *msg) {
+void rbc_plugin_world_log(rbc_world *w, rbc_log_level level, const char *msg) {
     if (w && w->def.log && level <= w->def.log_level) w->def.log(w->def.log_user, level, msg);
 }
 
-/* Set the error, send it to the world's log hook (if any) and return the code. */
-static rbc_result world_error(rbc_world *w, rbc_result code, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
-static rbc_result world_error(rbc_world *w, rbc_result code, const char *fmt, ...) {
+rbc_result rbc_plugin_world_error(rbc_world *w, rbc_result code, const char *fmt, ...) {
     char *buf = rbc_error_buffer();
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(buf, RBC_ERROR_CAP, fmt, ap);
     va_end(ap);
-    world_log(w, RBC_LOG_ERROR, buf);
+    rbc_plugin_world_log(w, RBC_LOG_ERROR, buf);
     return code;
 }
 
-static int finite3(const float *v) { return isfinite(v[0]) && isfinite(v[1]) && isfinite(v[2]); }
-
-/* Copy a def of a released size into a defaults-filled struct. */
-/* Copy a def of a released size into a defaults-filled struct: the current size, or
- * the ABI 1.0 size `old_size` (0 if the struct had no other release), whose missing
- * fields keep their defaults. */
-static rbc_result read_def2(void *dst, size_t dst_size, size_t old_size, size_t old_size2,
-                            const void *src, const char *fn, const char *what) {
-    if (!src) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: %s is NULL", fn, what);
-    uint32_t size;
-    memcpy(&size, src, sizeof size);
-    if (size != dst_size && (old_size == 0 || size != old_size) &&
-        (old_size2 == 0 || size != old_size2))
-        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
-                             "%s: %s->struct_size is %u, which matches no released version "
-                             "(this library knows %zu and the older sizes %zu, %zu); set it "
-                             "to sizeof(%s)",
-                             fn, what, size, dst_size, old_size, old_size2, what);
-    memcpy(dst, src, size);
-    return RBC_OK;
-}
-
-static rbc_result read_def(void *dst, size_t dst_size, size_t old_size, const void *src,
-                           const char *fn, const char *what) {
-    return read_def2(dst, dst_size, old_size, 0, src, fn, what);
-}
-
-static rbc_result lookup_world(rbc_world_id id, const char *fn, rbc_world **out) {
-    *out = rbc_reg_get(&g_worlds, id, 0, fn);
+rbc_result rbc_plugin_lookup_world(rbc_world_id id, const char *fn, rbc_world **out) {
+    *out = rbc_reg_get(&rbc_plugin_worlds, id, 0, fn);
     return *out ? RBC_OK : RBC_ERR_STALE_HANDLE;
 }
 
 /* ------------------------------------------------------------------------- */
-/* Defaults                                                                  */
+/* World                                                                     */
 /* ------------------------------------------------------------------------- */
-
-static rbc_world_def world_def_defaults(void) {
-    rbc_world_def d;
-    memset(&d, 0, sizeof d);
-    d.struct_size = sizeof d;
-    d.gravity[1] = -9.81f;
-    d.substeps = 0; /* 1.6: from substep_rate; defs of older sizes get 1 */
-    d.nonlinear_iterations = 1;
-    d.linear_iterations = 11;
-    d.backend = RBC_BACKEND_AUTO;
-    d.thread_count = 0;
-    d.log_level = RBC_LOG_WARNING;
-    d.substep_rate = 480.0f;
-    d.strain_warning = 2.0f;
-    return d;
-}
-
-static rbc_cloth_def cloth_def_defaults(void) {
-    rbc_cloth_def d;
-    memset(&d, 0, sizeof d);
-    d.struct_size = sizeof d;
-    d.vertex_mass = 1e-4f;
-    d.stiffness = 1000.0f;
-    return d;
-}
-
-static rbc_collider_def collider_def_defaults(void) {
-    rbc_collider_def d;
-    memset(&d, 0, sizeof d);
-    d.struct_size = sizeof d;
-    d.shape = RBC_SHAPE_PLANE;
-    d.radius = 0.5f;
-    d.rotation[3] = 1.0f;
-    d.half_extents[0] = d.half_extents[1] = d.half_extents[2] = 0.5f;
-    return d;
-}
-
-/* Write the first struct_size bytes of the defaults into a host's def. */
-rbc_result rbc_def_init_common(void *def, uint32_t struct_size, const void *defaults,
-                               size_t released_size, size_t old_size, const char *fn,
-                               const char *what) {
-    if (!def) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: def is NULL", fn);
-    if (struct_size != released_size && (old_size == 0 || struct_size != old_size))
-        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
-                             "%s: struct_size is %u, which matches no released version of %s "
-                             "(this library knows %zu and the older size %zu)",
-                             fn, struct_size, what, released_size, old_size);
-    memcpy(def, defaults, struct_size);
-    memcpy(def, &struct_size, sizeof struct_size);
-    return RBC_OK;
-}
-
-RBC_API rbc_result RBC_CALL rbc_world_def_init(rbc_world_def *def, uint32_t struct_size) {
-    rbc_world_def d = world_def_defaults();
-    if (struct_size != sizeof d) d.substeps = 1; /* what the 1.0-1.5 headers document */
-    /* Three released sizes: 1.0, 1.1-1.5 and this one. */
-    if (struct_size == RBC_WORLD_DEF_SIZE_V1_1)
-        return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_WORLD_DEF_SIZE_V1_1,
-                                   "rbc_world_def_init", "rbc_world_def");
-    return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_WORLD_DEF_SIZE_V1_0,
-                               "rbc_world_def_init",
-                               "rbc_world_def");
-}
-
-RBC_API rbc_result RBC_CALL rbc_cloth_def_init(rbc_cloth_def *def, uint32_t struct_size) {
-    rbc_cloth_def d = cloth_def_defaults();
-    /* Three released sizes: 1.0, 1.1-1.2 and this one. */
-    if (struct_size == RBC_CLOTH_DEF_SIZE_V1_1)
-        return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_CLOTH_DEF_SIZE_V1_1,
-                                   "rbc_cloth_def_init", "rbc_cloth_def");
-    return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_CLOTH_DEF_SIZE_V1_0,
-                               "rbc_cloth_def_init",
-                               "rbc_cloth_def");
-}
-
-RBC_API rbc_result RBC_CALL rbc_collider_def_init(rbc_collider_def *def, uint32_t struct_size) {
-    rbc_collider_def d = collider_def_defaults();
-    return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_COLLIDER_DEF_SIZE_V1_0,
-                               "rbc_collider_def_init", "rbc_collider_def");
-}
-
-static rbc_solver_def solver_def_defaults(void) {
-    rbc_solver_def d;
-    memset(&d, 0, sizeof d);
-    d.struct_size = sizeof d;
-    d.solver = RBC_SOLVER_RBGS;
-    d.omega = 0.0f;
-    d.rho = 0.0f;
-    d.chebyshev_delay = 2;
-    d.mode = RBC_ITERATE_FIXED;
-    d.tolerance = 1e-3f;
-    d.budget_ms = 2.0f;
-    d.max_linear_iterations = 1000;
-    d.energy_guard = RBC_ENERGY_GUARD_CLAMP;
-    d.target_strain = 0.05f;
-    d.max_substeps = 16;
-    return d;
-}
-
-/* RBC_PRESET_CLOTH, the default solve since 1.6: red-black SOR at fixed counts,
- * with the world's default 480 substeps a second of 11 iterations. `rbcloth bench
- * defaults` (docs/results/defaults.md) measured it beside RBGS at the same counts
- * (the paper's cloth at 1/60 s: springs at up to 7 times their length against 2.3),
- * other rates and the target mode (which, aimed below the cloth's physical stretch,
- * runs at its cap for most frames of a swing). The result depends on the substep
- * length only, so it is the same at 1/240 s and 1/30 s. */
-static rbc_solver_def solver_def_cloth(void) {
-    rbc_solver_def d = solver_def_defaults();
-    d.solver = RBC_SOLVER_RBGS_SOR;
-    d.mode = RBC_ITERATE_FIXED;
-    d.max_substeps = 32;
-    d.energy_guard = RBC_ENERGY_GUARD_CLAMP;
-    return d;
-}
-
-/* Three released sizes: 1.1, 1.2-1.3 and this one. */
-static rbc_result solver_def_fill(rbc_solver_def *def, uint32_t struct_size,
-                                  const rbc_solver_def *d, const char *fn) {
-    if (struct_size == RBC_SOLVER_DEF_SIZE_V1_2)
-        return rbc_def_init_common(def, struct_size, d, sizeof *d, RBC_SOLVER_DEF_SIZE_V1_2, fn,
-                                   "rbc_solver_def");
-    return rbc_def_init_common(def, struct_size, d, sizeof *d, RBC_SOLVER_DEF_SIZE_V1_1, fn,
-                               "rbc_solver_def");
-}
-
-RBC_API rbc_result RBC_CALL rbc_solver_def_init(rbc_solver_def *def, uint32_t struct_size) {
-    rbc_solver_def d = solver_def_defaults();
-    return solver_def_fill(def, struct_size, &d, "rbc_solver_def_init");
-}
-
-RBC_API rbc_result RBC_CALL rbc_solver_def_preset(rbc_solver_def *def, uint32_t struct_size,
-                                                  rbc_preset preset) {
-    static const char fn[] = "rbc_solver_def_preset";
-    rbc_solver_def d = solver_def_defaults();
-    /* These presets need fields a 1.1-1.3 def does not have: the game preset its
-     * target, the cloth preset its cap (max_substeps). */
-    if ((preset == RBC_PRESET_GAME_60HZ || preset == RBC_PRESET_CLOTH) && def &&
-        struct_size != sizeof d)
-        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
-                             "%s: %s needs the ABI 1.4 rbc_solver_def (struct_size %zu, got "
-                             "%u): its fields from target_strain on do not fit",
-                             fn, preset == RBC_PRESET_CLOTH ? "RBC_PRESET_CLOTH" : "RBC_PRESET_GAME_60HZ",
-                             sizeof d, struct_size);
-    switch (preset) {
-    case RBC_PRESET_PAPER:
-        break;
-    case RBC_PRESET_CLOTH:
-        d = solver_def_cloth();
-        break;
-    case RBC_PRESET_GAME_60HZ:
-        /* Measured on the paper's 100 x 100 cloth at dt = 1/60 s
-         * (docs/results/target.md): the figures there are this preset's. */
-        d.solver = RBC_SOLVER_RBGS;
-        d.mode = RBC_ITERATE_TARGET;
-        d.target_strain = 0.05f;
-        d.max_substeps = 32;
-        d.max_linear_iterations = 8;
-        d.energy_guard = RBC_ENERGY_GUARD_CLAMP;
-        break;
-    default:
-        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: preset %d is not an rbc_preset", fn,
-                             (int)preset);
-    }
-    return solver_def_fill(def, struct_size, &d, fn);
-}
 
 static const char *solver_name(rbc_solver_kind k) {
     static const char *const names[] = {"rbgs",          "jacobi",         "jacobi_chebyshev",
@@ -265,88 +60,28 @@ static const char *solver_name(rbc_solver_kind k) {
     return k >= 0 && k <= RBC_SOLVER_DIRECT ? names[k] : "?";
 }
 
-/* Validate a solver def (already read at a released size) into core settings. */
-static rbc_result solver_settings_from(rbc_world *w, const char *fn, const rbc_solver_def *d,
-                                       rbc_solver_settings *out) {
-    if (d->solver < RBC_SOLVER_RBGS || d->solver > RBC_SOLVER_DIRECT)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: solver %d is not an rbc_solver_kind",
-                           fn, (int)d->solver);
-    if (!(isfinite(d->omega) && d->omega >= 0.0f && d->omega < 2.0f))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: omega is %g; it must be in (0, 2), or 0 for the optimal value",
-                           fn, (double)d->omega);
-    if (!(isfinite(d->rho) && d->rho >= 0.0f && d->rho < 1.0f))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: rho is %g; it must be in (0, 1), or 0 to estimate it", fn,
-                           (double)d->rho);
-    if (d->chebyshev_delay > 100000)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: chebyshev_delay is %u; at most 100000",
-                           fn, d->chebyshev_delay);
-    if (d->mode < RBC_ITERATE_FIXED || d->mode > RBC_ITERATE_TARGET)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: mode %d is not an rbc_iteration_mode",
-                           fn, (int)d->mode);
-    if (!(isfinite(d->tolerance) && d->tolerance > 0.0f))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: tolerance is %g; it must be finite and > 0", fn,
-                           (double)d->tolerance);
-    if (!(isfinite(d->budget_ms) && d->budget_ms > 0.0f))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: budget_ms is %g; it must be finite and > 0", fn,
-                           (double)d->budget_ms);
-    if (d->max_linear_iterations < 1 || d->max_linear_iterations > 100000)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: max_linear_iterations is %u; range 1..100000", fn,
-                           d->max_linear_iterations);
-    if (d->energy_guard < RBC_ENERGY_GUARD_OFF || d->energy_guard > RBC_ENERGY_GUARD_FAIL)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: energy_guard %d is not an rbc_energy_guard", fn,
-                           (int)d->energy_guard);
-    if (!(isfinite(d->target_strain) && d->target_strain > 0.0f))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: target_strain is %g; it must be finite and > 0 (an RMS "
-                           "relative strain, 0.05 = 5 %%)",
-                           fn, (double)d->target_strain);
-    if (d->max_substeps < 1 || d->max_substeps > 1024)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: max_substeps is %u; range 1..1024",
-                           fn, d->max_substeps);
-    out->kind = d->solver;
-    out->energy_guard = d->energy_guard;
-    out->target_strain = d->target_strain;
-    out->max_substeps = d->max_substeps;
-    out->omega = d->omega;
-    out->rho = d->rho;
-    out->chebyshev_delay = d->chebyshev_delay;
-    out->mode = d->mode;
-    out->tolerance = d->tolerance;
-    out->budget_ms = d->budget_ms;
-    out->max_linear_iterations = d->max_linear_iterations;
-    return RBC_OK;
-}
-
-/* ------------------------------------------------------------------------- */
-/* World                                                                     */
-/* ------------------------------------------------------------------------- */
-
 /* substep_rate: the world's (> 0 lets substeps be 0: from the rate), or 0 for a world
  * made with a def older than 1.6. */
 static rbc_result check_iterations(rbc_world *w, const char *fn, uint32_t substeps,
                                    uint32_t nonlinear, uint32_t linear, float substep_rate) {
     if (substeps == 0 && !(substep_rate > 0.0f))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: substeps is 0, which takes them from the substep rate, but "
-                           "this world has none (substep_rate is a 1.6 field of rbc_world_def); "
-                           "range 1..1024",
-                           fn);
+        return rbc_plugin_world_error(
+            w, RBC_ERR_INVALID_ARGUMENT,
+            "%s: substeps is 0, which takes them from the substep rate, but "
+            "this world has none (substep_rate is a 1.6 field of rbc_world_def); "
+            "range 1..1024",
+            fn);
     if (substeps > 1024)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: substeps is %u; range 1..1024, or 0 for the substep rate", fn,
-                           substeps);
+        return rbc_plugin_world_error(
+            w, RBC_ERR_INVALID_ARGUMENT,
+            "%s: substeps is %u; range 1..1024, or 0 for the substep rate", fn, substeps);
     if (nonlinear < 1 || nonlinear > 1024)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: nonlinear_iterations is %u; range 1..1024", fn, nonlinear);
+        return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                                      "%s: nonlinear_iterations is %u; range 1..1024", fn,
+                                      nonlinear);
     if (linear < 1 || linear > 4096)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: linear_iterations is %u; range 1..4096", fn, linear);
+        return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                                      "%s: linear_iterations is %u; range 1..4096", fn, linear);
     return RBC_OK;
 }
 
@@ -355,9 +90,9 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     static const char fn[] = "rbc_world_create";
     if (!out_world) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: out_world is NULL", fn);
     *out_world = 0;
-    rbc_world_def def = world_def_defaults();
-    rbc_result rc = read_def2(&def, sizeof def, RBC_WORLD_DEF_SIZE_V1_0, RBC_WORLD_DEF_SIZE_V1_1,
-                              user_def, fn, "rbc_world_def");
+    rbc_world_def def = rbc_plugin_world_def_defaults();
+    rbc_result rc = rbc_plugin_read_def2(&def, sizeof def, RBC_WORLD_DEF_SIZE_V1_0,
+                                         RBC_WORLD_DEF_SIZE_V1_1, user_def, fn, "rbc_world_def");
     if (rc) return rc;
     /* A host built against a 1.0-1.5 header was promised the paper's fixed counts
      * when it leaves the solver NULL, and no strain warning; a 1.6 host gets the
@@ -377,7 +112,7 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
                              "%s: strain_warning is %g; it must be finite and >= 0 (a relative "
                              "strain: 2 = a spring at three times its rest length; 0 = no check)",
                              fn, (double)def.strain_warning);
-    if (!finite3(def.gravity))
+    if (!rbc_plugin_finite3(def.gravity))
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: gravity (%g, %g, %g) is not finite",
                              fn, (double)def.gravity[0], (double)def.gravity[1],
                              (double)def.gravity[2]);
@@ -404,13 +139,14 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
                              "%s: give both alloc and free hooks, or neither", fn);
 
     /* A given solver def starts from the field defaults, as rbc_solver_def_init's. */
-    rbc_solver_def sdef = def_v16 && !def.solver ? solver_def_cloth() : solver_def_defaults();
+    rbc_solver_def sdef =
+        def_v16 && !def.solver ? rbc_plugin_solver_def_cloth() : rbc_plugin_solver_def_defaults();
     rbc_solver_settings settings;
-    if (def.solver &&
-        (rc = read_def2(&sdef, sizeof sdef, RBC_SOLVER_DEF_SIZE_V1_1, RBC_SOLVER_DEF_SIZE_V1_2,
-                        def.solver, fn, "rbc_world_def.solver")))
+    if (def.solver && (rc = rbc_plugin_read_def2(&sdef, sizeof sdef, RBC_SOLVER_DEF_SIZE_V1_1,
+                                                 RBC_SOLVER_DEF_SIZE_V1_2, def.solver, fn,
+                                                 "rbc_world_def.solver")))
         return rc;
-    if ((rc = solver_settings_from(NULL, fn, &sdef, &settings))) return rc;
+    if ((rc = rbc_plugin_solver_settings_from(NULL, fn, &sdef, &settings))) return rc;
 
     rbc_allocator alloc = rbc_allocator_default();
     if (def.alloc) {
@@ -436,7 +172,7 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     /* thread_count 0: the step measures whether its threads pay (core/solver.c,
      * threads_for_step); a count the host gives is used as given. */
     w->solver.threads_auto = def.thread_count == 0;
-    if (rbc_reg_add(&g_worlds, w, 0, &w->id) != RBC_OK) {
+    if (rbc_reg_add(&rbc_plugin_worlds, w, 0, &w->id) != RBC_OK) {
         rbc_solver_fini(&w->solver);
         rbc_mem_free(&alloc, w, sizeof *w);
         return rbc_set_error(RBC_ERR_CAPACITY, "%s: %u worlds exist already", fn, RBC_MAX_WORLDS);
@@ -452,19 +188,20 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     *out_world = w->id;
     char msg[128];
     snprintf(msg, sizeof msg, "world 0x%08x created: CPU backend, %u threads", w->id, threads);
-    world_log(w, RBC_LOG_INFO, msg);
+    rbc_plugin_world_log(w, RBC_LOG_INFO, msg);
     return RBC_OK;
 }
 
 RBC_API rbc_result RBC_CALL rbc_world_destroy(rbc_world_id id) {
     rbc_world *w;
-    rbc_result rc = lookup_world(id, "rbc_world_destroy", &w);
+    rbc_result rc = rbc_plugin_lookup_world(id, "rbc_world_destroy", &w);
     if (rc) return rc;
     rbc_solver *sol = &w->solver;
-    for (uint32_t k = 0; k < sol->cloth_count; ++k) rbc_reg_remove(&g_cloths, sol->cloths[k]->public_id);
+    for (uint32_t k = 0; k < sol->cloth_count; ++k)
+        rbc_reg_remove(&rbc_plugin_cloths, sol->cloths[k]->public_id);
     for (uint32_t k = 0; k < sol->collider_count; ++k)
-        rbc_reg_remove(&g_colliders, sol->colliders[k].public_id);
-    rbc_reg_remove(&g_worlds, id);
+        rbc_reg_remove(&rbc_plugin_colliders, sol->colliders[k].public_id);
+    rbc_reg_remove(&rbc_plugin_worlds, id);
     rbc_allocator alloc = w->alloc;
     rbc_solver_fini(sol); /* destroys every cloth and collider */
     rbc_mem_free(&alloc, w, sizeof *w);
@@ -534,14 +271,14 @@ static void strain_advice(const rbc_solver *s, char *out, size_t size) {
 RBC_API rbc_result RBC_CALL rbc_world_step(rbc_world_id id, float dt) {
     static const char fn[] = "rbc_world_step";
     rbc_world *w;
-    rbc_result rc = lookup_world(id, fn, &w);
+    rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
     if (rc) return rc;
     if (!(isfinite(dt) && dt > 0.0f))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: dt is %g s; it must be finite and > 0",
-                           fn, (double)dt);
+        return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                                      "%s: dt is %g s; it must be finite and > 0", fn, (double)dt);
     char msg[RBC_ERROR_CAP - 64];
     rc = rbc_solver_step(&w->solver, dt, msg, sizeof msg);
-    if (rc) return world_error(w, rc, "%s: world 0x%08x: %s", fn, w->id, msg);
+    if (rc) return rbc_plugin_world_error(w, rc, "%s: world 0x%08x: %s", fn, w->id, msg);
     uint64_t clamps = w->solver.energy_clamped_steps;
     /* Warn at the first clamped step and at every power of two after it: the
      * host hears of it without a message per step; stats count every one. */
@@ -552,7 +289,7 @@ RBC_API rbc_result RBC_CALL rbc_world_step(rbc_world_id id, float dt) {
                  "rbgs or direct, or smaller steps avoid it)",
                  w->id, (unsigned long long)w->solver.step_count, (unsigned long long)clamps,
                  w->solver.energy_note, solver_name(w->solver.settings.kind));
-        world_log(w, RBC_LOG_WARNING, note);
+        rbc_plugin_world_log(w, RBC_LOG_WARNING, note);
     }
     uint64_t capped = w->solver.tgt_capped_steps;
     if (w->solver.tgt_capped && (capped & (capped - 1)) == 0) {
@@ -567,7 +304,7 @@ RBC_API rbc_result RBC_CALL rbc_world_step(rbc_world_id id, float dt) {
                  w->id, (unsigned long long)s->step_count, (unsigned long long)capped,
                  (double)s->settings.target_strain, s->tgt_reached, s->settings.max_substeps,
                  s->nonlinear_iterations, s->settings.max_linear_iterations, s->last_linear);
-        world_log(w, RBC_LOG_WARNING, note);
+        rbc_plugin_world_log(w, RBC_LOG_WARNING, note);
     }
     uint64_t warned = w->solver.strain_warn_steps;
     if (w->solver.strain_warn_last && (warned & (warned - 1)) == 0) {
@@ -585,7 +322,7 @@ RBC_API rbc_result RBC_CALL rbc_world_step(rbc_world_id id, float dt) {
                  c->public_id, t->to_host[t->sa[sp]], t->to_host[t->sb[sp]],
                  1.0 + s->step_max_strain, s->step_max_strain, (double)s->strain_warning,
                  advice);
-        world_log(w, RBC_LOG_WARNING, note);
+        rbc_plugin_world_log(w, RBC_LOG_WARNING, note);
     }
     return RBC_OK;
 }
@@ -594,7 +331,7 @@ RBC_API rbc_result RBC_CALL rbc_world_set_iterations(rbc_world_id id, uint32_t s
                                                      uint32_t nonlinear, uint32_t linear) {
     static const char fn[] = "rbc_world_set_iterations";
     rbc_world *w;
-    rbc_result rc = lookup_world(id, fn, &w);
+    rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
     if (rc) return rc;
     if ((rc = check_iterations(w, fn, substeps, nonlinear, linear, w->solver.substep_rate)))
         return rc;
@@ -608,12 +345,14 @@ RBC_API rbc_result RBC_CALL rbc_world_set_iterations(rbc_world_id id, uint32_t s
 RBC_API rbc_result RBC_CALL rbc_world_set_gravity(rbc_world_id id, const float gravity[3]) {
     static const char fn[] = "rbc_world_set_gravity";
     rbc_world *w;
-    rbc_result rc = lookup_world(id, fn, &w);
+    rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
     if (rc) return rc;
-    if (!gravity) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: gravity is NULL", fn);
-    if (!finite3(gravity))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: gravity (%g, %g, %g) is not finite",
-                           fn, (double)gravity[0], (double)gravity[1], (double)gravity[2]);
+    if (!gravity)
+        return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: gravity is NULL", fn);
+    if (!rbc_plugin_finite3(gravity))
+        return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                                      "%s: gravity (%g, %g, %g) is not finite", fn,
+                                      (double)gravity[0], (double)gravity[1], (double)gravity[2]);
     memcpy(w->solver.gravity, gravity, 3 * sizeof(float));
     for (uint32_t k = 0; k < w->solver.cloth_count; ++k) /* a new potential: recompute E */
         rbc_cloth_state_energy_invalidate(w->solver.cloths[k], 1);
@@ -650,12 +389,12 @@ RBC_API rbc_result RBC_CALL rbc_world_stats_init(rbc_world_stats *stats, uint32_
 RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats *out) {
     static const char fn[] = "rbc_world_get_stats";
     rbc_world *w;
-    rbc_result rc = lookup_world(id, fn, &w);
+    rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
     if (rc) return rc;
-    if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: stats is NULL", fn);
+    if (!out) return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: stats is NULL", fn);
     if (!stats_size_known(out->struct_size))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT, STATS_SIZES_MESSAGE,
-                           STATS_SIZES_ARGS(fn, out->struct_size));
+        return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT, STATS_SIZES_MESSAGE,
+                                      STATS_SIZES_ARGS(fn, out->struct_size));
     rbc_solver *s = &w->solver;
     double res_num = 0.0, res_den = 0.0;
     /* 1.2 and later hold the energy fields and skip_measures. */
@@ -750,367 +489,53 @@ RBC_API rbc_result RBC_CALL rbc_world_set_collision_callback(rbc_world_id id, rb
                                                              void *user) {
     static const char fn[] = "rbc_world_set_collision_callback";
     rbc_world *w;
-    rbc_result rc = lookup_world(id, fn, &w);
+    rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
     if (rc) return rc;
     rc = rbc_solver_set_callback(&w->solver, fn_, user);
-    if (rc) return world_error(w, rc, "%s: out of memory for the callback's buffers", fn);
+    if (rc)
+        return rbc_plugin_world_error(w, rc, "%s: out of memory for the callback's buffers", fn);
     return RBC_OK;
 }
 
 /* ------------------------------------------------------------------------- */
-/* Cloth                                                                     */
-/* ------------------------------------------------------------------------- */
-
-RBC_API rbc_result RBC_CALL rbc_cloth_create(rbc_world_id wid, const rbc_cloth_def *user_def,
-                                             rbc_cloth_id *out_cloth) {
-    static const char fn[] = "rbc_cloth_create";
-    rbc_world *w;
-    rbc_result rc = lookup_world(wid, fn, &w);
-    if (rc) return rc;
-    if (!out_cloth) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: out_cloth is NULL", fn);
-    *out_cloth = 0;
-    rbc_cloth_def def = cloth_def_defaults();
-    if ((rc = read_def2(&def, sizeof def, RBC_CLOTH_DEF_SIZE_V1_0, RBC_CLOTH_DEF_SIZE_V1_1, user_def, fn,
-                        "rbc_cloth_def"))) {
-        world_log(w, RBC_LOG_ERROR, rbc_last_error());
-        return rc;
-    }
-    if (!(isfinite(def.shear_stiffness) && def.shear_stiffness >= 0.0f) ||
-        !(isfinite(def.bend_stiffness) && def.bend_stiffness >= 0.0f))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: cloth def: shear_stiffness %g and bend_stiffness %g N/m must be "
-                           "finite and >= 0",
-                           fn, (double)def.shear_stiffness, (double)def.bend_stiffness);
-    if (!(isfinite(def.damping) && def.damping >= 0.0f))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: cloth def: damping is %g 1/s; it must be finite and >= 0", fn,
-                           (double)def.damping);
-    if (!(isfinite(def.thickness) && def.thickness >= 0.0f) ||
-        !(isfinite(def.friction) && def.friction >= 0.0f))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: cloth def: thickness %g m and friction %g must be finite and >= 0",
-                           fn, (double)def.thickness, (double)def.friction);
-    if (def.collision_flags & ~(uint32_t)(RBC_CLOTH_COLLIDE_SELF | RBC_CLOTH_COLLIDE_CLOTHS))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: cloth def: collision_flags 0x%x has bits that are not "
-                           "RBC_CLOTH_COLLIDE_* flags",
-                           fn, def.collision_flags);
-    if (!(isfinite(def.tear_strain) && def.tear_strain >= 0.0f))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: cloth def: tear_strain is %g; it must be finite and >= 0 (0 = no "
-                           "tearing)",
-                           fn, (double)def.tear_strain);
-    if (def.collision_flags && !(def.thickness > 0.0f))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: cloth def: collision_flags 0x%x need a thickness > 0 (it is %g m)",
-                           fn, def.collision_flags, (double)def.thickness);
-    rbc_mesh_input in;
-    memset(&in, 0, sizeof in);
-    in.vertex_count = def.vertex_count;
-    in.positions = def.positions;
-    in.quad_count = def.quad_count;
-    in.quads = def.quads;
-    in.spring_count = def.spring_count;
-    in.springs = def.springs;
-    in.masses = def.masses;
-    in.density = def.density;
-    in.vertex_mass = def.vertex_mass;
-    in.stiffness = def.stiffness;
-    in.shear_stiffness = def.shear_stiffness;
-    in.bend_stiffness = def.bend_stiffness;
-    in.pin_count = def.pin_count;
-    in.pins = def.pins;
-    char msg[RBC_ERROR_CAP - 64];
-    rbc_cloth_state *c;
-    rc = rbc_cloth_state_create(&w->solver, &in, def.damping, &c, msg, sizeof msg);
-    if (rc) return world_error(w, rc, "%s: cloth def: %s", fn, msg);
-    if ((rc = rbc_cloth_state_set_contact(&w->solver, c, def.thickness, def.friction,
-                                          def.collision_flags))) {
-        rbc_cloth_state_destroy(&w->solver, c);
-        return world_error(w, rc, "%s: out of memory for cloth contact", fn);
-    }
-    c->tear_strain = def.tear_strain;
-    if (rbc_reg_add(&g_cloths, c, w->id, &c->public_id) != RBC_OK) {
-        rbc_cloth_state_destroy(&w->solver, c);
-        return world_error(w, RBC_ERR_CAPACITY, "%s: %u cloths exist already", fn, RBC_MAX_SLOTS);
-    }
-    if ((rc = rbc_solver_add_cloth(&w->solver, c))) {
-        rbc_reg_remove(&g_cloths, c->public_id);
-        rbc_cloth_state_destroy(&w->solver, c);
-        return world_error(w, rc, "%s: out of memory", fn);
-    }
-    *out_cloth = c->public_id;
-    return RBC_OK;
-}
-
-static rbc_result lookup_cloth(rbc_world_id wid, rbc_cloth_id cid, const char *fn,
-                               rbc_world **ow, rbc_cloth_state **oc) {
-    rbc_result rc = lookup_world(wid, fn, ow);
-    if (rc) return rc;
-    *oc = rbc_reg_get(&g_cloths, cid, (*ow)->id, fn);
-    if (!*oc) {
-        world_log(*ow, RBC_LOG_ERROR, rbc_last_error());
-        return RBC_ERR_STALE_HANDLE;
-    }
-    return RBC_OK;
-}
-
-RBC_API rbc_result RBC_CALL rbc_cloth_destroy(rbc_world_id wid, rbc_cloth_id cid) {
-    rbc_world *w;
-    rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, "rbc_cloth_destroy", &w, &c);
-    if (rc) return rc;
-    rbc_solver_remove_cloth(&w->solver, c);
-    rbc_cloth_state_destroy(&w->solver, c);
-    rbc_reg_remove(&g_cloths, cid);
-    return RBC_OK;
-}
-
-RBC_API rbc_result RBC_CALL rbc_cloth_get_vertex_count(rbc_world_id wid, rbc_cloth_id cid,
-                                                       uint32_t *out_count) {
-    static const char fn[] = "rbc_cloth_get_vertex_count";
-    rbc_world *w;
-    rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
-    if (rc) return rc;
-    if (!out_count) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: out_count is NULL", fn);
-    *out_count = c->topo.n;
-    return RBC_OK;
-}
-
-RBC_API rbc_result RBC_CALL rbc_cloth_get_topology(rbc_world_id wid, rbc_cloth_id cid,
-                                                   uint32_t *out_spring_count,
-                                                   uint32_t *out_color_count) {
-    rbc_world *w;
-    rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, "rbc_cloth_get_topology", &w, &c);
-    if (rc) return rc;
-    if (out_spring_count) *out_spring_count = c->topo.ns;
-    if (out_color_count) *out_color_count = c->topo.ncolors;
-    return RBC_OK;
-}
-
-RBC_API rbc_result RBC_CALL rbc_cloth_read_positions(rbc_world_id wid, rbc_cloth_id cid,
-                                                     float *xyz, size_t capacity,
-                                                     size_t *out_written) {
-    static const char fn[] = "rbc_cloth_read_positions";
-    rbc_world *w;
-    rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
-    if (rc) return rc;
-    size_t need = 3 * (size_t)c->topo.n;
-    if (!xyz) {
-        if (out_written) *out_written = need;
-        return RBC_OK;
-    }
-    if (capacity < need)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: cloth 0x%08x has %u vertices and needs %zu floats; capacity is %zu",
-                           fn, cid, c->topo.n, need, capacity);
-    rbc_cloth_state_read(c, xyz);
-    if (out_written) *out_written = need;
-    return RBC_OK;
-}
-
-RBC_API rbc_result RBC_CALL rbc_cloth_set_pin(rbc_world_id wid, rbc_cloth_id cid, uint32_t vertex,
-                                              const float *target) {
-    static const char fn[] = "rbc_cloth_set_pin";
-    rbc_world *w;
-    rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
-    if (rc) return rc;
-    if (vertex >= c->topo.n)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: cloth 0x%08x: vertex %u is out of range (vertex count %u)", fn,
-                           cid, vertex, c->topo.n);
-    if (target && !finite3(target))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: cloth 0x%08x: vertex %u: target (%g, %g, %g) is not finite", fn,
-                           cid, vertex, (double)target[0], (double)target[1], (double)target[2]);
-    rc = rbc_cloth_state_set_pin(&w->solver, c, vertex, target);
-    if (rc) return world_error(w, rc, "%s: out of memory", fn);
-    rbc_detach_vertex(c, vertex); /* a pin of the host's own: no longer attached */
-    return RBC_OK;
-}
-
-/* ------------------------------------------------------------------------- */
-/* Colliders                                                                 */
-/* ------------------------------------------------------------------------- */
-
-static rbc_result check_transform(rbc_world *w, const char *fn, const float *pos,
-                                  const float *rot) {
-    if (!pos || !rot)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: position or rotation is NULL", fn);
-    if (!finite3(pos))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: position (%g, %g, %g) is not finite",
-                           fn, (double)pos[0], (double)pos[1], (double)pos[2]);
-    double n2 = (double)rot[0] * rot[0] + (double)rot[1] * rot[1] + (double)rot[2] * rot[2] +
-                (double)rot[3] * rot[3];
-    /* Unit within float rounding of a normalised quaternion (a few ulp, 1e-4 leaves
-     * room for hosts that normalise in float and then compose). */
-    if (!(isfinite(n2) && fabs(n2 - 1.0) <= 1e-4))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: rotation (%g, %g, %g, %g) is not a unit quaternion (norm^2 %g)",
-                           fn, (double)rot[0], (double)rot[1], (double)rot[2], (double)rot[3],
-                           n2);
-    return RBC_OK;
-}
-
-RBC_API rbc_result RBC_CALL rbc_collider_create(rbc_world_id wid, const rbc_collider_def *user_def,
-                                                rbc_collider_id *out) {
-    static const char fn[] = "rbc_collider_create";
-    rbc_world *w;
-    rbc_result rc = lookup_world(wid, fn, &w);
-    if (rc) return rc;
-    if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: out_collider is NULL", fn);
-    *out = 0;
-    rbc_collider_def def = collider_def_defaults();
-    if ((rc = read_def(&def, sizeof def, RBC_COLLIDER_DEF_SIZE_V1_0, user_def, fn, "rbc_collider_def"))) {
-        world_log(w, RBC_LOG_ERROR, rbc_last_error());
-        return rc;
-    }
-    if (def.shape < RBC_SHAPE_PLANE || def.shape > RBC_SHAPE_TRIANGLE_MESH)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: collider def: shape %d is not an rbc_shape", fn, (int)def.shape);
-    if ((def.shape == RBC_SHAPE_SPHERE || def.shape == RBC_SHAPE_CAPSULE) &&
-        !(isfinite(def.radius) && def.radius > 0.0f))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: collider def: %s radius is %g m; it must be finite and > 0", fn,
-                           def.shape == RBC_SHAPE_SPHERE ? "sphere" : "capsule",
-                           (double)def.radius);
-    if (def.shape == RBC_SHAPE_BOX || def.shape == RBC_SHAPE_CAPSULE)
-        for (int a = def.shape == RBC_SHAPE_CAPSULE ? 1 : 0;
-             a < (def.shape == RBC_SHAPE_CAPSULE ? 2 : 3); ++a)
-            if (!(isfinite(def.half_extents[a]) && def.half_extents[a] > 0.0f))
-                return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                                   "%s: collider def: %s half_extents[%d] is %g m; it must be "
-                                   "finite and > 0",
-                                   fn, def.shape == RBC_SHAPE_BOX ? "box" : "capsule", a,
-                                   (double)def.half_extents[a]);
-    if (!(isfinite(def.friction) && def.friction >= 0.0f))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: collider def: friction is %g; it must be finite and >= 0", fn,
-                           (double)def.friction);
-    if (!(isfinite(def.thickness) && def.thickness >= 0.0f))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: collider def: thickness is %g m; it must be finite and >= 0", fn,
-                           (double)def.thickness);
-    if ((rc = check_transform(w, fn, def.position, def.rotation))) return rc;
-    rbc_collider_state cs;
-    memset(&cs, 0, sizeof cs);
-    cs.shape = def.shape;
-    cs.radius = def.radius;
-    cs.thickness = def.thickness;
-    cs.friction = def.friction;
-    memcpy(cs.half_extents, def.half_extents, sizeof cs.half_extents);
-    if (def.shape == RBC_SHAPE_TRIANGLE_MESH) {
-        char msg[RBC_ERROR_CAP - 64];
-        rc = rbc_trimesh_create(def.mesh_positions, def.mesh_vertex_count, def.mesh_triangles,
-                                def.mesh_triangle_count, &w->solver.alloc, &cs.mesh, msg,
-                                sizeof msg);
-        if (rc) return world_error(w, rc, "%s: collider def: triangle mesh: %s", fn, msg);
-    }
-    memcpy(cs.position, def.position, sizeof cs.position);
-    memcpy(cs.rotation, def.rotation, sizeof cs.rotation);
-    /* The registry holds a marker; the collider itself lives in the solver's dense
-     * array, found by its id. */
-    if (rbc_reg_add(&g_colliders, (void *)(uintptr_t)1, w->id, &cs.public_id) != RBC_OK) {
-        rbc_trimesh_destroy(cs.mesh, &w->solver.alloc);
-        return world_error(w, RBC_ERR_CAPACITY, "%s: %u colliders exist already", fn,
-                           RBC_MAX_SLOTS);
-    }
-    if ((rc = rbc_solver_add_collider(&w->solver, &cs))) {
-        rbc_trimesh_destroy(cs.mesh, &w->solver.alloc);
-        rbc_reg_remove(&g_colliders, cs.public_id);
-        return world_error(w, rc, "%s: out of memory", fn);
-    }
-    *out = cs.public_id;
-    return RBC_OK;
-}
-
-static rbc_result lookup_collider(rbc_world_id wid, rbc_collider_id cid, const char *fn,
-                                  rbc_world **ow, uint32_t *index) {
-    rbc_result rc = lookup_world(wid, fn, ow);
-    if (rc) return rc;
-    if (!rbc_reg_get(&g_colliders, cid, (*ow)->id, fn)) {
-        world_log(*ow, RBC_LOG_ERROR, rbc_last_error());
-        return RBC_ERR_STALE_HANDLE;
-    }
-    rbc_solver *sol = &(*ow)->solver;
-    for (uint32_t k = 0; k < sol->collider_count; ++k)
-        if (sol->colliders[k].public_id == cid) {
-            *index = k;
-            return RBC_OK;
-        }
-    return world_error(*ow, RBC_ERR_STALE_HANDLE, "%s: collider 0x%08x is not in the world", fn,
-                       cid);
-}
-
-RBC_API rbc_result RBC_CALL rbc_collider_set_transform(rbc_world_id wid, rbc_collider_id cid,
-                                                       const float position[3],
-                                                       const float rotation[4]) {
-    static const char fn[] = "rbc_collider_set_transform";
-    rbc_world *w;
-    uint32_t k = 0;
-    rbc_result rc = lookup_collider(wid, cid, fn, &w, &k);
-    if (rc) return rc;
-    if ((rc = check_transform(w, fn, position, rotation))) return rc;
-    rbc_collider_state *c = &w->solver.colliders[k];
-    memcpy(c->position, position, sizeof c->position);
-    memcpy(c->rotation, rotation, sizeof c->rotation);
-    rbc_collider_update_frame(c);
-    return RBC_OK;
-}
-
-RBC_API rbc_result RBC_CALL rbc_collider_destroy(rbc_world_id wid, rbc_collider_id cid) {
-    rbc_world *w;
-    uint32_t k = 0;
-    rbc_result rc = lookup_collider(wid, cid, "rbc_collider_destroy", &w, &k);
-    if (rc) return rc;
-    if ((rc = rbc_attachments_drop_collider(&w->solver, cid)))
-        return world_error(w, rc, "rbc_collider_destroy: out of memory releasing attached vertices");
-    rbc_solver_remove_collider(&w->solver, k);
-    rbc_reg_remove(&g_colliders, cid);
-    return RBC_OK;
-}
-
-/* ------------------------------------------------------------------------- */
-/* ABI 1.1: solvers, colors, state                                           */
+/* ABI 1.1: solvers                                                          */
 /* ------------------------------------------------------------------------- */
 
 RBC_API rbc_result RBC_CALL rbc_world_set_solver(rbc_world_id id, const rbc_solver_def *user_def) {
     static const char fn[] = "rbc_world_set_solver";
     rbc_world *w;
-    rbc_result rc = lookup_world(id, fn, &w);
+    rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
     if (rc) return rc;
-    rbc_solver_def def = solver_def_defaults();
-    if ((rc = read_def2(&def, sizeof def, RBC_SOLVER_DEF_SIZE_V1_1, RBC_SOLVER_DEF_SIZE_V1_2,
-                        user_def, fn, "rbc_solver_def"))) {
-        world_log(w, RBC_LOG_ERROR, rbc_last_error());
+    rbc_solver_def def = rbc_plugin_solver_def_defaults();
+    if ((rc = rbc_plugin_read_def2(&def, sizeof def, RBC_SOLVER_DEF_SIZE_V1_1,
+                                   RBC_SOLVER_DEF_SIZE_V1_2, user_def, fn, "rbc_solver_def"))) {
+        rbc_plugin_world_log(w, RBC_LOG_ERROR, rbc_last_error());
         return rc;
     }
     rbc_solver_settings st;
-    if ((rc = solver_settings_from(w, fn, &def, &st))) return rc;
+    if ((rc = rbc_plugin_solver_settings_from(w, fn, &def, &st))) return rc;
     if ((rc = rbc_solver_set_settings(&w->solver, &st)))
-        return world_error(w, rc, "%s: out of memory for the solver's buffers", fn);
+        return rbc_plugin_world_error(w, rc, "%s: out of memory for the solver's buffers", fn);
     return RBC_OK;
 }
 
 RBC_API rbc_result RBC_CALL rbc_world_get_solver(rbc_world_id id, rbc_solver_def *out) {
     static const char fn[] = "rbc_world_get_solver";
     rbc_world *w;
-    rbc_result rc = lookup_world(id, fn, &w);
+    rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
     if (rc) return rc;
-    if (!out) return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: def is NULL", fn);
-    if (out->struct_size != sizeof(rbc_solver_def) && out->struct_size != RBC_SOLVER_DEF_SIZE_V1_2 &&
+    if (!out) return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: def is NULL", fn);
+    if (out->struct_size != sizeof(rbc_solver_def) &&
+        out->struct_size != RBC_SOLVER_DEF_SIZE_V1_2 &&
         out->struct_size != RBC_SOLVER_DEF_SIZE_V1_1)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: def->struct_size is %u, which matches no released version "
-                           "(this library knows %zu, the 1.2 size %u and the 1.1 size %u)",
-                           fn, out->struct_size, sizeof(rbc_solver_def), RBC_SOLVER_DEF_SIZE_V1_2,
-                           RBC_SOLVER_DEF_SIZE_V1_1);
+        return rbc_plugin_world_error(
+            w, RBC_ERR_INVALID_ARGUMENT,
+            "%s: def->struct_size is %u, which matches no released version "
+            "(this library knows %zu, the 1.2 size %u and the 1.1 size %u)",
+            fn, out->struct_size, sizeof(rbc_solver_def), RBC_SOLVER_DEF_SIZE_V1_2,
+            RBC_SOLVER_DEF_SIZE_V1_1);
     const rbc_solver_settings *st = &w->solver.settings;
-    rbc_solver_def d = solver_def_defaults();
+    rbc_solver_def d = rbc_plugin_solver_def_defaults();
     d.solver = st->kind;
     d.omega = st->omega;
     d.rho = st->rho;
@@ -1127,75 +552,19 @@ RBC_API rbc_result RBC_CALL rbc_world_get_solver(rbc_world_id id, rbc_solver_def
     return RBC_OK;
 }
 
-RBC_API rbc_result RBC_CALL rbc_cloth_get_colors(rbc_world_id wid, rbc_cloth_id cid,
-                                                 uint32_t *sizes, uint32_t capacity,
-                                                 uint32_t *out_color_count) {
-    static const char fn[] = "rbc_cloth_get_colors";
-    rbc_world *w;
-    rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
-    if (rc) return rc;
-    if (!sizes && capacity)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: sizes is NULL but capacity is %u",
-                           fn, capacity);
-    const rbc_topology *t = &c->topo;
-    for (uint32_t k = 0; k < t->ncolors && k < capacity; ++k)
-        sizes[k] = t->color_start[k + 1] - t->color_start[k];
-    if (out_color_count) *out_color_count = t->ncolors;
-    return RBC_OK;
-}
-
-RBC_API rbc_result RBC_CALL rbc_cloth_get_state(rbc_world_id wid, rbc_cloth_id cid,
-                                                float *positions, float *previous,
-                                                size_t capacity) {
-    static const char fn[] = "rbc_cloth_get_state";
-    rbc_world *w;
-    rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
-    if (rc) return rc;
-    size_t need = 3 * (size_t)c->topo.n;
-    if ((positions || previous) && capacity < need)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: cloth 0x%08x has %u vertices and needs %zu floats; capacity is %zu",
-                           fn, cid, c->topo.n, need, capacity);
-    rbc_cloth_state_get(c, positions, previous);
-    return RBC_OK;
-}
-
-RBC_API rbc_result RBC_CALL rbc_cloth_set_state(rbc_world_id wid, rbc_cloth_id cid,
-                                                const float *positions, const float *previous) {
-    static const char fn[] = "rbc_cloth_set_state";
-    rbc_world *w;
-    rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
-    if (rc) return rc;
-    if (!positions)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: positions is NULL", fn);
-    for (uint32_t v = 0; v < c->topo.n; ++v) {
-        if (!finite3(positions + 3 * (size_t)v))
-            return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                               "%s: cloth 0x%08x: vertex %u has a non-finite position", fn, cid, v);
-        if (previous && !finite3(previous + 3 * (size_t)v))
-            return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                               "%s: cloth 0x%08x: vertex %u has a non-finite previous position",
-                               fn, cid, v);
-    }
-    rbc_cloth_state_set(c, positions, previous);
-    return RBC_OK;
-}
-
 /* ------------------------------------------------------------------------- */
-/* ABI 1.3: host contacts, picking, attachments, tearing, wind                */
+/* ABI 1.3: host contacts, picking, wind                                     */
 /* ------------------------------------------------------------------------- */
 
 RBC_API rbc_result RBC_CALL rbc_world_set_contact_callback(rbc_world_id id, rbc_contact_fn fn_,
                                                            void *user) {
     static const char fn[] = "rbc_world_set_contact_callback";
     rbc_world *w;
-    rbc_result rc = lookup_world(id, fn, &w);
+    rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
     if (rc) return rc;
     rc = rbc_solver_set_contact_callback(&w->solver, fn_, user);
-    if (rc) return world_error(w, rc, "%s: out of memory for the callback's buffers", fn);
+    if (rc)
+        return rbc_plugin_world_error(w, rc, "%s: out of memory for the callback's buffers", fn);
     return RBC_OK;
 }
 
@@ -1205,22 +574,25 @@ RBC_API rbc_result RBC_CALL rbc_world_pick(rbc_world_id id, const float origin[3
                                            float *out_t) {
     static const char fn[] = "rbc_world_pick";
     rbc_world *w;
-    rbc_result rc = lookup_world(id, fn, &w);
+    rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
     if (rc) return rc;
     if (!origin || !dir || !out_cloth)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: origin, dir or out_cloth is NULL", fn);
+        return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                                      "%s: origin, dir or out_cloth is NULL", fn);
     *out_cloth = 0;
-    if (!finite3(origin) || !finite3(dir) ||
+    if (!rbc_plugin_finite3(origin) || !rbc_plugin_finite3(dir) ||
         !(dir[0] != 0.0f || dir[1] != 0.0f || dir[2] != 0.0f))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: origin (%g, %g, %g) and dir (%g, %g, %g) must be finite and dir "
-                           "non-zero",
-                           fn, (double)origin[0], (double)origin[1], (double)origin[2],
-                           (double)dir[0], (double)dir[1], (double)dir[2]);
+        return rbc_plugin_world_error(
+            w, RBC_ERR_INVALID_ARGUMENT,
+            "%s: origin (%g, %g, %g) and dir (%g, %g, %g) must be finite and dir "
+            "non-zero",
+            fn, (double)origin[0], (double)origin[1], (double)origin[2], (double)dir[0],
+            (double)dir[1], (double)dir[2]);
     if (!(max_distance >= 0.0f) || !(radius >= 0.0f) || !isfinite(radius))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: max_distance %g and radius %g must be >= 0 (radius finite)", fn,
-                           (double)max_distance, (double)radius);
+        return rbc_plugin_world_error(
+            w, RBC_ERR_INVALID_ARGUMENT,
+            "%s: max_distance %g and radius %g must be >= 0 (radius finite)", fn,
+            (double)max_distance, (double)radius);
     uint32_t k = 0, v = 0;
     float t = 0.0f;
     if (rbc_pick(&w->solver, origin, dir, max_distance, radius, &k, &v, &t)) {
@@ -1231,94 +603,19 @@ RBC_API rbc_result RBC_CALL rbc_world_pick(rbc_world_id id, const float origin[3
     return RBC_OK;
 }
 
-RBC_API rbc_result RBC_CALL rbc_cloth_attach(rbc_world_id wid, rbc_cloth_id cid, uint32_t vertex,
-                                             rbc_collider_id collider, const float local[3]) {
-    static const char fn[] = "rbc_cloth_attach";
-    rbc_world *w;
-    rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
-    if (rc) return rc;
-    if (vertex >= c->topo.n)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: cloth 0x%08x: vertex %u is out of range (vertex count %u)", fn,
-                           cid, vertex, c->topo.n);
-    if (local && !finite3(local))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: cloth 0x%08x: vertex %u: local point (%g, %g, %g) is not finite",
-                           fn, cid, vertex, (double)local[0], (double)local[1], (double)local[2]);
-    uint32_t k = 0;
-    if ((rc = lookup_collider(wid, collider, fn, &w, &k))) return rc;
-    rc = rbc_attach(&w->solver, c, vertex, collider, local);
-    if (rc) return world_error(w, rc, "%s: out of memory", fn);
-    return RBC_OK;
-}
-
-RBC_API rbc_result RBC_CALL rbc_cloth_cut(rbc_world_id wid, rbc_cloth_id cid,
-                                          const uint32_t *pairs, uint32_t pair_count,
-                                          uint32_t *out_cut) {
-    static const char fn[] = "rbc_cloth_cut";
-    rbc_world *w;
-    rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
-    if (rc) return rc;
-    if (out_cut) *out_cut = 0;
-    if (pair_count && !pairs)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: pairs is NULL", fn);
-    for (uint32_t m = 0; m < 2 * pair_count; ++m)
-        if (pairs[m] >= c->topo.n)
-            return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                               "%s: cloth 0x%08x: pair %u: vertex %u is out of range (vertex "
-                               "count %u); nothing was cut",
-                               fn, cid, m / 2, pairs[m], c->topo.n);
-    rc = rbc_cut_pairs(&w->solver, c, pairs, pair_count, out_cut);
-    if (rc) return world_error(w, rc, "%s: out of memory; nothing was cut", fn);
-    return RBC_OK;
-}
-
-static rbc_result copy_topology(rbc_world_id wid, rbc_cloth_id cid, const char *fn, int quads,
-                                uint32_t *dst, size_t capacity, size_t *out_count) {
-    rbc_world *w;
-    rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
-    if (rc) return rc;
-    size_t need = quads ? rbc_cloth_quads_host(c, NULL, 0) : rbc_cloth_springs_host(c, NULL, 0);
-    if (dst && capacity < need)
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: cloth 0x%08x has %zu values to write; capacity is %zu", fn, cid,
-                           need, capacity);
-    if (dst) {
-        if (quads)
-            rbc_cloth_quads_host(c, dst, capacity);
-        else
-            rbc_cloth_springs_host(c, dst, capacity);
-    }
-    if (out_count) *out_count = need;
-    return RBC_OK;
-}
-
-RBC_API rbc_result RBC_CALL rbc_cloth_get_quads(rbc_world_id wid, rbc_cloth_id cid, uint32_t *quads,
-                                                size_t capacity, size_t *out_count) {
-    return copy_topology(wid, cid, "rbc_cloth_get_quads", 1, quads, capacity, out_count);
-}
-
-RBC_API rbc_result RBC_CALL rbc_cloth_get_springs(rbc_world_id wid, rbc_cloth_id cid,
-                                                  uint32_t *pairs, size_t capacity,
-                                                  size_t *out_count) {
-    return copy_topology(wid, cid, "rbc_cloth_get_springs", 0, pairs, capacity, out_count);
-}
-
 RBC_API rbc_result RBC_CALL rbc_world_set_wind(rbc_world_id id, const float velocity[3], float drag,
                                                float lift) {
     static const char fn[] = "rbc_world_set_wind";
     rbc_world *w;
-    rbc_result rc = lookup_world(id, fn, &w);
+    rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
     if (rc) return rc;
-    if (!velocity || !finite3(velocity))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: velocity is NULL or not finite", fn);
+    if (!velocity || !rbc_plugin_finite3(velocity))
+        return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                                      "%s: velocity is NULL or not finite", fn);
     if (!(isfinite(drag) && drag >= 0.0f) || !(isfinite(lift) && lift >= 0.0f))
-        return world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                           "%s: drag %g and lift %g must be finite and >= 0", fn, (double)drag,
-                           (double)lift);
+        return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                                      "%s: drag %g and lift %g must be finite and >= 0", fn,
+                                      (double)drag, (double)lift);
     memcpy(w->solver.wind, velocity, sizeof w->solver.wind);
     w->solver.wind_drag = drag;
     w->solver.wind_lift = lift;
