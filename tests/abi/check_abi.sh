@@ -16,7 +16,7 @@
 #    symbols (here 3 of 30, the ones defined in plugin/api.c; apparently abidw
 #    keeps the first DWARF entry of a function, and api.c's CU declares all the
 #    others for the function table, so it keeps a declaration without a symbol
-#    instead of the definition in world.c, cache.c, ...). Functions
+#    instead of the definition in world.c, cloth.c, ...). Functions
 #    without a symbol are ignored when the baseline is read back, so a changed
 #    rbc_world_def went unnoticed. `abidw --exported-interfaces-only` binds all
 #    of them. The baseline must bind every function the header declares.
