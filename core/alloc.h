@@ -24,4 +24,13 @@ static inline size_t rbc_mul_size(size_t count, size_t elem) {
     if (elem && count > SIZE_MAX / elem) return SIZE_MAX;
     return count * elem;
 }
+/* One array of an X-macro list of arrays (a struct's NAME_ARRAYS(X)): ptr gets count
+ * elements of type, ok stays 1 only while every allocation succeeds, and bytes adds
+ * what was asked for (the struct's footprint). */
+#define RBC_ALLOC_ARRAY(a, ptr, count, type, ok, bytes)                 \
+    do {                                                                \
+        (ptr) = rbc_mem_alloc((a), rbc_mul_size((count), sizeof(type))); \
+        (ok) = (ok) && (ptr) != NULL;                                    \
+        (bytes) += rbc_mul_size((count), sizeof(type));                  \
+    } while (0)
 #endif

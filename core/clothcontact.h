@@ -2,7 +2,7 @@
  * vertex-vertex contacts found with a spatial hash, kept apart by a thickness with
  * an inequality projection, and Coulomb friction.
  *
- * Where it sits in a substep (solver.c):
+ * Where it sits in a substep (step.c, contact_step.c):
  *     predict        p = inertial prediction, x = start of the substep
  *     detect         contacts from the swept boxes x..p (this file)
  *     solve          after every linear iteration: project (a pass of its own:

@@ -46,7 +46,7 @@
  * come from the world's hooks (cholmod_alloc.h). A hook that returns NULL makes the
  * CHOLMOD call fail with CHOLMOD_OUT_OF_MEMORY: create reports RBC_ERR_OUT_OF_MEMORY
  * (cholmod_fail), frees what it had and leaves *out NULL, and the caller keeps the
- * cloth's previous factor (solver.c).
+ * cloth's previous factor (sweep.c).
  */
 #include "report.h"
 #include "direct.h"

@@ -5,7 +5,7 @@
 
 #include "report.h"
 #include "simd.h"
-#include "solver.h"
+#include "cloth.h"
 
 void rbc_ell_free(rbc_ell *e, const rbc_allocator *a) {
     if (!e) return;
@@ -25,11 +25,18 @@ static uint32_t chunk_len(const rbc_ell *e, const rbc_topology *t, uint32_t c, u
     return end - f < RBC_ELL_CHUNK ? end - f : RBC_ELL_CHUNK;
 }
 
-float *rbc_ell_slot_k(rbc_ell *e, const rbc_topology *t, uint32_t i, uint32_t j) {
+/* The stiffness slot that mirrors internal particle i's j-th CSR slot. */
+static float *ell_slot_k(rbc_ell *e, const rbc_topology *t, uint32_t i, uint32_t j) {
     uint32_t c = 0;
     while (c + 1 < t->ncolors && i >= t->color_start[c + 1]) ++c;
     const uint32_t m = i - t->color_start[c], ch = e->chunk_start[c] + m / RBC_ELL_CHUNK;
     return &e->k[e->offset[ch] + (size_t)j * chunk_len(e, t, c, ch) + m % RBC_ELL_CHUNK];
+}
+
+void rbc_ell_break_spring(rbc_ell *e, const rbc_topology *t, uint32_t sp) {
+    uint32_t a = t->sa[sp], b = t->sb[sp];
+    *ell_slot_k(e, t, a, t->he_a[sp] - t->adj_start[a]) = 0.0f;
+    *ell_slot_k(e, t, b, t->he_b[sp] - t->adj_start[b]) = 0.0f;
 }
 
 int rbc_ell_build(const rbc_topology *t, const rbc_allocator *a, rbc_ell **out) {

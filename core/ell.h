@@ -35,9 +35,9 @@ typedef struct rbc_ell {
 int rbc_ell_build(const rbc_topology *t, const rbc_allocator *a, rbc_ell **out);
 void rbc_ell_free(rbc_ell *e, const rbc_allocator *a);
 
-/* The stiffness slot that mirrors internal particle i's j-th CSR slot (tearing sets
- * it to 0). */
-float *rbc_ell_slot_k(rbc_ell *e, const rbc_topology *t, uint32_t i, uint32_t j);
+/* Tearing (tear.h): spring sp of t is gone; zero the two slots that mirror its CSR
+ * half-edges. */
+void rbc_ell_break_spring(rbc_ell *e, const rbc_topology *t, uint32_t sp);
 
 /* One color of a Gauss-Seidel iteration from b (rbc_global_rhs), this thread's
  * share: p_i = g_i (omega == 0) or p_i += omega (g_i - p_i); pinned particles stay. */

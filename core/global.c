@@ -1,11 +1,11 @@
-/* global.c -- the global step's iterative solvers; see global.h. */
+/* global.c -- the global step's iterative solvers on the generic CSR rows of the
+ * topology (global.h); sweep.c chooses when the lattice or ELLPACK layouts run
+ * instead. */
 #include "global.h"
 
 #include <math.h>
 #include <string.h>
 
-#include "ell.h"
-#include "grid.h"
 #include "kernels/pd_kernels.h"
 #include "report.h"
 
@@ -19,18 +19,10 @@ void rbc_global_rhs(rbc_cloth_state *c, uint32_t tid, uint32_t nt) {
                   c->y[2], c->bx, c->by, c->bz);
 }
 
-void rbc_global_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, float omega,
-                         uint32_t tid, uint32_t nt) {
+void rbc_csr_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, float omega,
+                      uint32_t tid, uint32_t nt) {
     const rbc_topology *t = &c->topo;
     if (color >= t->ncolors) return;
-    if (c->grid && v != RBC_GS_STASH) {
-        rbc_grid_sweep(c->grid, c, color, v == RBC_GS_SOR ? omega : 0.0f, tid, nt);
-        return;
-    }
-    if (c->ell && v != RBC_GS_STASH) {
-        rbc_ell_sweep(c->ell, c, color, v == RBC_GS_SOR ? omega : 0.0f, tid, nt);
-        return;
-    }
     uint32_t c0 = t->color_start[color], count = t->color_start[color + 1] - c0;
     uint32_t b, e;
     rbc_split(count, tid, nt, &b, &e);
@@ -79,14 +71,8 @@ void rbc_global_chebyshev_blend(rbc_cloth_state *c, float omega, uint32_t tid, u
     }
 }
 
-void rbc_global_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst[3],
-                       int chebyshev, float omega, uint32_t tid, uint32_t nt) {
-    /* A lattice: the same sums in the same order over rows, vectorized (grid.h);
-     * bitwise this loop's result, whatever the split of the rows over threads. */
-    if (c->grid && c->grid->csr_order) {
-        rbc_grid_jacobi(c->grid, c, src, dst, chebyshev, omega, tid, nt);
-        return;
-    }
+void rbc_csr_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst[3], int chebyshev,
+                    float omega, uint32_t tid, uint32_t nt) {
     const rbc_topology *t = &c->topo;
     uint32_t b, e;
     rbc_split(t->n, tid, nt, &b, &e);
@@ -119,13 +105,7 @@ void rbc_global_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst
     }
 }
 
-void rbc_global_gs_serial(rbc_cloth_state *c) {
-    /* A lattice: the same updates in the same order, the neighbours found by the
-     * stencil instead of index arrays (grid.h); bitwise this loop's result. */
-    if (c->grid && c->grid->csr_order) {
-        rbc_grid_gs_serial(c->grid, c);
-        return;
-    }
+void rbc_csr_gs_serial(rbc_cloth_state *c) {
     const rbc_topology *t = &c->topo;
     for (uint32_t v = 0; v < t->n; ++v) {
         uint32_t i = t->to_internal[v];

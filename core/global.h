@@ -2,12 +2,16 @@
  * thread's share of the particles: Gauss-Seidel by color (red-black, or more colors),
  * with over-relaxation or Chebyshev acceleration; Jacobi, plain or Chebyshev; serial
  * lexicographic Gauss-Seidel; and the residual and spectral radius that measure and
- * tune them. The step (solver.c) calls these between barriers. */
+ * tune them. The step (step.c, sweep.c) calls these between barriers.
+ *
+ * rbc_global_* pick the layout a cloth has (sweep.c: the lattice of grid.h, the
+ * ELLPACK rows of ell.h, or these CSR rows, rbc_csr_*); every layout gives the CSR
+ * rows' result bitwise. */
 #ifndef RBC_CORE_GLOBAL_H
 #define RBC_CORE_GLOBAL_H
 #include <stdint.h>
 
-#include "solver.h"
+#include "cloth.h"
 
 /* How a Gauss-Seidel color sweep writes its result g_i (Eq. 6). */
 typedef enum rbc_gs_variant {
@@ -23,6 +27,8 @@ void rbc_global_rhs(rbc_cloth_state *c, uint32_t tid, uint32_t nt);
 /* One color of one Gauss-Seidel iteration, this thread's share. */
 void rbc_global_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, float omega,
                          uint32_t tid, uint32_t nt);
+void rbc_csr_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, float omega,
+                      uint32_t tid, uint32_t nt);
 /* Chebyshev blend after a full Gauss-Seidel iteration (this thread's share of the
  * particles): p = omega (p - prev) + prev, then prev = the iterate before the
  * iteration (stashed in alt by RBC_GS_STASH). Blending after the whole sweep, not
@@ -36,9 +42,12 @@ void rbc_global_chebyshev_blend(rbc_cloth_state *c, float omega, uint32_t tid, u
  * on the split (callers barrier before reading dst). */
 void rbc_global_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst[3],
                        int chebyshev, float omega, uint32_t tid, uint32_t nt);
+void rbc_csr_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst[3], int chebyshev,
+                    float omega, uint32_t tid, uint32_t nt);
 /* One serial lexicographic Gauss-Seidel iteration in the host's vertex order, one
  * thread (on a lattice rbc_grid_gs_serial, the same result bitwise). */
 void rbc_global_gs_serial(rbc_cloth_state *c);
+void rbc_csr_gs_serial(rbc_cloth_state *c);
 /* Squared residual and right-hand side norms of the global system at p, over this
  * thread's share of the particles of colors [0, color_end). */
 void rbc_global_residual(const rbc_cloth_state *c, uint32_t color_end, uint32_t tid,

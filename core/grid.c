@@ -7,7 +7,7 @@
 #include "cpu/pool.h"
 #include "report.h"
 #include "simd.h"
-#include "solver.h"
+#include "cloth.h"
 
 /* Inlined into its callers (with constant flags where they pass them) (GCC and Clang; elsewhere an
  * ordinary inline, the same arithmetic). */
@@ -834,4 +834,20 @@ void rbc_grid_rhs(const rbc_grid *g, rbc_cloth_state *c, uint32_t tid, uint32_t 
             for (uint32_t m = hi; m < cnt; ++m) rhs_particle(g, c, color, j, m);
         }
     }
+}
+
+/* Zero the stiffness from i toward j (its left/right/down/up neighbour). */
+static void grid_zero(rbc_grid *g, const rbc_topology *t, uint32_t i, uint32_t j) {
+    uint32_t hi = t->to_host[i], hj = t->to_host[j];
+    uint32_t nx = g->nx;
+    if (hj + 1 == hi && hi % nx != 0) g->kl[i] = 0.0f;
+    else if (hi + 1 == hj && hj % nx != 0) g->kr[i] = 0.0f;
+    else if (hj + nx == hi) g->kd[i] = 0.0f;
+    else if (hi + nx == hj) g->ku[i] = 0.0f;
+}
+
+void rbc_grid_break_spring(rbc_grid *g, const rbc_topology *t, uint32_t sp) {
+    grid_zero(g, t, t->sa[sp], t->sb[sp]);
+    grid_zero(g, t, t->sb[sp], t->sa[sp]);
+    g->k_uniform = 0.0f;
 }

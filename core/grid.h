@@ -45,6 +45,9 @@ typedef struct rbc_grid {
  * memory. O(n + springs). */
 int rbc_grid_detect(const rbc_topology *t, const rbc_allocator *a, rbc_grid **out);
 void rbc_grid_free(rbc_grid *g, const rbc_allocator *a);
+/* Tearing (tear.h): spring sp of t is gone; zero its stiffness toward both ends and
+ * turn off the one-stiffness broadcast (a stiffness of 0 reads as no spring). */
+void rbc_grid_break_spring(rbc_grid *g, const rbc_topology *t, uint32_t sp);
 
 /* The local step and the right-hand side in one pass, this thread's rows of both
  * colors: b_i = m_i/h^2 y_i + sum_j s_ij d_ij with d_ij = L (p_i - p_j) / |p_i - p_j|

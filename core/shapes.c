@@ -993,12 +993,10 @@ static int build_grid(struct rbc_trimesh *m, const rbc_allocator *a, scratch *s)
     return 1;
 }
 
-int32_t rbc_trimesh_create(const float *positions, uint32_t nv, const uint32_t *tris,
-                           uint32_t nt, const rbc_allocator *a, struct rbc_trimesh **out,
-                           char *err, size_t errlen) {
+/* The checks of rbc_trimesh_create; *kept: the triangles that are not degenerate. */
+static int32_t trimesh_check(const float *positions, uint32_t nv, const uint32_t *tris,
+                             uint32_t nt, uint32_t *kept, char *err, size_t errlen) {
     const int32_t BAD = RBC_ERR_INVALID_ARGUMENT;
-    if (out) *out = NULL;
-    if (!out || !a) return rbc_fail(err, errlen, BAD, "out or allocator is NULL");
     if (!positions) return rbc_fail(err, errlen, BAD, "positions is NULL");
     if (!tris) return rbc_fail(err, errlen, BAD, "triangles is NULL");
     if (nv == 0) return rbc_fail(err, errlen, BAD, "vertex count is 0");
@@ -1022,35 +1020,37 @@ int32_t rbc_trimesh_create(const float *positions, uint32_t nv, const uint32_t *
     for (uint32_t t = 0; t < nt; ++t) m += !degenerate(positions, tris + 3 * (size_t)t);
     if (m == 0)
         return rbc_fail(err, errlen, BAD, "all %u triangles are degenerate (zero area)", nt);
+    *kept = m;
+    return RBC_OK;
+}
 
-    scratch s = {{0}, {0}, 0};
-    struct rbc_trimesh *mesh = rbc_mem_alloc(a, sizeof *mesh);
-    if (!mesh) goto oom;
-    mesh->nv = nv, mesh->nt = m, mesh->ndeg = nt - m, mesh->ncap = 2 * m;
-    mesh->pos = rbc_mem_alloc(a, sizeof(float) * 3 * (size_t)nv);
-    uint32_t *t3 = scratch_alloc(&s, a, sizeof(uint32_t) * 3 * (size_t)m);
-    if (!mesh->pos || !t3) goto oom;
-    memcpy(mesh->pos, positions, sizeof(float) * 3 * (size_t)nv);
-    const float *pos = mesh->pos;
-    for (uint32_t t = 0, j = 0; t < nt; ++t)
-        if (!degenerate(pos, tris + 3 * (size_t)t))
-            memcpy(t3 + 3 * (size_t)j++, tris + 3 * (size_t)t, 12);
-    for (int k = 0; k < 3; ++k) mesh->lo[k] = INFINITY, mesh->hi[k] = -INFINITY;
-    for (size_t h = 0; h < 3 * (size_t)m; ++h) {
-        const float *p = pos + 3 * (size_t)t3[h];
-        for (int k = 0; k < 3; ++k)
-            mesh->lo[k] = minf(mesh->lo[k], p[k]), mesh->hi[k] = maxf(mesh->hi[k], p[k]);
-    }
+/* What the build of one mesh shares between its steps (the scratch is freed at its
+ * end). */
+typedef struct mesh_build {
+    struct rbc_trimesh *mesh;
+    scratch s;
+    const rbc_allocator *a;
+    uint32_t m, ne;       /* triangles kept, edges */
+    size_t nh;            /* half-edges: 3 m */
+    int closed;
+    uint32_t *t3;         /* [3 m] the kept triangles' corners */
+    uint32_t *tedge;      /* [3 m] the edge of each half-edge */
+    double *fnd;          /* [3 m] unit face normals */
+    uint32_t *idx;        /* [m] triangles in BVH leaf order */
+} mesh_build;
 
-    /* Edges: half-edge h = 3 t + k runs t3[h] -> t3[next(h)]; bucket half-edges by
-     * their lower vertex (counting sort), sort each bucket by (upper vertex, h): a run
-     * of one upper vertex is one edge. Closed: every run is two half-edges of opposite
-     * direction. */
-    const size_t nh = 3 * (size_t)m;
-    uint32_t *hstart = scratch_alloc(&s, a, sizeof(uint32_t) * ((size_t)nv + 1));
-    uint64_t *hent = scratch_alloc(&s, a, sizeof(uint64_t) * nh);
-    uint32_t *tedge = scratch_alloc(&s, a, sizeof(uint32_t) * nh);
-    if (!hstart || !hent || !tedge) goto oom;
+/* Edges: half-edge h = 3 t + k runs t3[h] -> t3[next(h)]; bucket half-edges by their
+ * lower vertex (counting sort), sort each bucket by (upper vertex, h): a run of one
+ * upper vertex is one edge. Closed: every run is two half-edges of opposite
+ * direction. 0, or -1 out of memory. */
+static int label_edges(mesh_build *b) {
+    const uint32_t nv = b->mesh->nv;
+    const size_t nh = b->nh;
+    const uint32_t *t3 = b->t3;
+    uint32_t *hstart = scratch_alloc(&b->s, b->a, sizeof(uint32_t) * ((size_t)nv + 1));
+    uint64_t *hent = scratch_alloc(&b->s, b->a, sizeof(uint64_t) * nh);
+    b->tedge = scratch_alloc(&b->s, b->a, sizeof(uint32_t) * nh);
+    if (!hstart || !hent || !b->tedge) return -1;
 #define NEXT_(h) ((h) - (h) % 3 + ((h) % 3 + 1) % 3)
     for (size_t h = 0; h < nh; ++h) {
         uint32_t u = t3[h], v = t3[NEXT_(h)];
@@ -1061,6 +1061,7 @@ int32_t rbc_trimesh_create(const float *positions, uint32_t nv, const uint32_t *
         uint32_t u = t3[h], v = t3[NEXT_(h)], lo = u < v ? u : v, hi = u < v ? v : u;
         hent[hstart[lo]++] = (uint64_t)hi << 32 | (uint64_t)h;
     }
+#undef NEXT_
     /* hstart[v] is now the end of v's bucket. */
     uint32_t ne = 0, closed = 1;
     for (uint32_t v = 0; v < nv; ++v) {
@@ -1070,130 +1071,187 @@ int32_t rbc_trimesh_create(const float *positions, uint32_t nv, const uint32_t *
             uint32_t j = i + 1;
             while (j < b1 && hent[j] >> 32 == hent[i] >> 32) ++j;
             if (j - i != 2 || t3[(uint32_t)hent[i]] == t3[(uint32_t)hent[i + 1]]) closed = 0;
-            for (uint32_t r = i; r < j; ++r) tedge[(uint32_t)hent[r]] = ne;
+            for (uint32_t r = i; r < j; ++r) b->tedge[(uint32_t)hent[r]] = ne;
             ++ne, i = j;
         }
     }
-#undef NEXT_
+    b->ne = ne;
+    b->closed = (int)closed;
+    return 0;
+}
 
-    /* A closed mesh enclosing negative volume winds inward: turn every triangle round
-     * (swap corners 1 and 2; edges (a,b) and (c,a) trade places). */
-    if (closed) {
-        double c0[3], vol = 0.0;
-        for (int k = 0; k < 3; ++k) c0[k] = 0.5 * ((double)mesh->lo[k] + mesh->hi[k]);
-        for (uint32_t t = 0; t < m; ++t) {
-            double p[3][3];
-            for (int k = 0; k < 3; ++k)
-                for (int j = 0; j < 3; ++j)
-                    p[k][j] = (double)pos[3 * (size_t)t3[3 * t + k] + j] - c0[j];
-            vol += p[0][0] * (p[1][1] * p[2][2] - p[1][2] * p[2][1]) +
-                   p[0][1] * (p[1][2] * p[2][0] - p[1][0] * p[2][2]) +
-                   p[0][2] * (p[1][0] * p[2][1] - p[1][1] * p[2][0]);
+/* A closed mesh enclosing negative volume winds inward: turn every triangle round
+ * (swap corners 1 and 2; edges (a,b) and (c,a) trade places). */
+static void orient_outward(mesh_build *b) {
+    const struct rbc_trimesh *mesh = b->mesh;
+    const float *pos = mesh->pos;
+    uint32_t *t3 = b->t3, *tedge = b->tedge;
+    double c0[3], vol = 0.0;
+    for (int k = 0; k < 3; ++k) c0[k] = 0.5 * ((double)mesh->lo[k] + mesh->hi[k]);
+    for (uint32_t t = 0; t < b->m; ++t) {
+        double p[3][3];
+        for (int k = 0; k < 3; ++k)
+            for (int j = 0; j < 3; ++j) p[k][j] = (double)pos[3 * (size_t)t3[3 * t + k] + j] - c0[j];
+        vol += p[0][0] * (p[1][1] * p[2][2] - p[1][2] * p[2][1]) +
+               p[0][1] * (p[1][2] * p[2][0] - p[1][0] * p[2][2]) +
+               p[0][2] * (p[1][0] * p[2][1] - p[1][1] * p[2][0]);
+    }
+    if (vol < 0.0)
+        for (uint32_t t = 0; t < b->m; ++t) {
+            uint32_t x = t3[3 * t + 1];
+            t3[3 * t + 1] = t3[3 * t + 2], t3[3 * t + 2] = x;
+            x = tedge[3 * t];
+            tedge[3 * t] = tedge[3 * t + 2], tedge[3 * t + 2] = x;
         }
-        if (vol < 0.0)
-            for (uint32_t t = 0; t < m; ++t) {
-                uint32_t x = t3[3 * t + 1];
-                t3[3 * t + 1] = t3[3 * t + 2], t3[3 * t + 2] = x;
-                x = tedge[3 * t];
-                tedge[3 * t] = tedge[3 * t + 2], tedge[3 * t + 2] = x;
-            }
-    }
+}
 
-    /* Unit face normals (double, kept order). */
-    double *fnd = scratch_alloc(&s, a, sizeof(double) * nh);
-    if (!fnd) goto oom;
-    for (uint32_t t = 0; t < m; ++t) {
-        double *f = fnd + 3 * (size_t)t;
-        cross_d(pos, t3 + 3 * (size_t)t, f);
-        double l = sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
-        f[0] /= l, f[1] /= l, f[2] /= l;
-    }
+/* Pseudo-normals (Baerentzen & Aanaes 2005) of a closed mesh: a vertex's is the sum of
+ * its faces' normals weighted by the face angle there, an edge's the sum of its two
+ * faces'. 0, or -1 out of memory. */
+static int pseudo_normals(mesh_build *b) {
+    struct rbc_trimesh *mesh = b->mesh;
+    const uint32_t nv = mesh->nv, ne = b->ne, *t3 = b->t3;
+    const float *pos = mesh->pos;
+    const double *fnd = b->fnd;
+    mesh->closed = 1, mesh->ne = ne;
+    size_t nacc = nv > ne ? nv : ne;
+    double *acc = scratch_alloc(&b->s, b->a, sizeof(double) * 3 * nacc);
+    mesh->vn = rbc_mem_alloc(b->a, sizeof(float) * 3 * (size_t)nv);
+    mesh->en = rbc_mem_alloc(b->a, sizeof(float) * 3 * (size_t)ne);
+    if (!acc || !mesh->vn || !mesh->en) return -1;
+    for (uint32_t t = 0; t < b->m; ++t)
+        for (int k = 0; k < 3; ++k) {
+            const float *p0 = pos + 3 * (size_t)t3[3 * t + k],
+                        *p1 = pos + 3 * (size_t)t3[3 * t + (k + 1) % 3],
+                        *p2 = pos + 3 * (size_t)t3[3 * t + (k + 2) % 3];
+            double e1[3], e2[3];
+            for (int j = 0; j < 3; ++j) e1[j] = (double)p1[j] - p0[j], e2[j] = (double)p2[j] - p0[j];
+            double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2],
+                   cz = e1[0] * e2[1] - e1[1] * e2[0];
+            double ang = atan2(sqrt(cx * cx + cy * cy + cz * cz),
+                               e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2]);
+            double *o = acc + 3 * (size_t)t3[3 * t + k];
+            for (int j = 0; j < 3; ++j) o[j] += ang * fnd[3 * (size_t)t + j];
+        }
+    for (uint32_t v = 0; v < nv; ++v) normalize_to_float(acc + 3 * (size_t)v, mesh->vn + 3 * (size_t)v);
+    memset(acc, 0, sizeof(double) * 3 * nacc);
+    for (size_t h = 0; h < b->nh; ++h)
+        for (int j = 0; j < 3; ++j) acc[3 * (size_t)b->tedge[h] + j] += fnd[3 * (h / 3) + j];
+    for (uint32_t e = 0; e < ne; ++e) normalize_to_float(acc + 3 * (size_t)e, mesh->en + 3 * (size_t)e);
+    return 0;
+}
 
-    /* Pseudo-normals (Baerentzen & Aanaes 2005): a vertex's is the sum of its faces'
-     * normals weighted by the face angle there, an edge's the sum of its two faces'. */
-    if (closed) {
-        mesh->closed = 1, mesh->ne = ne;
-        size_t nacc = nv > ne ? nv : ne;
-        double *acc = scratch_alloc(&s, a, sizeof(double) * 3 * nacc);
-        mesh->vn = rbc_mem_alloc(a, sizeof(float) * 3 * (size_t)nv);
-        mesh->en = rbc_mem_alloc(a, sizeof(float) * 3 * (size_t)ne);
-        if (!acc || !mesh->vn || !mesh->en) goto oom;
-        for (uint32_t t = 0; t < m; ++t)
-            for (int k = 0; k < 3; ++k) {
-                const float *p0 = pos + 3 * (size_t)t3[3 * t + k],
-                            *p1 = pos + 3 * (size_t)t3[3 * t + (k + 1) % 3],
-                            *p2 = pos + 3 * (size_t)t3[3 * t + (k + 2) % 3];
-                double e1[3], e2[3];
-                for (int j = 0; j < 3; ++j)
-                    e1[j] = (double)p1[j] - p0[j], e2[j] = (double)p2[j] - p0[j];
-                double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2],
-                       cz = e1[0] * e2[1] - e1[1] * e2[0];
-                double ang = atan2(sqrt(cx * cx + cy * cy + cz * cz),
-                                   e1[0] * e2[0] + e1[1] * e2[1] + e1[2] * e2[2]);
-                double *o = acc + 3 * (size_t)t3[3 * t + k];
-                for (int j = 0; j < 3; ++j) o[j] += ang * fnd[3 * (size_t)t + j];
-            }
-        for (uint32_t v = 0; v < nv; ++v)
-            normalize_to_float(acc + 3 * (size_t)v, mesh->vn + 3 * (size_t)v);
-        memset(acc, 0, sizeof(double) * 3 * nacc);
-        for (size_t h = 0; h < nh; ++h)
-            for (int j = 0; j < 3; ++j) acc[3 * (size_t)tedge[h] + j] += fnd[3 * (h / 3) + j];
-        for (uint32_t e = 0; e < ne; ++e)
-            normalize_to_float(acc + 3 * (size_t)e, mesh->en + 3 * (size_t)e);
-    }
-
-    /* The BVH over triangle boxes and centroids. */
-    float *tbox = scratch_alloc(&s, a, sizeof(float) * 6 * (size_t)m);
-    float *cen = scratch_alloc(&s, a, sizeof(float) * 3 * (size_t)m);
-    uint32_t *idx = scratch_alloc(&s, a, sizeof(uint32_t) * (size_t)m);
-    mesh->nodes = rbc_mem_alloc(a, sizeof(bvh_node) * (size_t)mesh->ncap);
-    if (!tbox || !cen || !idx || !mesh->nodes) goto oom;
+/* The BVH over triangle boxes and centroids; b->idx: the triangles in leaf order.
+ * 0, or -1 out of memory. */
+static int build_bvh(mesh_build *b) {
+    struct rbc_trimesh *mesh = b->mesh;
+    const uint32_t m = b->m;
+    float *tbox = scratch_alloc(&b->s, b->a, sizeof(float) * 6 * (size_t)m);
+    float *cen = scratch_alloc(&b->s, b->a, sizeof(float) * 3 * (size_t)m);
+    b->idx = scratch_alloc(&b->s, b->a, sizeof(uint32_t) * (size_t)m);
+    mesh->nodes = rbc_mem_alloc(b->a, sizeof(bvh_node) * (size_t)mesh->ncap);
+    if (!tbox || !cen || !b->idx || !mesh->nodes) return -1;
     for (uint32_t t = 0; t < m; ++t) {
         float *bx = tbox + 6 * (size_t)t;
         for (int k = 0; k < 3; ++k) bx[k] = INFINITY, bx[3 + k] = -INFINITY;
         for (int c = 0; c < 3; ++c) {
-            const float *p = pos + 3 * (size_t)t3[3 * t + c];
-            for (int k = 0; k < 3; ++k)
-                bx[k] = minf(bx[k], p[k]), bx[3 + k] = maxf(bx[3 + k], p[k]);
+            const float *p = mesh->pos + 3 * (size_t)b->t3[3 * t + c];
+            for (int k = 0; k < 3; ++k) bx[k] = minf(bx[k], p[k]), bx[3 + k] = maxf(bx[3 + k], p[k]);
         }
         for (int k = 0; k < 3; ++k) cen[3 * (size_t)t + k] = 0.5f * bx[k] + 0.5f * bx[3 + k];
-        idx[t] = t;
+        b->idx[t] = t;
     }
-    build_ctx bc = {mesh->nodes, 2, idx, tbox, cen};
+    build_ctx bc = {mesh->nodes, 2, b->idx, tbox, cen};
     build_node(&bc, 0, 0, m, 0);
+    return 0;
+}
 
-    /* Triangles in leaf order. */
-    mesh->tri = rbc_mem_alloc(a, sizeof(uint32_t) * nh);
-    mesh->tv = rbc_mem_alloc(a, sizeof(float) * 9 * (size_t)m);
-    mesh->fn = rbc_mem_alloc(a, sizeof(float) * nh);
-    if (closed) mesh->tedge = rbc_mem_alloc(a, sizeof(uint32_t) * nh);
-    if (!mesh->tri || !mesh->tv || !mesh->fn || (closed && !mesh->tedge)) goto oom;
-    for (uint32_t i = 0; i < m; ++i) {
-        uint32_t t = idx[i];
+/* Triangles, their corners and normals in leaf order. 0, or -1 out of memory. */
+static int leaf_order(mesh_build *b) {
+    struct rbc_trimesh *mesh = b->mesh;
+    const size_t nh = b->nh;
+    mesh->tri = rbc_mem_alloc(b->a, sizeof(uint32_t) * nh);
+    mesh->tv = rbc_mem_alloc(b->a, sizeof(float) * 9 * (size_t)b->m);
+    mesh->fn = rbc_mem_alloc(b->a, sizeof(float) * nh);
+    if (b->closed) mesh->tedge = rbc_mem_alloc(b->a, sizeof(uint32_t) * nh);
+    if (!mesh->tri || !mesh->tv || !mesh->fn || (b->closed && !mesh->tedge)) return -1;
+    for (uint32_t i = 0; i < b->m; ++i) {
+        uint32_t t = b->idx[i];
         for (int k = 0; k < 3; ++k) {
-            uint32_t v = t3[3 * (size_t)t + k];
+            uint32_t v = b->t3[3 * (size_t)t + k];
             mesh->tri[3 * (size_t)i + k] = v;
-            if (closed) mesh->tedge[3 * (size_t)i + k] = tedge[3 * (size_t)t + k];
-            memcpy(mesh->tv + 9 * (size_t)i + 3 * k, pos + 3 * (size_t)v, 3 * sizeof(float));
+            if (b->closed) mesh->tedge[3 * (size_t)i + k] = b->tedge[3 * (size_t)t + k];
+            memcpy(mesh->tv + 9 * (size_t)i + 3 * k, mesh->pos + 3 * (size_t)v, 3 * sizeof(float));
         }
-        double f[3] = {fnd[3 * (size_t)t], fnd[3 * (size_t)t + 1], fnd[3 * (size_t)t + 2]};
+        double f[3] = {b->fnd[3 * (size_t)t], b->fnd[3 * (size_t)t + 1], b->fnd[3 * (size_t)t + 2]};
         normalize_to_float(f, mesh->fn + 3 * (size_t)i);
     }
-    if (closed && !build_grid(mesh, a, &s)) goto oom;
+    return 0;
+}
+
+/* The mesh's copy of the positions and kept triangles, and its bounds. 0, or -1. */
+static int copy_input(mesh_build *b, const float *positions, const uint32_t *tris, uint32_t nt) {
+    struct rbc_trimesh *mesh = b->mesh;
+    mesh->pos = rbc_mem_alloc(b->a, sizeof(float) * 3 * (size_t)mesh->nv);
+    b->t3 = scratch_alloc(&b->s, b->a, sizeof(uint32_t) * b->nh);
+    if (!mesh->pos || !b->t3) return -1;
+    memcpy(mesh->pos, positions, sizeof(float) * 3 * (size_t)mesh->nv);
+    const float *pos = mesh->pos;
+    for (uint32_t t = 0, j = 0; t < nt; ++t)
+        if (!degenerate(pos, tris + 3 * (size_t)t)) memcpy(b->t3 + 3 * (size_t)j++, tris + 3 * (size_t)t, 12);
+    for (int k = 0; k < 3; ++k) mesh->lo[k] = INFINITY, mesh->hi[k] = -INFINITY;
+    for (size_t h = 0; h < b->nh; ++h) {
+        const float *p = pos + 3 * (size_t)b->t3[h];
+        for (int k = 0; k < 3; ++k) mesh->lo[k] = minf(mesh->lo[k], p[k]), mesh->hi[k] = maxf(mesh->hi[k], p[k]);
+    }
+    return 0;
+}
+
+/* Unit face normals (double, kept order). 0, or -1 out of memory. */
+static int face_normals(mesh_build *b) {
+    b->fnd = scratch_alloc(&b->s, b->a, sizeof(double) * b->nh);
+    if (!b->fnd) return -1;
+    for (uint32_t t = 0; t < b->m; ++t) {
+        double *f = b->fnd + 3 * (size_t)t;
+        cross_d(b->mesh->pos, b->t3 + 3 * (size_t)t, f);
+        double l = sqrt(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]);
+        f[0] /= l, f[1] /= l, f[2] /= l;
+    }
+    return 0;
+}
+
+int32_t rbc_trimesh_create(const float *positions, uint32_t nv, const uint32_t *tris,
+                           uint32_t nt, const rbc_allocator *a, struct rbc_trimesh **out,
+                           char *err, size_t errlen) {
+    if (out) *out = NULL;
+    if (!out || !a) return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT, "out or allocator is NULL");
+    uint32_t m = 0;
+    int32_t rc = trimesh_check(positions, nv, tris, nt, &m, err, errlen);
+    if (rc != RBC_OK) return rc;
+    mesh_build b = {NULL, {{0}, {0}, 0}, a, m, 0, 3 * (size_t)m, 0, NULL, NULL, NULL, NULL};
+    struct rbc_trimesh *mesh = b.mesh = rbc_mem_alloc(a, sizeof *mesh);
+    int ok = mesh != NULL;
+    if (ok) mesh->nv = nv, mesh->nt = m, mesh->ndeg = nt - m, mesh->ncap = 2 * m;
+    ok = ok && copy_input(&b, positions, tris, nt) == 0 && label_edges(&b) == 0;
+    if (ok && b.closed) orient_outward(&b);
+    ok = ok && face_normals(&b) == 0 && (!b.closed || pseudo_normals(&b) == 0);
+    ok = ok && build_bvh(&b) == 0 && leaf_order(&b) == 0;
+    ok = ok && (!b.closed || build_grid(mesh, a, &b.s));
+    scratch_free(&b.s, a);
+    if (!ok) {
+        rbc_trimesh_destroy(mesh, a);
+        return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY,
+                        "out of memory building a mesh of %u vertices and %u triangles", nv, nt);
+    }
+    const size_t nh = b.nh;
     mesh->bytes = sizeof *mesh + sizeof(float) * 3 * (size_t)nv + sizeof(uint32_t) * nh +
                   sizeof(float) * 9 * (size_t)m + sizeof(float) * nh +
                   sizeof(bvh_node) * (size_t)mesh->ncap;
-    if (closed)
-        mesh->bytes += sizeof(uint32_t) * nh + sizeof(float) * 3 * ((size_t)ne + nv) +
+    if (b.closed)
+        mesh->bytes += sizeof(uint32_t) * nh + sizeof(float) * 3 * ((size_t)b.ne + nv) +
                        2 * sizeof(float) * mesh->gcells;
-    scratch_free(&s, a);
     *out = mesh;
     return RBC_OK;
-oom:
-    scratch_free(&s, a);
-    rbc_trimesh_destroy(mesh, a);
-    return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY,
-                    "out of memory building a mesh of %u vertices and %u triangles", nv, nt);
 }
 
 void rbc_trimesh_info_get(const struct rbc_trimesh *m, rbc_trimesh_info *out) {

@@ -1,7 +1,7 @@
 /* shapes.h -- the geometry of the built-in collider shapes, in the collider's local
  * frame (metres): signed distance with the outward normal, the first entry of a
  * segment, local bounds, and the triangle mesh with its bounding volume hierarchy.
- * The solver's contact generation (solver.c) moves points into the local frame and
+ * The solver's contact generation (contact_step.c) moves points into the local frame and
  * calls these; nothing here allocates or locks after rbc_trimesh_create, so queries
  * may run from any number of threads at once.
  *

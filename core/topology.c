@@ -427,174 +427,163 @@ static void group_by_degree(rbc_topology *t, const uint32_t *hadj_start) {
         }
 }
 
-int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc_topology *out,
-                           char *err, size_t errlen) {
-    memset(out, 0, sizeof *out);
-    int32_t rc = validate(in, err, errlen);
-    if (rc != RBC_OK) return rc;
+static int32_t topology_oom(char *err, size_t errlen) {
+    return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory building the topology");
+}
 
-    const uint32_t n = in->vertex_count, nq = in->quad_count;
-    const float *P = in->positions;
-    const int want_bend = in->bend_stiffness > 0.0f && nq > 0;
-    rbc_topology *t = out;
-    build_scratch s;
-    memset(&s, 0, sizeof s);
-    s.n = n;
-    s.nq = nq;
-
-    /* 1. The quads around each vertex. Walking them gives the bend springs (at most
-     * one per quad at a vertex, so 4 nq bound them) and the quad across each edge:
-     * the structural keys then skip shared edges the second time, and a multicolor
-     * coloring (likely with shear, bend or explicit springs) tries the lattice. */
-    const int want_nbr = nq > 0 && (in->shear_stiffness > 0.0f || want_bend || in->spring_count);
-    s.vq_start = rbc_mem_alloc(a, rbc_mul_size((size_t)n + 1, 4));
-    s.fill = rbc_mem_alloc(a, rbc_mul_size(n, 4));
-    s.color = rbc_mem_alloc(a, n);
-    if (!s.vq_start || !s.fill || !s.color) goto oom;
-    if (want_nbr) {
-        s.vq = rbc_mem_alloc(a, rbc_mul_size(nq, 16));
-        s.quad_nbr = rbc_mem_alloc(a, rbc_mul_size(nq, 16));
-        if (!s.vq || !s.quad_nbr) goto oom;
-        memset(s.quad_nbr, 0xFF, (size_t)nq * 16);
-        build_vertex_quads(in, &s);
-        s.items = rbc_mem_alloc(a, rbc_mul_size(s.maxd, 16));
-        s.fan = rbc_mem_alloc(a, rbc_mul_size(s.maxd, 40));
-        if (!s.items || !s.fan) goto oom;
-        if (want_bend) {
-            s.nbend_cap = 4 * (size_t)nq;
-            if (!(s.bend = rbc_mem_alloc(a, rbc_mul_size(s.nbend_cap, 8)))) goto oom;
-        }
-        walk_fans(in, &s, 1, want_bend);
+/* Step 1 (and the coloring's lattice try): the quads around each vertex and the
+ * quad across each edge; with want_bend the bend springs too (at most one per quad at
+ * a vertex, so 4 nq bound them). 0, or -1 out of memory. */
+static int find_quad_neighbours(const rbc_mesh_input *in, const rbc_allocator *a,
+                                build_scratch *s, int want_bend) {
+    const size_t nq = in->quad_count;
+    s->vq = rbc_mem_alloc(a, rbc_mul_size(nq, 16));
+    s->quad_nbr = rbc_mem_alloc(a, rbc_mul_size(nq, 16));
+    if (!s->vq || !s->quad_nbr) return -1;
+    memset(s->quad_nbr, 0xFF, nq * 16);
+    build_vertex_quads(in, s);
+    s->items = rbc_mem_alloc(a, rbc_mul_size(s->maxd, 16));
+    s->fan = rbc_mem_alloc(a, rbc_mul_size(s->maxd, 40));
+    if (!s->items || !s->fan) return -1;
+    if (want_bend) {
+        s->nbend_cap = 4 * nq;
+        if (!(s->bend = rbc_mem_alloc(a, rbc_mul_size(s->nbend_cap, 8)))) return -1;
     }
+    walk_fans(in, s, 1, want_bend);
+    return 0;
+}
 
-    /* 2. Unique springs: every key bucketed by its lower host vertex (a counting
-     * sort, O(n + keys)), each bucket sorted by (upper vertex, stiffness bits) and
-     * cut to one entry per upper vertex: the last, whose stiffness is the largest
-     * (non-negative floats order as their bits). */
-    const size_t most_keys = 4 * (size_t)nq + in->spring_count + s.nbend +
-                             (in->shear_stiffness > 0.0f ? 2 * (size_t)nq : 0);
-    if (most_keys > UINT32_MAX / 2) { /* 32-bit counts and 2 ns adjacency slots */
-        scratch_free(&s, a);
+/* Step 2, unique springs: every key bucketed by its lower host vertex (a counting
+ * sort, O(n + keys)), each bucket sorted by (upper vertex, stiffness bits) and cut to
+ * one entry per upper vertex: the last, whose stiffness is the largest (non-negative
+ * floats order as their bits). */
+static int32_t unique_springs(const rbc_mesh_input *in, const rbc_allocator *a, build_scratch *s,
+                              uint32_t *out_ns, char *err, size_t errlen) {
+    const uint32_t n = in->vertex_count;
+    const size_t nq = in->quad_count;
+    const size_t most_keys = 4 * nq + in->spring_count + s->nbend +
+                             (in->shear_stiffness > 0.0f ? 2 * nq : 0);
+    if (most_keys > UINT32_MAX / 2) /* 32-bit counts and 2 ns adjacency slots */
         return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
-                    "too many springs (up to %zu; at most %u)", most_keys, UINT32_MAX / 2);
-    }
-    s.bstart = rbc_mem_alloc(a, rbc_mul_size((size_t)n + 1, 4));
-    if (!s.bstart) goto oom;
-    emit_keys(in, &s, 0);
-    for (uint32_t v = 0; v < n; ++v) s.bstart[v + 1] += s.bstart[v];
-    s.nkeys = s.bstart[n];
-    if (!(s.entries = rbc_mem_alloc(a, rbc_mul_size(s.nkeys, 8)))) goto oom;
-    memcpy(s.fill, s.bstart, (size_t)n * 4);
-    emit_keys(in, &s, 1);
+                        "too many springs (up to %zu; at most %u)", most_keys, UINT32_MAX / 2);
+    s->bstart = rbc_mem_alloc(a, rbc_mul_size((size_t)n + 1, 4));
+    if (!s->bstart) return topology_oom(err, errlen);
+    emit_keys(in, s, 0);
+    for (uint32_t v = 0; v < n; ++v) s->bstart[v + 1] += s->bstart[v];
+    s->nkeys = s->bstart[n];
+    if (!(s->entries = rbc_mem_alloc(a, rbc_mul_size(s->nkeys, 8)))) return topology_oom(err, errlen);
+    memcpy(s->fill, s->bstart, (size_t)n * 4);
+    emit_keys(in, s, 1);
     uint32_t ns = 0;
     for (uint32_t v = 0, r = 0; v < n; ++v) {
-        const uint32_t end = s.bstart[v + 1];
-        sort_u64(s.entries + r, end - r);
-        s.bstart[v] = ns;
+        const uint32_t end = s->bstart[v + 1];
+        sort_u64(s->entries + r, end - r);
+        s->bstart[v] = ns;
         for (; r < end; ++r)
-            if (r + 1 == end || (s.entries[r] >> 32) != (s.entries[r + 1] >> 32))
-                s.entries[ns++] = s.entries[r];
+            if (r + 1 == end || (s->entries[r] >> 32) != (s->entries[r + 1] >> 32))
+                s->entries[ns++] = s->entries[r];
     }
-    s.bstart[n] = ns;
+    s->bstart[n] = ns;
+    *out_ns = ns;
+    return RBC_OK;
+}
 
-    /* 3. Allocate the topology; its adjacency arrays hold the host-order CSR of the
-     * spring graph for the coloring first (so no second copy is faulted in), the
-     * internal one after. */
+/* Step 3: the topology's arrays. Its adjacency arrays hold the host-order CSR of the
+ * spring graph for the coloring first (so no second copy is faulted in), the internal
+ * one after (step 8). */
+static int32_t alloc_topology(rbc_topology *t, const rbc_allocator *a, const build_scratch *s,
+                              uint32_t n, uint32_t ns, char *err, size_t errlen) {
     t->n = n;
     t->ns = ns;
     int ok = 1;
     size_t bytes = 0;
-#define ALLOC_ONE(name, type, count)                                         \
-    t->name = rbc_mem_alloc(a, rbc_mul_size(count, sizeof(type)));           \
-    ok = ok && t->name;                                                      \
-    bytes += rbc_mul_size(count, sizeof(type));
+#define ALLOC_ONE(name, type, count) RBC_ALLOC_ARRAY(a, t->name, count, type, ok, bytes);
     TOPO_ARRAYS(ALLOC_ONE)
 #undef ALLOC_ONE
-    if (!ok) {
-        rbc_topology_free(t, a);
-        scratch_free(&s, a);
-        return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for %u particles", n);
-    }
+    if (!ok) return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for %u particles", n);
     t->bytes = bytes;
     uint32_t *hadj_start = t->adj_start, *hadj = t->adj_nbr;
     for (uint32_t v = 0; v < n; ++v)
-        for (uint32_t k = s.bstart[v]; k < s.bstart[v + 1]; ++k) {
+        for (uint32_t k = s->bstart[v]; k < s->bstart[v + 1]; ++k) {
             hadj_start[v + 1]++;
-            hadj_start[(uint32_t)(s.entries[k] >> 32) + 1]++;
+            hadj_start[(uint32_t)(s->entries[k] >> 32) + 1]++;
         }
     for (uint32_t v = 0; v < n; ++v) hadj_start[v + 1] += hadj_start[v];
-    memcpy(s.fill, hadj_start, (size_t)n * 4);
+    memcpy(s->fill, hadj_start, (size_t)n * 4);
     for (uint32_t v = 0; v < n; ++v)
-        for (uint32_t k = s.bstart[v]; k < s.bstart[v + 1]; ++k) {
-            uint32_t w = (uint32_t)(s.entries[k] >> 32);
-            hadj[s.fill[v]++] = w;
-            hadj[s.fill[w]++] = v;
+        for (uint32_t k = s->bstart[v]; k < s->bstart[v + 1]; ++k) {
+            uint32_t w = (uint32_t)(s->entries[k] >> 32);
+            hadj[s->fill[v]++] = w;
+            hadj[s->fill[w]++] = v;
         }
+    return RBC_OK;
+}
 
-    /* 4. Coloring: red-black when the graph is bipartite; otherwise multicolor
-     * (coloring.h), with the lattice try when the quads' neighbors are known. */
+/* Step 4, coloring: red-black when the graph is bipartite; otherwise multicolor
+ * (coloring.h), with the lattice try when the quads' neighbours are known. */
+static int32_t color_springs(const rbc_mesh_input *in, const rbc_allocator *a, rbc_topology *t,
+                             build_scratch *s, char *err, size_t errlen) {
+    const uint32_t n = t->n, nq = in->quad_count;
+    const uint32_t *hadj_start = t->adj_start, *hadj = t->adj_nbr;
     uint32_t bad_a = 0, bad_b = 0, ncolors = 0;
     rbc_color_method method = RBC_COLOR_METHOD_BIPARTITE;
-    if (rbc_color_bipartite(n, hadj_start, hadj, s.color, s.fill, &bad_a, &bad_b) == 0) {
+    if (rbc_color_bipartite(n, hadj_start, hadj, s->color, s->fill, &bad_a, &bad_b) == 0) {
         ncolors = 1;
-        for (uint32_t v = 0; v < n && ncolors == 1; ++v) ncolors += s.color[v];
+        for (uint32_t v = 0; v < n && ncolors == 1; ++v) ncolors += s->color[v];
     } else {
-        if (nq && !s.quad_nbr) { /* structural springs only: an odd loop */
-            s.vq = rbc_mem_alloc(a, rbc_mul_size(nq, 16));
-            s.quad_nbr = rbc_mem_alloc(a, rbc_mul_size(nq, 16));
-            if (!s.vq || !s.quad_nbr) goto oom_topo;
-            memset(s.quad_nbr, 0xFF, (size_t)nq * 16);
-            build_vertex_quads(in, &s);
-            s.items = rbc_mem_alloc(a, rbc_mul_size(s.maxd, 16));
-            s.fan = rbc_mem_alloc(a, rbc_mul_size(s.maxd, 40));
-            if (!s.items || !s.fan) goto oom_topo;
-            walk_fans(in, &s, 1, 0);
-        }
-        rbc_color_input cg = {n, hadj_start, hadj, nq, in->quads, s.quad_nbr};
+        /* Structural springs only: an odd loop; the lattice try needs the quads'
+         * neighbours. */
+        if (nq && !s->quad_nbr && find_quad_neighbours(in, a, s, 0) != 0)
+            return topology_oom(err, errlen);
+        rbc_color_input cg = {n, hadj_start, hadj, nq, in->quads, s->quad_nbr};
         uint32_t bad = 0;
-        int cr = rbc_color_graph(&cg, RBC_MAX_COLORS, a, s.color, &ncolors, &bad, &method);
-        if (cr == RBC_COLOR_NO_MEMORY) goto oom_topo;
-        if (cr != 0) {
-            uint32_t deg = hadj_start[bad + 1] - hadj_start[bad];
-            rbc_topology_free(t, a);
-            scratch_free(&s, a);
+        int cr = rbc_color_graph(&cg, RBC_MAX_COLORS, a, s->color, &ncolors, &bad, &method);
+        if (cr == RBC_COLOR_NO_MEMORY)
+            return topology_oom(err, errlen);
+        if (cr != 0)
             return rbc_fail(err, errlen, RBC_ERR_BAD_MESH,
-                        "vertex %u: its %u springs reach vertices of all %d colors; the "
-                        "spring graph needs more than %d colors (too dense explicit springs?)",
-                        bad, deg, RBC_MAX_COLORS, RBC_MAX_COLORS);
-        }
+                            "vertex %u: its %u springs reach vertices of all %d colors; the "
+                            "spring graph needs more than %d colors (too dense explicit springs?)",
+                            bad, hadj_start[bad + 1] - hadj_start[bad], RBC_MAX_COLORS,
+                            RBC_MAX_COLORS);
     }
-
-    /* 6. Color-contiguous order: color 0 first, then 1, ..., each in host order when
-     * that order is already local (a grid's rows stay together, and grid.c's lattice
-     * path needs exactly that), else by a Morton (Z-order) code of the rest position,
-     * so that a sweep's neighbours sit close in memory whatever order the file had. */
-    uint32_t next[RBC_MAX_COLORS] = {0};
-    for (uint32_t v = 0; v < n; ++v) next[s.color[v]]++;
     t->ncolors = ncolors;
     t->color_method = (uint32_t)method;
+    return RBC_OK;
+}
+
+/* Step 6, color-contiguous order: color 0 first, then 1, ..., each in host order when
+ * that order is already local (a grid's rows stay together, and grid.c's lattice path
+ * needs exactly that), else by a Morton (Z-order) code of the rest position, so that a
+ * sweep's neighbours sit close in memory whatever order the file had. *scattered: the
+ * host order was not local. */
+static int32_t internal_order(const float *P, const rbc_allocator *a, rbc_topology *t,
+                              const build_scratch *s, int *scattered, char *err, size_t errlen) {
+    const uint32_t n = t->n, ncolors = t->ncolors;
+    uint32_t next[RBC_MAX_COLORS] = {0};
+    for (uint32_t v = 0; v < n; ++v) next[s->color[v]]++;
     t->color_start[0] = 0;
     for (uint32_t c = 0; c < ncolors; ++c) {
         t->color_start[c + 1] = t->color_start[c] + next[c];
         next[c] = t->color_start[c];
     }
     uint64_t *order = NULL;
-    const int scattered = host_order_scattered(n, hadj_start, hadj);
-    if (scattered) {
+    *scattered = host_order_scattered(n, t->adj_start, t->adj_nbr);
+    if (*scattered) {
         order = rbc_mem_alloc(a, rbc_mul_size(n, sizeof *order));
         uint64_t *tmp = order ? rbc_mem_alloc(a, rbc_mul_size(n, sizeof *order)) : NULL;
         if (!tmp) {
             rbc_mem_free(a, order, rbc_mul_size(n, sizeof *order));
-            goto oom_topo;
+            return topology_oom(err, errlen);
         }
         morton_order(n, P, order, tmp);
         rbc_mem_free(a, tmp, rbc_mul_size(n, sizeof *order));
     }
     for (uint32_t r = 0; r < n; ++r) {
         uint32_t v = order ? (uint32_t)order[r] : r;
-        t->to_host[next[s.color[v]]++] = v;
+        t->to_host[next[s->color[v]]++] = v;
     }
-    if (order) group_by_degree(t, hadj_start);
+    if (order) group_by_degree(t, t->adj_start);
     for (uint32_t i = 0; i < n; ++i) {
         uint32_t v = t->to_host[i];
         t->to_internal[v] = i;
@@ -603,48 +592,53 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
         t->rest_z[i] = P[3 * (size_t)v + 2];
     }
     rbc_mem_free(a, order, rbc_mul_size(n, sizeof *order));
+    return RBC_OK;
+}
 
-    /* 7. Masses: given, lumped from areal density (a quarter of each quad's area to
-     * each corner), or uniform. */
+/* Step 7, masses: given, lumped from areal density (a quarter of each quad's area to
+ * each corner), or uniform; and the pins at rest. */
+static int32_t lump_masses(const rbc_mesh_input *in, rbc_topology *t, char *err, size_t errlen) {
+    const uint32_t n = t->n;
+    const float *P = in->positions;
     if (in->masses) {
         for (uint32_t v = 0; v < n; ++v) t->mass[t->to_internal[v]] = in->masses[v];
     } else if (in->density > 0.0f) {
-        for (uint32_t f = 0; f < nq; ++f) {
+        for (uint32_t f = 0; f < in->quad_count; ++f) {
             const uint32_t *q = in->quads + 4 * (size_t)f;
             float m = (float)(0.25 * in->density * (0.5 * sqrt(diag_cross_sq(P, q))));
             for (int k = 0; k < 4; ++k) t->mass[t->to_internal[q[k]]] += m;
         }
-        for (uint32_t v = 0; v < n; ++v)
-            if (!(t->mass[t->to_internal[v]] > 0.0f) || !isfinite(t->mass[t->to_internal[v]])) {
-                float m = t->mass[t->to_internal[v]];
-                rbc_topology_free(t, a);
-                scratch_free(&s, a);
+        for (uint32_t v = 0; v < n; ++v) {
+            float m = t->mass[t->to_internal[v]];
+            if (!(m > 0.0f) || !isfinite(m))
                 return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
-                            "vertex %u gets mass %g kg from the density (it belongs to no quad "
-                            "of positive area); give masses or vertex_mass",
-                            v, (double)m);
-            }
+                                "vertex %u gets mass %g kg from the density (it belongs to no "
+                                "quad of positive area); give masses or vertex_mass",
+                                v, (double)m);
+        }
     } else {
         for (uint32_t i = 0; i < n; ++i) t->mass[i] = in->vertex_mass;
     }
     for (uint32_t k = 0; k < in->pin_count; ++k) t->pinned_at_rest[t->to_internal[in->pins[k]]] = 1;
+    return RBC_OK;
+}
 
-    /* The host adjacency has served (coloring, the order above): the internal CSR is
-     * built in its place. */
+/* Step 8, springs (sorted by host (lower, upper) vertex; for a scattered host order,
+ * by the internal index of the lower host vertex, so that the local step walks the
+ * particles in memory order instead of at random) with their own stiffness, and the
+ * internal CSR adjacency with one slot per spring end, built where the host adjacency
+ * was (it has served: coloring, the order). Positions are read from the internal
+ * copies (the same floats as the input, placed in step 6): i runs in memory order and
+ * j is near it, where the input's of a scattered mesh were two cache misses per
+ * spring. */
+static void internal_springs(rbc_topology *t, build_scratch *s, int scattered) {
+    const uint32_t n = t->n, ns = t->ns;
     memset(t->adj_start, 0, ((size_t)n + 1) * 4);
-
-    /* 8. Springs (sorted by host (lower, upper) vertex; for a scattered host order,
-     * by the internal index of the lower host vertex, so that the local step walks
-     * the particles in memory order instead of at random) with their own stiffness,
-     * and the internal CSR adjacency with one slot per spring end. */
-    /* Positions are read from the internal copies (the same floats as P, placed in
-     * step 6): i runs in memory order and j is near it, where P[hi], P[hj] of a
-     * scattered mesh were two cache misses per spring. */
     uint32_t k = 0;
     for (uint32_t r = 0; r < n; ++r) {
         const uint32_t hi = scattered ? t->to_host[r] : r;
-        for (uint32_t e = s.bstart[hi]; e < s.bstart[hi + 1]; ++e, ++k) {
-            uint32_t hj = (uint32_t)(s.entries[e] >> 32);
+        for (uint32_t e = s->bstart[hi]; e < s->bstart[hi + 1]; ++e, ++k) {
+            uint32_t hj = (uint32_t)(s->entries[e] >> 32);
             uint32_t i = t->to_internal[hi], j = t->to_internal[hj];
             t->sa[k] = i;
             t->sb[k] = j;
@@ -652,7 +646,7 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
                    dz = (double)t->rest_z[i] - t->rest_z[j];
             double len = sqrt(dx * dx + dy * dy + dz * dz); /* dist3_sq's arithmetic */
             t->rest_len[k] = (float)len;
-            t->stiff[k] = bits_float((uint32_t)s.entries[e]);
+            t->stiff[k] = bits_float((uint32_t)s->entries[e]);
             if (len > 0.0) {
                 t->ux[k] = (float)(dx / len);
                 t->uy[k] = (float)(dy / len);
@@ -663,10 +657,10 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
         }
     }
     for (uint32_t i = 0; i < n; ++i) t->adj_start[i + 1] += t->adj_start[i];
-    memcpy(s.fill, t->adj_start, (size_t)n * 4);
+    memcpy(s->fill, t->adj_start, (size_t)n * 4);
     for (k = 0; k < ns; ++k) {
         uint32_t i = t->sa[k], j = t->sb[k];
-        uint32_t si = s.fill[i]++, sj = s.fill[j]++;
+        uint32_t si = s->fill[i]++, sj = s->fill[j]++;
         t->adj_nbr[si] = j;
         t->adj_k[si] = t->stiff[k];
         t->he_a[k] = si;
@@ -676,12 +670,53 @@ int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc
         t->ksum[i] += t->stiff[k];
         t->ksum[j] += t->stiff[k];
     }
-    scratch_free(&s, a);
-    return RBC_OK;
+}
 
-oom_topo:
-    rbc_topology_free(t, a);
-oom:
+int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc_topology *out,
+                           char *err, size_t errlen) {
+    memset(out, 0, sizeof *out);
+    int32_t rc = validate(in, err, errlen);
+    if (rc != RBC_OK) return rc;
+    const uint32_t n = in->vertex_count, nq = in->quad_count;
+    const int want_bend = in->bend_stiffness > 0.0f && nq > 0;
+    rbc_topology *t = out;
+    build_scratch s;
+    memset(&s, 0, sizeof s);
+    s.n = n;
+    s.nq = nq;
+    /* Walking the quads around each vertex gives the bend springs and the quad
+     * across each edge: the structural keys then skip shared edges the second time,
+     * and a multicolor coloring (likely with shear, bend or explicit springs) tries
+     * the lattice. */
+    const int want_nbr = nq > 0 && (in->shear_stiffness > 0.0f || want_bend || in->spring_count);
+    s.vq_start = rbc_mem_alloc(a, rbc_mul_size((size_t)n + 1, 4));
+    s.fill = rbc_mem_alloc(a, rbc_mul_size(n, 4));
+    s.color = rbc_mem_alloc(a, n);
+    uint32_t ns = 0;
+    int scattered = 0;
+    if (!s.vq_start || !s.fill || !s.color || (want_nbr && find_quad_neighbours(in, a, &s, want_bend)))
+        rc = topology_oom(err, errlen);
+    if (rc == RBC_OK) rc = unique_springs(in, a, &s, &ns, err, errlen);
+    if (rc == RBC_OK) rc = alloc_topology(t, a, &s, n, ns, err, errlen);
+    if (rc == RBC_OK) rc = color_springs(in, a, t, &s, err, errlen);
+    if (rc == RBC_OK) rc = internal_order(in->positions, a, t, &s, &scattered, err, errlen);
+    if (rc == RBC_OK) rc = lump_masses(in, t, err, errlen);
+    if (rc == RBC_OK) internal_springs(t, &s, scattered);
+    if (rc != RBC_OK) rbc_topology_free(t, a);
     scratch_free(&s, a);
-    return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory building the topology");
+    return rc;
+}
+
+int rbc_topology_break_spring(rbc_topology *t, uint32_t sp) {
+    if (t->stiff[sp] == 0.0f) return 0;
+    t->stiff[sp] = 0.0f;
+    t->adj_k[t->he_a[sp]] = 0.0f;
+    t->adj_k[t->he_b[sp]] = 0.0f;
+    for (int e = 0; e < 2; ++e) {
+        uint32_t i = e ? t->sb[sp] : t->sa[sp];
+        float sum = 0.0f;
+        for (uint32_t s = t->adj_start[i]; s < t->adj_start[i + 1]; ++s) sum += t->adj_k[s];
+        t->ksum[i] = sum;
+    }
+    return 1;
 }

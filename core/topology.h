@@ -89,5 +89,10 @@ typedef struct rbc_topology {
 int32_t rbc_topology_build(const rbc_mesh_input *in, const rbc_allocator *a, rbc_topology *out,
                            char *err, size_t errlen);
 void rbc_topology_free(rbc_topology *t, const rbc_allocator *a);
+/* Tearing (tear.h), the one change a topology takes after it is built: spring sp's
+ * stiffness becomes 0 in the spring list and both CSR half-edges, and its ends' sums
+ * are recomputed from what remains (no drift from subtracting). 0 if it was broken
+ * already. The coloring stays valid (removing edges cannot join a color). */
+int rbc_topology_break_spring(rbc_topology *t, uint32_t sp);
 
 #endif

@@ -7,7 +7,8 @@
 
 #include "errors.h"
 #include "handles.h"
-#include "interact.h"
+#include "attach.h"
+#include "tear.h"
 #include "registry.h"
 #include "rbcloth.h"
 #include "solver.h"
@@ -89,22 +90,22 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create(rbc_world_id wid, const rbc_cloth_d
     in.pins = def.pins;
     char msg[RBC_ERROR_CAP - 64];
     rbc_cloth_state *c;
-    rc = rbc_cloth_state_create(&w->solver, &in, def.damping, &c, msg, sizeof msg);
+    rc = rbc_solver_create_cloth(&w->solver, &in, def.damping, &c, msg, sizeof msg);
     if (rc) return rbc_plugin_world_error(w, rc, "%s: cloth def: %s", fn, msg);
-    if ((rc = rbc_cloth_state_set_contact(&w->solver, c, def.thickness, def.friction,
+    if ((rc = rbc_solver_set_cloth_contact(&w->solver, c, def.thickness, def.friction,
                                           def.collision_flags))) {
-        rbc_cloth_state_destroy(&w->solver, c);
+        rbc_cloth_state_destroy(&w->solver.alloc, c);
         return rbc_plugin_world_error(w, rc, "%s: out of memory for cloth contact", fn);
     }
     c->tear_strain = def.tear_strain;
     if (rbc_reg_add(&rbc_plugin_cloths, c, w->id, &c->public_id) != RBC_OK) {
-        rbc_cloth_state_destroy(&w->solver, c);
+        rbc_cloth_state_destroy(&w->solver.alloc, c);
         return rbc_plugin_world_error(w, RBC_ERR_CAPACITY, "%s: %u cloths exist already", fn,
                                       RBC_MAX_SLOTS);
     }
     if ((rc = rbc_solver_add_cloth(&w->solver, c))) {
         rbc_reg_remove(&rbc_plugin_cloths, c->public_id);
-        rbc_cloth_state_destroy(&w->solver, c);
+        rbc_cloth_state_destroy(&w->solver.alloc, c);
         return rbc_plugin_world_error(w, rc, "%s: out of memory", fn);
     }
     *out_cloth = c->public_id;
@@ -129,7 +130,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_destroy(rbc_world_id wid, rbc_cloth_id cid
     rbc_result rc = lookup_cloth(wid, cid, "rbc_cloth_destroy", &w, &c);
     if (rc) return rc;
     rbc_solver_remove_cloth(&w->solver, c);
-    rbc_cloth_state_destroy(&w->solver, c);
+    rbc_cloth_state_destroy(&w->solver.alloc, c);
     rbc_reg_remove(&rbc_plugin_cloths, cid);
     return RBC_OK;
 }
@@ -199,7 +200,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_set_pin(rbc_world_id wid, rbc_cloth_id cid
             w, RBC_ERR_INVALID_ARGUMENT,
             "%s: cloth 0x%08x: vertex %u: target (%g, %g, %g) is not finite", fn, cid, vertex,
             (double)target[0], (double)target[1], (double)target[2]);
-    rc = rbc_cloth_state_set_pin(&w->solver, c, vertex, target);
+    rc = rbc_cloth_state_set_pin(&w->solver.alloc, c, vertex, target);
     if (rc) return rbc_plugin_world_error(w, rc, "%s: out of memory", fn);
     rbc_detach_vertex(c, vertex); /* a pin of the host's own: no longer attached */
     return RBC_OK;

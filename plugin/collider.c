@@ -7,7 +7,7 @@
 
 #include "errors.h"
 #include "handles.h"
-#include "interact.h"
+#include "attach.h"
 #include "registry.h"
 #include "rbcloth.h"
 #include "solver.h"

@@ -11,7 +11,7 @@
 
 #include "errors.h"
 #include "handles.h"
-#include "interact.h"
+#include "pick.h"
 #include "registry.h"
 #include "rbcloth.h"
 #include "solver.h"
@@ -169,7 +169,7 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
         return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: could not start %u worker threads", fn,
                              threads);
     }
-    /* thread_count 0: the step measures whether its threads pay (core/solver.c,
+    /* thread_count 0: the step measures whether its threads pay (core/step_threads.c,
      * threads_for_step); a count the host gives is used as given. */
     w->solver.threads_auto = def.thread_count == 0;
     if (rbc_reg_add(&rbc_plugin_worlds, w, 0, &w->id) != RBC_OK) {

@@ -32,7 +32,7 @@ static rbc_cloth_state *make(rbc_solver *s, const test_mesh *m, const uint32_t *
     in.shear_stiffness = shear;
     rbc_cloth_state *c = NULL;
     char err[256];
-    CHECK_EQ(rbc_cloth_state_create(s, &in, 0.0f, &c, err, sizeof err), RBC_OK);
+    CHECK_EQ(rbc_solver_create_cloth(s, &in, 0.0f, &c, err, sizeof err), RBC_OK);
     CHECK_EQ(rbc_solver_add_cloth(s, c), RBC_OK);
     return c;
 }

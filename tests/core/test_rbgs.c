@@ -22,7 +22,7 @@ static rbc_cloth_state *make_cloth(rbc_solver *s, const test_mesh *m, const uint
     rbc_mesh_input in = mesh_input(m, pins, npins);
     rbc_cloth_state *c = NULL;
     char err[256];
-    int32_t rc = rbc_cloth_state_create(s, &in, damping, &c, err, sizeof err);
+    int32_t rc = rbc_solver_create_cloth(s, &in, damping, &c, err, sizeof err);
     CHECK_EQ(rc, RBC_OK);
     if (rc) fprintf(stderr, "%s\n", err);
     CHECK_EQ(rbc_solver_add_cloth(s, c), RBC_OK);

@@ -31,7 +31,7 @@ static void setup(void) {
     uint32_t pins[2] = {0, 39};
     rbc_mesh_input in = mesh_input(&m, pins, 2);
     char err[256];
-    CHECK_EQ(rbc_cloth_state_create(&S, &in, 0.0f, &C, err, sizeof err), RBC_OK);
+    CHECK_EQ(rbc_solver_create_cloth(&S, &in, 0.0f, &C, err, sizeof err), RBC_OK);
     /* Buffers for every solver: Jacobi (alt) and Chebyshev (prev). */
     rbc_solver_settings st = S.settings;
     st.kind = RBC_SOLVER_JACOBI_CHEBYSHEV;
@@ -187,7 +187,7 @@ int main(void) {
 
     for (int a = 0; a < 3; ++a) free(exact[a]);
     rbc_solver_remove_cloth(&S, C);
-    rbc_cloth_state_destroy(&S, C);
+    rbc_cloth_state_destroy(&S.alloc, C);
     rbc_solver_fini(&S);
     return check_report("core_solvers");
 }
