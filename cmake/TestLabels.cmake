@@ -4,8 +4,8 @@
 # (appended: labels a test sets itself stay).
 #
 #   quick     our own code, seconds each: `ctest -L quick -j2` answers in under a
-#             minute on 2 cores. Every test that is neither slow nor external.
-#   slow      longer than about 5 s in the plain build (the paper's scenes, the
+#             minute on 2 cores. Every test that is neither long nor external.
+#   long      longer than about 5 s in the plain build (the paper's scenes, the
 #             contact suite, the sweeps, the quick benches), or a test that needs
 #             such a test's fixture
 #   threads   tests whose point is the threaded solve (1 vs 2+ threads bitwise, the
@@ -18,8 +18,8 @@
 #             instrumented there beyond a PNG checker, and they add minutes)
 #   fuzz      replays of the fuzz targets' seeds and regression inputs (tests/fuzz)
 #   external  browser, blender, slurm and valgrind together
-set(RBC_LABEL_SLOW_REGEX
-  "^(scene_funnel|scene_four_layers|abi_contact|abi_layer_order|core_clothcontact|import_sweep|bench_scenes_quick|bench_accuracy_quick|bench_stability_quick|cli_run_funnel|cli_batch_kill_trials)"
+set(RBC_LABEL_LONG_REGEX
+  "^(scene_funnel|scene_four_layers|scene_caches_thread_independent|abi_contact|abi_layer_order|core_clothcontact|import_sweep|bench_scenes_quick|bench_accuracy_quick|bench_stability_quick|cli_run_funnel|cli_batch_kill_trials)"
   CACHE INTERNAL "")
 set(RBC_LABEL_THREADS_REGEX
   "^(core_rbgs|core_grid|core_clothcontact|abi_behaviour|abi_energy_guard|abi_target|abi_contact|abi_layer_order|abi_hardening|bench_scenes_quick|cli_batch)$"
@@ -51,8 +51,8 @@ function(rbc_label_tests folder)
     if(t MATCHES "${RBC_LABEL_THREADS_REGEX}")
       list(APPEND labels threads)
     endif()
-    if(t MATCHES "${RBC_LABEL_SLOW_REGEX}")
-      list(APPEND labels slow)
+    if(t MATCHES "${RBC_LABEL_LONG_REGEX}")
+      list(APPEND labels long)
     elseif(NOT external)
       list(APPEND labels quick)
     endif()
