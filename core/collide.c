@@ -195,11 +195,8 @@ void rbc_collide_detect(rbc_solver *s, rbc_contact_list *list, float f0, float f
         }
         for (uint32_t k = 0; k < s->cloth_count; ++k) {
             rbc_cloth_state *c = s->cloths[k];
-            const uint32_t n = c->topo.n;
-            uint32_t b0, b1;
-            rbc_energy_block_range(rbc_energy_blocks_of(n), tid, nt, &b0, &b1);
-            uint32_t i0 = b0 * RBC_ENERGY_BLOCK, i1 = b1 * RBC_ENERGY_BLOCK;
-            if (i1 > n) i1 = n;
+            uint32_t i0, i1;
+            rbc_energy_particle_range(c->topo.n, tid, nt, &i0, &i1);
             /* How far outside the surface a particle still gets a contact: the solve
              * moves particles by up to about a spring length from y. */
             const float margin = 0.5f * c->mean_rest;
@@ -442,11 +439,8 @@ void rbc_collide_post(rbc_solver *s, float f0, float f1, float h, uint32_t tid, 
         rbc_collider_frame_at(col, f1, &B);
         for (uint32_t k = 0; k < s->cloth_count; ++k) {
             rbc_cloth_state *c = s->cloths[k];
-            const uint32_t n = c->topo.n;
-            uint32_t b0, b1;
-            rbc_energy_block_range(rbc_energy_blocks_of(n), tid, nt, &b0, &b1);
-            uint32_t i0 = b0 * RBC_ENERGY_BLOCK, i1 = b1 * RBC_ENERGY_BLOCK;
-            if (i1 > n) i1 = n;
+            uint32_t i0, i1;
+            rbc_energy_particle_range(c->topo.n, tid, nt, &i0, &i1);
             const float thick = col->thickness + c->thickness;
             /* Detection covered every particle whose prediction y came within thickness +
              * margin of the surface; one that ended within margin of y and did not enter
@@ -488,21 +482,4 @@ void rbc_collide_post(rbc_solver *s, float f0, float f1, float h, uint32_t tid, 
             }
         }
     }
-}
-
-int rbc_contact_list_reserve(rbc_contact_list *list, const rbc_allocator *a) {
-    if (list->need <= list->cap) return 0;
-    uint32_t cap = list->cap ? list->cap : 256;
-    while (cap < list->need) cap = cap > 0x7fffffffu / 2 ? list->need : cap * 2;
-    rbc_col_contact *c = rbc_mem_alloc(a, sizeof(*c) * cap);
-    if (!c) return -1;
-    rbc_mem_free(a, list->c, sizeof(*list->c) * list->cap);
-    list->c = c;
-    list->cap = cap;
-    return 0;
-}
-
-void rbc_contact_list_free(rbc_contact_list *list, const rbc_allocator *a) {
-    rbc_mem_free(a, list->c, sizeof(*list->c) * list->cap);
-    memset(list, 0, sizeof *list);
 }

@@ -30,6 +30,7 @@
 #include <stdint.h>
 
 #include "alloc.h"
+#include "contact_list.h"
 #include "topology.h"
 
 struct rbc_solver;
@@ -41,26 +42,6 @@ typedef struct rbc_frame {
     float t[3];
 } rbc_frame;
 
-typedef struct rbc_col_contact {
-    uint32_t cloth;    /* index in the solver's dense cloth list */
-    uint32_t idx;      /* internal particle index */
-    float n[3];        /* unit normal, world */
-    float d;           /* the constraint n . p >= d, m */
-    float u[3];        /* velocity of the collider's surface at the contact, m/s */
-    float depth;       /* d - n . y when positive: how far the prediction went in, m */
-    float last;        /* correction of the latest projection pass, m */
-    float mu;          /* Coulomb coefficient */
-    uint32_t collider; /* index in the solver's dense collider list */
-    float fn_row;      /* normal force for friction, N (rbc_collide_normal_forces) */
-    float ft[3];       /* friction correction of the latest pass that applied it, m */
-    uint32_t color;    /* the particle's color in its cloth (rbc_collide_project_color) */
-} rbc_col_contact;
-
-typedef struct rbc_contact_list {
-    rbc_col_contact *c;
-    uint32_t count, cap;
-    uint32_t need;     /* contacts found, also past cap (then the list must grow) */
-} rbc_contact_list;
 
 /* The collider's pose at fraction f of the step (0 = where it was at the end of the
  * last step, 1 = its pose now): position interpolated linearly, rotation by nlerp. */
@@ -113,8 +94,4 @@ void rbc_collide_finish(struct rbc_solver *s, rbc_contact_list *list, float h, u
  * particles; acts rarely. */
 void rbc_collide_post(struct rbc_solver *s, float f0, float f1, float h, uint32_t tid,
                       uint32_t nt);
-/* Grow a list to hold list->need contacts. 0 on success, -1 out of memory (the list
- * keeps its old buffer). */
-int rbc_contact_list_reserve(rbc_contact_list *list, const rbc_allocator *a);
-void rbc_contact_list_free(rbc_contact_list *list, const rbc_allocator *a);
 #endif

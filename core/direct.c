@@ -11,34 +11,12 @@
  *
  * The substitutions are ours, over the documented simplicial layout of
  * cholmod_factor (column j in i/x[p[j] .. p[j]+nz[j]), diagonal first), rather than
- * cholmod_solve2: CHOLMOD 5.12's simplicial cholmod_solve2 with 3 right-hand sides
- * leaves its Y workspace shaped 3 x n and reallocates it (4 x n) on every call,
- * so it is not allocation-free; and the interleaved xyz loop is as fast (below).
- *
- * Method, measured on 2D quad grids (2 pins) with CHOLMOD 5.12 over Debian's
- * reference BLAS, one core of an AMD EPYC; factor = create (analyse + numeric), solve
- * = 3 columns, right-hand side included (test_direct.c prints the first two sizes):
- *
- *                               10K particles      250K particles     1M particles
- *                               factor   solve     factor   solve     factor   solve
- *   simplicial AMD, ours (used)  13 ms   0.44 ms   1.3-1.5 s  32 ms   15 s     149 ms
- *   simplicial AMD, solve2 (*)   16 ms   0.6 ms    1.32 s     34 ms   14.9 s   154 ms
- *   supernodal AMD, solve2       26 ms   1.7 ms    1.42 s     80 ms   10.1 s   366 ms
- *   simplicial METIS, solve2     40 ms   0.6 ms    1.98 s     30 ms   14.6 s   132 ms
- *   (*) allocates on every call, see above; with a 4th zero column so that it does
- *       not: 0.58 ms, 40 ms, 187 ms.
- *
- * The solve runs once per nonlinear iteration of every substep, the factorisation
- * only when h, pins or topology change, so the solve decides: simplicial LL' (the
- * supernodal solve goes through dtrsm/dgemm on 3 columns, slow on reference BLAS;
- * its faster factorisation at 1M is repaid after ~25 solves). AMD, not METIS:
- * nested dissection gives a 20-25 % sparser factor (solve 10-15 % faster) but its
- * analysis is 10x slower, which dominates the factor time up to ~500K particles;
- * and METIS terminates the process when it runs out of memory (cholmod_core.h,
- * metis_memory), which a host's library must never do. The ordering is fixed rather
- * than left to CHOLMOD's default, which switches to METIS by a fill heuristic that a
- * 1M particle grid is just under. LL' rather than LDL': same speed, and a pivot <= 0
- * stops the factorisation with CHOLMOD_NOT_POSDEF instead of being factored.
+ * cholmod_solve2, which reallocates its workspace on every call with 3 right-hand
+ * sides. Simplicial LL' with AMD ordering, fixed: the solve runs every nonlinear
+ * iteration and the factorisation only when h, pins or topology change, so the solve
+ * decides; METIS would terminate the process when out of memory; a pivot <= 0 stops
+ * LL' with CHOLMOD_NOT_POSDEF. The measurements behind each choice are in
+ * docs/design/solvers.md ("The direct solver").
  *
  * Memory: every CHOLMOD call here (start, allocate_sparse, analyze, factorize,
  * free_sparse, free_work, free_factor, finish) runs inside an rbc_cholmod_enter

@@ -5,7 +5,7 @@
 
 #include "report.h"
 #include "simd.h"
-#include "cloth.h"
+#include "cloth_state.h"
 
 void rbc_ell_free(rbc_ell *e, const rbc_allocator *a) {
     if (!e) return;

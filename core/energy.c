@@ -5,7 +5,7 @@
 #include <string.h>
 
 #include "simd.h"
-#include "cloth.h"
+#include "cloth_state.h"
 
 RBC_VECTOR_CLONES
 void rbc_energy_blocks(rbc_cloth_state *c, float *const pos[3], float *const prev[3],

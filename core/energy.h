@@ -69,4 +69,14 @@ static inline void rbc_energy_block_range(uint32_t nb, uint32_t tid, uint32_t nt
     *b = (uint32_t)((uint64_t)nb * tid / nt);
     *e = (uint32_t)((uint64_t)nb * (tid + 1) / nt);
 }
+/* [begin, end) of the particles (of n) in the blocks thread tid of nt owns: a pass
+ * that adds to the per-block sums (collider work) walks exactly these. */
+static inline void rbc_energy_particle_range(uint32_t n, uint32_t tid, uint32_t nt, uint32_t *i0,
+                                             uint32_t *i1) {
+    uint32_t b0, b1;
+    rbc_energy_block_range(rbc_energy_blocks_of(n), tid, nt, &b0, &b1);
+    *i0 = b0 * RBC_ENERGY_BLOCK;
+    *i1 = b1 * RBC_ENERGY_BLOCK;
+    if (*i1 > n) *i1 = n;
+}
 #endif

@@ -149,7 +149,7 @@ float rbc_chebyshev_omega(uint32_t k, uint32_t delay, float rho) {
  * ratio |J e|_D / |e|_D approaches rho_J from below (an underestimate is the safe side
  * for Chebyshev weights and SOR's omega). Its spectrum is symmetric for a bipartite
  * graph (+-rho), so the norm ratio, not a Rayleigh quotient, is the estimate. */
-float rbc_cloth_state_spectral_radius(rbc_cloth_state *c, float h) {
+float rbc_global_spectral_radius(rbc_cloth_state *c, float h) {
     if (c->rho_est > 0.0f && c->h_rho == h) return c->rho_est;
     for (int k = 0; k < RBC_RHO_CACHE; ++k)
         if (c->rho_cache_h[k] == h && h > 0.0f) {

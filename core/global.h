@@ -11,7 +11,7 @@
 #define RBC_CORE_GLOBAL_H
 #include <stdint.h>
 
-#include "cloth.h"
+#include "cloth_state.h"
 
 /* How a Gauss-Seidel color sweep writes its result g_i (Eq. 6). */
 typedef enum rbc_gs_variant {
@@ -56,4 +56,7 @@ void rbc_global_residual(const rbc_cloth_state *c, uint32_t color_end, uint32_t 
  * `delay` plain iterations (Wang 2015): 1 before, then 2/(2 - rho^2), then
  * 4/(4 - rho^2 omega_prev). */
 float rbc_chebyshev_omega(uint32_t k, uint32_t delay, float rho);
+/* The Jacobi spectral radius of the cloth's global system for substep h (power
+ * iteration; cached per h and in the last RBC_RHO_CACHE substep lengths). */
+float rbc_global_spectral_radius(rbc_cloth_state *c, float h);
 #endif

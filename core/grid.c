@@ -7,7 +7,7 @@
 #include "cpu/pool.h"
 #include "report.h"
 #include "simd.h"
-#include "cloth.h"
+#include "cloth_state.h"
 
 /* Inlined into its callers (with constant flags where they pass them) (GCC and Clang; elsewhere an
  * ordinary inline, the same arithmetic). */

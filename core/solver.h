@@ -12,7 +12,7 @@
 
 #include "../abi/rbcloth.h"
 #include "alloc.h"
-#include "collide.h"
+#include "contact_list.h"
 #include "cloth.h"
 #include "cpu/pool.h"
 #include "shapes.h"

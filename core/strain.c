@@ -5,7 +5,7 @@
 
 #include "report.h"
 #include "simd.h"
-#include "cloth.h"
+#include "cloth_state.h"
 
 /* One block: sum of ((len - L) / L)^2 over its live springs with L > 0. torn: some
  * springs of the cloth are broken (stiffness 0) and are skipped. */

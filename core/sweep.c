@@ -17,6 +17,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "collide.h"
 #include "contact_step.h"
 #include "direct.h"
 #include "ell.h"
@@ -77,7 +78,7 @@ void rbc_global_gs_serial(rbc_cloth_state *c) {
 float rbc_solver_sor_omega(const rbc_solver *s, rbc_cloth_state *c, float h) {
     if (s->settings.omega > 0.0f) return s->settings.omega;
     /* Optimal SOR for a consistently ordered matrix (red-black): Young's formula. */
-    float rho = rbc_cloth_state_spectral_radius(c, h);
+    float rho = rbc_global_spectral_radius(c, h);
     return 2.0f / (1.0f + sqrtf(1.0f - rho * rho));
 }
 
@@ -107,7 +108,7 @@ int32_t rbc_sweep_prepare(step_ctx *ctx) {
         if (st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV || st->kind == RBC_SOLVER_RBGS_CHEBYSHEV) {
             /* rho_J, given or estimated. Gauss-Seidel's radius is rho_J^2 for a
              * consistently ordered (two color) matrix; used with more colors too. */
-            float rho = st->rho > 0.0f ? st->rho : rbc_cloth_state_spectral_radius(c, ctx->h);
+            float rho = st->rho > 0.0f ? st->rho : rbc_global_spectral_radius(c, ctx->h);
             if (st->kind == RBC_SOLVER_RBGS_CHEBYSHEV) rho = rho * rho;
             ctx->cheb_rho[ki] = rho;
         }

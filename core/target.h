@@ -8,16 +8,15 @@
 /* Steps in a row that must meet the target with a margin before a probe lowers the
  * substeps (the first hold; it doubles when a lowering is undone). */
 #define RBC_TARGET_HOLD 8u
-/* The checked global step stops at RBC_TARGET_AIM of the target; if it reaches the
- * cap above RBC_TARGET_INNER of it, the next step gets more substeps. On the paper's
- * cloth at 1/60 s (preset caps) aiming at 0.95 met 228 of 240 frames at 1.82 ms per
- * frame, at 0.8 235 at 1.88 ms; the 0.95 cap test keeps a cloth whose physical
- * stretch lies between the two from asking for substeps that cannot help. */
+/* The checked global step stops at RBC_TARGET_AIM of the target (it met more frames
+ * than 0.95 for 3 % more time); reaching the cap above RBC_TARGET_INNER of it asks
+ * for more substeps, so a cloth whose physical stretch lies between the two does not
+ * ask for substeps that cannot help (docs/design/target-mode.md). */
 #define RBC_TARGET_AIM 0.8
 #define RBC_TARGET_INNER 0.95
 /* Cost units of a substep besides its linear iterations (integrate, local step and
- * right-hand side, a strain check), in linear iterations: the stage times of a 10K
- * RBGS frame give 0.045 ms against 0.021 ms per iteration, plus a check. */
+ * right-hand side, a strain check), in linear iterations, from the stage times of a
+ * 10K RBGS frame (docs/design/target-mode.md). */
 #define RBC_TARGET_SUBSTEP_COST 3u
 
 /* Before a step: its substeps (the controller's choice) and the linear iterations

@@ -152,7 +152,7 @@ int main(void) {
      * dominate; 400..600 leaves the faster ones (factor (l2/l1)^400) negligible. */
     double rj = measured_rate(JACOBI, 400, 600, 1.0f);
     double rgs = measured_rate(RBGS, 200, 300, 1.0f);
-    float est = rbc_cloth_state_spectral_radius(C, H);
+    float est = rbc_global_spectral_radius(C, H);
     double ref = reference_rho_j();
     printf("rho_J: reference %.6f, library estimate %.6f, rate of the Jacobi error over "
            "iterations 400-600 %.6f; rho_GS: RBGS error rate %.6f vs that Jacobi rate^2 %.6f\n",
