@@ -24,6 +24,13 @@
 /* Worlds                                                                    */
 /* ------------------------------------------------------------------------- */
 
+/* The default solver def with another solver. */
+static inline rbc_solver_def test_solver_def(rbc_solver_kind kind) {
+    rbc_solver_def d = rbc_solver_def_default();
+    d.solver = kind;
+    return d;
+}
+
 /* The world def of rbc_world_def_default with the paper's fixed counts
  * (RBC_PRESET_PAPER): most tests check what a step does at given substeps and
  * iterations, which the default solve (the target mode, ABI 1.6) chooses itself.
@@ -39,6 +46,41 @@ static inline rbc_world_def abi_world_def_fixed(void) {
     rbc_world_def d = rbc_world_def_default();
     d.solver = &paper;
     return d;
+}
+
+/* A world of def d, its creation checked (and the library's message printed when it
+ * is refused); 0 then. */
+static inline rbc_world_id test_world(const rbc_world_def *d) {
+    rbc_world_id w = 0;
+    rbc_result r = rbc_world_create(d, &w);
+    CHECK_EQ(r, RBC_OK);
+    if (r != RBC_OK) fprintf(stderr, "rbc_world_create: %s\n", rbc_last_error());
+    return w;
+}
+
+/* A log hook (wd.log = test_count_log, wd.log_user = the counter) for the warnings a
+ * mode repeats at the 1st, 2nd, 4th, ... time: those containing `phrase` are counted,
+ * and for the first 64 the number the message gives just before `count_before`
+ * ("(K clamped so far)") is kept in at[]. */
+typedef struct test_log_count {
+    const char *phrase;
+    const char *count_before;
+    int warnings;
+    uint64_t at[64];
+} test_log_count;
+
+static inline void RBC_CALL test_count_log(void *user, rbc_log_level level, const char *msg) {
+    test_log_count *lc = (test_log_count *)user;
+    if (level != RBC_LOG_WARNING || !strstr(msg, lc->phrase)) return;
+    const char *p = strstr(msg, lc->count_before);
+    uint64_t k = 0;
+    if (p) {
+        const char *q = p;
+        while (q > msg && q[-1] >= '0' && q[-1] <= '9') --q;
+        k = strtoull(q, NULL, 10);
+    }
+    if (lc->warnings < 64) lc->at[lc->warnings] = k;
+    lc->warnings++;
 }
 
 /* ------------------------------------------------------------------------- */

@@ -18,14 +18,11 @@ static const char *const NAMES[] = {"rbgs",     "jacobi",         "jacobi_chebys
 
 static rbc_world_id make_world(rbc_solver_kind kind, rbc_iteration_mode mode, uint32_t threads) {
     rbc_world_def wd = rbc_world_def_default();
-    rbc_solver_def sd = rbc_solver_def_default();
-    sd.solver = kind;
+    rbc_solver_def sd = test_solver_def(kind);
     sd.mode = mode;
     wd.solver = &sd;
     wd.thread_count = threads;
-    rbc_world_id w = 0;
-    CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
-    return w;
+    return test_world(&wd);
 }
 
 static void test_v10_host(const test_grid *g) {
@@ -160,8 +157,7 @@ static void test_every_solver(const test_grid *g) {
             CHECK(st.linear_residual > 0.0);
         }
         /* Switch at run time to another solver and keep stepping. */
-        rbc_solver_def sd = rbc_solver_def_default();
-        sd.solver = (rbc_solver_kind)((kind + 3) % 8);
+        rbc_solver_def sd = test_solver_def((rbc_solver_kind)((kind + 3) % 8));
         CHECK_EQ(rbc_world_set_solver(w, &sd), RBC_OK);
         CHECK_EQ(rbc_world_step(w, 0.002f), RBC_OK);
         CHECK_EQ(test_stats(w).solver, sd.solver);
@@ -292,8 +288,7 @@ static void test_multicolor_torus(void) {
         }
     for (int k = 0; k < 3 * 110; ++k) big[k] = 1.5f * pos[k];
     rbc_world_def wd = rbc_world_def_default();
-    rbc_solver_def sd = rbc_solver_def_default();
-    sd.solver = RBC_SOLVER_MULTICOLOR_GS;
+    rbc_solver_def sd = test_solver_def(RBC_SOLVER_MULTICOLOR_GS);
     sd.mode = RBC_ITERATE_TOLERANCE;
     sd.tolerance = 1e-6f;
     sd.max_linear_iterations = 5000;

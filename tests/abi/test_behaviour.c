@@ -23,13 +23,8 @@ static rbc_world_id make_world(uint32_t substeps, uint32_t threads) {
     rbc_world_def d = abi_world_def_fixed();
     d.substeps = substeps;
     d.thread_count = threads;
-    rbc_world_id w = 0;
-    rbc_result r = rbc_world_create(&d, &w);
-    CHECK_EQ(r, RBC_OK);
-    if (r != RBC_OK) {
-        fprintf(stderr, "make_world: %s\n", rbc_last_error());
-        exit(1);
-    }
+    rbc_world_id w = test_world(&d);
+    if (!w) exit(1); /* every test needs its world */
     return w;
 }
 

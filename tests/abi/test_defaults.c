@@ -81,8 +81,7 @@ static void test_sizes(void) {
 
 /* A world with the 64 x 48 grid, from `wd`. */
 static rbc_world_id make64(rbc_world_def *wd, test_grid *g, rbc_cloth_id *cloth) {
-    rbc_world_id w = 0;
-    CHECK_EQ(rbc_world_create(wd, &w), RBC_OK);
+    rbc_world_id w = test_world(wd);
     rbc_cloth_def cd = test_grid_def(g, PINS64, 2);
     CHECK_EQ(rbc_cloth_create(w, &cd, cloth), RBC_OK);
     return w;

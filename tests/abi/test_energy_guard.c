@@ -19,43 +19,20 @@
 #define STIFF 1000.0f
 #define DT 0.002f
 
-typedef struct log_count {
-    int warnings;
-    uint64_t clamps_at_warning[64];
-} log_count;
-
-static void RBC_CALL count_log(void *user, rbc_log_level level, const char *msg) {
-    log_count *lc = (log_count *)user;
-    if (level != RBC_LOG_WARNING || !strstr(msg, "energy guard")) return;
-    /* "... (K clamped so far) ..." */
-    const char *p = strstr(msg, " clamped so far");
-    uint64_t k = 0;
-    if (p) {
-        const char *q = p;
-        while (q > msg && q[-1] >= '0' && q[-1] <= '9') --q;
-        k = strtoull(q, NULL, 10);
-    }
-    if (lc->warnings < 64) lc->clamps_at_warning[lc->warnings] = k;
-    lc->warnings++;
-}
-
 static rbc_world_id make_world(rbc_solver_kind kind, uint32_t linear, rbc_energy_guard guard,
-                               uint32_t threads, log_count *lc) {
+                               uint32_t threads, test_log_count *lc) {
     rbc_world_def wd = abi_world_def_fixed();
-    rbc_solver_def sd = rbc_solver_def_default();
-    sd.solver = kind;
+    rbc_solver_def sd = test_solver_def(kind);
     sd.energy_guard = guard;
     wd.solver = &sd;
     wd.thread_count = threads;
     wd.linear_iterations = linear;
     if (lc) {
-        wd.log = count_log;
+        wd.log = test_count_log;
         wd.log_user = lc;
         wd.log_level = RBC_LOG_WARNING;
     }
-    rbc_world_id w = 0;
-    CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
-    return w;
+    return test_world(&wd);
 }
 
 static rbc_cloth_id add_cloth(rbc_world_id w, const test_grid *g, const uint32_t *pins,
@@ -148,8 +125,7 @@ static void test_abi_sizes(const test_grid *g) {
     CHECK_EQ(sbuf.d.solver, RBC_SOLVER_RBGS);
 
     /* A bad guard is refused, names the field, and changes nothing. */
-    rbc_solver_def bad = rbc_solver_def_default();
-    bad.solver = RBC_SOLVER_JACOBI;
+    rbc_solver_def bad = test_solver_def(RBC_SOLVER_JACOBI);
     bad.energy_guard = 7;
     CHECK_EQ(rbc_world_set_solver(w, &bad), RBC_ERR_INVALID_ARGUMENT);
     CHECK(strstr(rbc_last_error(), "energy_guard 7") != NULL);
@@ -224,8 +200,7 @@ static void test_diverging_jacobi_held(const test_grid *g) {
     const uint32_t pins[2] = {0, N - 1};
     uint8_t *pinned = calloc(g->vertex_count, 1);
     pinned[0] = pinned[N - 1] = 1;
-    log_count lc;
-    memset(&lc, 0, sizeof lc);
+    test_log_count lc = {.phrase = "energy guard", .count_before = " clamped so far"};
     rbc_world_id w = make_world(RBC_SOLVER_JACOBI, 1, RBC_ENERGY_GUARD_CLAMP, 2, &lc);
     rbc_world_id w1 = make_world(RBC_SOLVER_JACOBI, 1, RBC_ENERGY_GUARD_CLAMP, 1, NULL);
     rbc_cloth_id c = add_cloth(w, g, pins, 2), c1 = add_cloth(w1, g, pins, 2);
@@ -250,7 +225,7 @@ static void test_diverging_jacobi_held(const test_grid *g) {
     int expect = 0;
     for (uint64_t k = st.energy_clamped_steps; k; k >>= 1) ++expect;
     CHECK_EQ(lc.warnings, expect);
-    for (int k = 0; k < lc.warnings && k < 64; ++k) CHECK_EQ(lc.clamps_at_warning[k], 1ull << k);
+    for (int k = 0; k < lc.warnings && k < 64; ++k) CHECK_EQ(lc.at[k], 1ull << k);
     uint32_t n = 0;
     float *x = test_read(w, c, &n), *x1 = test_read(w1, c1, NULL);
     CHECK(test_all_finite(x, 3 * (size_t)n));

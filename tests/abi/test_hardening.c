@@ -214,8 +214,7 @@ static void test_cut_and_torn_destroy(void) {
 static rbc_world_id grid_world(const rbc_world_def *wd, uint32_t nx, float spacing, float y,
                                const uint32_t *pins, uint32_t pin_count, test_grid *g,
                                rbc_cloth_id *c) {
-    rbc_world_id w = 0;
-    CHECK_EQ(rbc_world_create(wd, &w), RBC_OK);
+    rbc_world_id w = test_world(wd);
     *g = test_grid_make(nx, nx, spacing, 0.0f, y, 0.0f);
     rbc_cloth_def cd = test_grid_def(g, pins, pin_count);
     *c = 0;

@@ -35,26 +35,7 @@
  * two double sums of at most 20,000 terms, below 1e-12 of values under 10. */
 static double strain_tol(double max_r) { return (1.0 + max_r) * ldexp(1.0, -24) + 1e-12; }
 
-typedef struct log_count {
-    int warnings;
-    uint64_t at[64]; /* "(K missed at the cap so far)" of each warning */
-} log_count;
-
-static void RBC_CALL count_log(void *user, rbc_log_level level, const char *msg) {
-    log_count *lc = (log_count *)user;
-    if (level != RBC_LOG_WARNING || !strstr(msg, "not met within the cap")) return;
-    const char *p = strstr(msg, " missed at the cap so far");
-    uint64_t k = 0;
-    if (p) {
-        const char *q = p;
-        while (q > msg && q[-1] >= '0' && q[-1] <= '9') --q;
-        k = strtoull(q, NULL, 10);
-    }
-    if (lc->warnings < 64) lc->at[lc->warnings] = k;
-    lc->warnings++;
-}
-
-static rbc_world_id make_world(const rbc_solver_def *sd, uint32_t threads, log_count *lc) {
+static rbc_world_id make_world(const rbc_solver_def *sd, uint32_t threads, test_log_count *lc) {
     rbc_world_def wd = rbc_world_def_default();
     /* The world counts this test was written with (the paper's 1 substep; the fixed
      * mode checks read them), and only the target mode's own warnings in the log. */
@@ -63,12 +44,10 @@ static rbc_world_id make_world(const rbc_solver_def *sd, uint32_t threads, log_c
     wd.solver = sd;
     wd.thread_count = threads;
     if (lc) {
-        wd.log = count_log;
+        wd.log = test_count_log;
         wd.log_user = lc;
     }
-    rbc_world_id w = 0;
-    CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
-    return w;
+    return test_world(&wd);
 }
 
 static rbc_solver_def game_preset(void) {
@@ -292,8 +271,8 @@ static void test_impossible(void) {
     sd.target_strain = 1e-4f; /* gravity alone stretches the pinned cloth far more */
     sd.max_substeps = 2;
     sd.max_linear_iterations = 2;
-    log_count lc;
-    memset(&lc, 0, sizeof lc);
+    test_log_count lc = {.phrase = "not met within the cap",
+                         .count_before = " missed at the cap so far"};
     rbc_world_id w = make_world(&sd, 1, &lc);
     rbc_cloth_def cd = test_grid_def(&g, pins, 2);
     rbc_cloth_id c = 0;
