@@ -173,6 +173,25 @@ static inline int test_all_finite(const float *v, size_t n) {
     return 1;
 }
 
+/* Whether bytes [from, to) of buf all still hold `mark`: a host whose struct is older
+ * (shorter) than the library's fills it with a mark first, and a call given the old
+ * struct_size must write nothing past it. */
+static inline int test_bytes_are(const void *buf, size_t from, size_t to, unsigned char mark) {
+    const unsigned char *b = (const unsigned char *)buf;
+    for (size_t k = from; k < to; ++k)
+        if (b[k] != mark) return 0;
+    return 1;
+}
+
+/* A struct of type T and `extra` bytes after it: what a host built against an older,
+ * shorter header passes (d), marked first; the library must write nothing past the
+ * struct_size it is given (test_bytes_are). */
+#define TEST_PADDED(T, extra)      \
+    struct {                       \
+        T d;                       \
+        unsigned char tail[extra]; \
+    }
+
 /* Does the decimal number n occur in s as a whole number (not as part of a longer
  * run of digits)? Used to check that error messages name the offending index. */
 static inline int test_contains_number(const char *s, unsigned long n) {
@@ -223,6 +242,21 @@ static inline rbc_world_stats test_stats(rbc_world_id w) {
         fprintf(stderr, "test_stats: get_stats -> %s (%s)\n", rbc_result_string(r),
                 rbc_last_error());
     return s;
+}
+
+/* rbc_world_get_stats as such a host calls it: the stats at the start of buf (buf_size
+ * bytes, room after them) with struct_size `size`, buf marked with `mark` first.
+ * Whether the call succeeded and wrote nothing past size. */
+static inline int test_stats_sized(rbc_world_id w, void *buf, size_t buf_size, uint32_t size,
+                                   unsigned char mark) {
+    memset(buf, mark, buf_size);
+    rbc_world_stats *s = (rbc_world_stats *)buf;
+    s->struct_size = size;
+    rbc_result r = rbc_world_get_stats(w, s);
+    if (r != RBC_OK)
+        fprintf(stderr, "test_stats_sized(%u): %s (%s)\n", (unsigned)size, rbc_result_string(r),
+                rbc_last_error());
+    return r == RBC_OK && test_bytes_are(buf, size, buf_size, mark);
 }
 
 /* The host's measure: RMS relative strain of cloth c of world w, and the largest

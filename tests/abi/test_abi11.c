@@ -27,24 +27,15 @@ static rbc_world_id make_world(rbc_solver_kind kind, rbc_iteration_mode mode, ui
 
 static void test_v10_host(const test_grid *g) {
     /* A 1.0 host's world def: the bytes up to the 1.0 size, garbage after. */
-    struct {
-        rbc_world_def d;
-        char tail[64];
-    } wbuf;
+    TEST_PADDED(rbc_world_def, 64) wbuf;
     memset(&wbuf, 0xAB, sizeof wbuf);
     CHECK_EQ(rbc_world_def_init(&wbuf.d, RBC_WORLD_DEF_SIZE_V1_0), RBC_OK);
     /* init writes only the 1.0 bytes */
-    const unsigned char *raw = (const unsigned char *)&wbuf;
-    int untouched = 1;
-    for (size_t k = RBC_WORLD_DEF_SIZE_V1_0; k < sizeof wbuf; ++k) untouched &= raw[k] == 0xAB;
-    CHECK(untouched);
+    CHECK(test_bytes_are(&wbuf, RBC_WORLD_DEF_SIZE_V1_0, sizeof wbuf, 0xAB));
     rbc_world_id w = 0;
     CHECK_EQ(rbc_world_create(&wbuf.d, &w), RBC_OK);
 
-    struct {
-        rbc_cloth_def d;
-        char tail[64];
-    } cbuf;
+    TEST_PADDED(rbc_cloth_def, 64) cbuf;
     memset(&cbuf, 0xCD, sizeof cbuf);
     CHECK_EQ(rbc_cloth_def_init(&cbuf.d, RBC_CLOTH_DEF_SIZE_V1_0), RBC_OK);
     cbuf.d.vertex_count = g->vertex_count;
@@ -60,22 +51,13 @@ static void test_v10_host(const test_grid *g) {
     CHECK_EQ(colors, 2);
     CHECK_EQ(rbc_world_step(w, 0.002f), RBC_OK);
 
-    struct {
-        rbc_world_stats s;
-        char tail[64];
-    } sbuf;
-    memset(&sbuf, 0xEF, sizeof sbuf);
-    sbuf.s.struct_size = RBC_WORLD_STATS_SIZE_V1_0;
-    CHECK_EQ(rbc_world_get_stats(w, &sbuf.s), RBC_OK);
-    raw = (const unsigned char *)&sbuf;
-    untouched = 1;
-    for (size_t k = RBC_WORLD_STATS_SIZE_V1_0; k < sizeof sbuf; ++k) untouched &= raw[k] == 0xEF;
-    CHECK(untouched);
-    CHECK_EQ(sbuf.s.particle_count, g->vertex_count);
-    CHECK_EQ(sbuf.s.step_count, 1);
+    TEST_PADDED(rbc_world_stats, 64) sbuf;
+    CHECK(test_stats_sized(w, &sbuf, sizeof sbuf, RBC_WORLD_STATS_SIZE_V1_0, 0xEF));
+    CHECK_EQ(sbuf.d.particle_count, g->vertex_count);
+    CHECK_EQ(sbuf.d.step_count, 1);
     /* A size between the releases is refused. */
-    sbuf.s.struct_size = RBC_WORLD_STATS_SIZE_V1_0 + 8;
-    CHECK_EQ(rbc_world_get_stats(w, &sbuf.s), RBC_ERR_INVALID_ARGUMENT);
+    sbuf.d.struct_size = RBC_WORLD_STATS_SIZE_V1_0 + 8;
+    CHECK_EQ(rbc_world_get_stats(w, &sbuf.d), RBC_ERR_INVALID_ARGUMENT);
     /* The 1.1 default solver runs for a 1.0 host. */
     rbc_solver_def sd;
     sd.struct_size = sizeof sd;

@@ -979,10 +979,7 @@ static void test_stats_figures(void) {
         const size_t cut = offsetof(rbc_world_stats, step_count);
         u.s.struct_size = (uint32_t)cut;
         rbc_result r = rbc_world_get_stats(w, &u.s);
-        int untouched = 1;
-        for (size_t k = cut; k < sizeof u; k++)
-            if (u.b[k] != 0xAB) untouched = 0;
-        CHECK(untouched);
+        CHECK(test_bytes_are(&u, cut, sizeof u, 0xAB));
         if (r == RBC_OK) {
             CHECK_EQ(u.s.cloth_count, 1);
             CHECK_EQ(u.s.particle_count, 10000);

@@ -73,9 +73,7 @@ static void test_sizes(void) {
         memset(&u, 0xAB, sizeof u);
         CHECK_EQ(rbc_world_def_init(&u.d, old[k]), RBC_OK);
         CHECK_EQ(u.d.substeps, 1); /* what the 1.0-1.5 headers document */
-        int clean = 1;
-        for (size_t i = old[k]; i < sizeof u; i++) clean &= u.b[i] == 0xAB;
-        CHECK(clean);
+        CHECK(test_bytes_are(&u, old[k], sizeof u, 0xAB));
     }
 }
 
@@ -428,9 +426,7 @@ static void test_bad_values(void) {
     u.s.struct_size = RBC_WORLD_STATS_SIZE_V1_5;
     u.s.skip_measures = 0;
     CHECK_EQ(rbc_world_get_stats(w, &u.s), RBC_OK);
-    int clean = 1;
-    for (size_t i = RBC_WORLD_STATS_SIZE_V1_5; i < sizeof u; i++) clean &= u.b[i] == 0xCD;
-    CHECK(clean);
+    CHECK(test_bytes_are(&u, RBC_WORLD_STATS_SIZE_V1_5, sizeof u, 0xCD));
     rbc_world_destroy(w);
 }
 

@@ -97,16 +97,10 @@ static double guarded_energy(rbc_world_id w, rbc_cloth_id c, const uint8_t *pinn
 
 static void test_abi_sizes(const test_grid *g) {
     /* A 1.1 host's solver def: garbage past the 1.1 size, default guard applies. */
-    struct {
-        rbc_solver_def d;
-        char tail[32];
-    } sbuf;
+    TEST_PADDED(rbc_solver_def, 32) sbuf;
     memset(&sbuf, 0xAB, sizeof sbuf);
     CHECK_EQ(rbc_solver_def_init(&sbuf.d, RBC_SOLVER_DEF_SIZE_V1_1), RBC_OK);
-    const unsigned char *raw = (const unsigned char *)&sbuf;
-    int untouched = 1;
-    for (size_t k = RBC_SOLVER_DEF_SIZE_V1_1; k < sizeof sbuf; ++k) untouched &= raw[k] == 0xAB;
-    CHECK(untouched);
+    CHECK(test_bytes_are(&sbuf, RBC_SOLVER_DEF_SIZE_V1_1, sizeof sbuf, 0xAB));
     rbc_world_def wd = abi_world_def_fixed();
     wd.solver = &sbuf.d;
     rbc_world_id w = 0;
@@ -119,9 +113,7 @@ static void test_abi_sizes(const test_grid *g) {
     memset(&sbuf, 0xAB, sizeof sbuf);
     sbuf.d.struct_size = RBC_SOLVER_DEF_SIZE_V1_1;
     CHECK_EQ(rbc_world_get_solver(w, &sbuf.d), RBC_OK);
-    untouched = 1;
-    for (size_t k = RBC_SOLVER_DEF_SIZE_V1_1; k < sizeof sbuf; ++k) untouched &= raw[k] == 0xAB;
-    CHECK(untouched);
+    CHECK(test_bytes_are(&sbuf, RBC_SOLVER_DEF_SIZE_V1_1, sizeof sbuf, 0xAB));
     CHECK_EQ(sbuf.d.solver, RBC_SOLVER_RBGS);
 
     /* A bad guard is refused, names the field, and changes nothing. */
@@ -136,18 +128,9 @@ static void test_abi_sizes(const test_grid *g) {
     /* 1.1 stats: nothing past their size. */
     add_cloth(w, g, NULL, 0);
     CHECK_EQ(rbc_world_step(w, DT), RBC_OK);
-    struct {
-        rbc_world_stats s;
-        char tail[32];
-    } st;
-    memset(&st, 0xEF, sizeof st);
-    st.s.struct_size = RBC_WORLD_STATS_SIZE_V1_1;
-    CHECK_EQ(rbc_world_get_stats(w, &st.s), RBC_OK);
-    raw = (const unsigned char *)&st;
-    untouched = 1;
-    for (size_t k = RBC_WORLD_STATS_SIZE_V1_1; k < sizeof st; ++k) untouched &= raw[k] == 0xEF;
-    CHECK(untouched);
-    CHECK_EQ(st.s.step_count, 1);
+    TEST_PADDED(rbc_world_stats, 32) st;
+    CHECK(test_stats_sized(w, &st, sizeof st, RBC_WORLD_STATS_SIZE_V1_1, 0xEF));
+    CHECK_EQ(st.d.step_count, 1);
 
     /* skip_measures: counts and timings without the pass over the cloth; the
      * measured fields read 0, and the flag is kept. */

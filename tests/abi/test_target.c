@@ -79,16 +79,12 @@ static void test_sizes(void) {
     unsigned char buf[sizeof(rbc_solver_def) + 16];
     memset(buf, 0xAB, sizeof buf);
     CHECK_EQ(rbc_solver_def_init((rbc_solver_def *)buf, RBC_SOLVER_DEF_SIZE_V1_2), RBC_OK);
-    int clean = 1;
-    for (size_t k = RBC_SOLVER_DEF_SIZE_V1_2; k < sizeof buf; k++) clean &= buf[k] == 0xAB;
-    CHECK(clean);
+    CHECK(test_bytes_are(buf, RBC_SOLVER_DEF_SIZE_V1_2, sizeof buf, 0xAB));
     memset(buf, 0xAB, sizeof buf);
     CHECK_EQ(rbc_solver_def_preset((rbc_solver_def *)buf, RBC_SOLVER_DEF_SIZE_V1_2,
                                    RBC_PRESET_DEFAULT),
              RBC_OK);
-    clean = 1;
-    for (size_t k = RBC_SOLVER_DEF_SIZE_V1_2; k < sizeof buf; k++) clean &= buf[k] == 0xAB;
-    CHECK(clean);
+    CHECK(test_bytes_are(buf, RBC_SOLVER_DEF_SIZE_V1_2, sizeof buf, 0xAB));
 
     /* A 1.3-size def (fixed mode) runs bitwise as the 1.4 default and reads back the
      * new fields' defaults; 1.3-size stats and solver reads get no byte past them. */
@@ -115,23 +111,11 @@ static void test_sizes(void) {
         memset(buf, 0xAB, sizeof buf);
         ((rbc_solver_def *)buf)->struct_size = RBC_SOLVER_DEF_SIZE_V1_2;
         CHECK_EQ(rbc_world_get_solver(w, (rbc_solver_def *)buf), RBC_OK);
-        clean = 1;
-        for (size_t k = RBC_SOLVER_DEF_SIZE_V1_2; k < sizeof buf; k++) clean &= buf[k] == 0xAB;
-        CHECK(clean);
+        CHECK(test_bytes_are(buf, RBC_SOLVER_DEF_SIZE_V1_2, sizeof buf, 0xAB));
         unsigned char sb[sizeof(rbc_world_stats) + 16];
-        memset(sb, 0xAB, sizeof sb);
-        ((rbc_world_stats *)sb)->struct_size = RBC_WORLD_STATS_SIZE_V1_3;
-        CHECK_EQ(rbc_world_get_stats(w, (rbc_world_stats *)sb), RBC_OK);
-        clean = 1;
-        for (size_t k = RBC_WORLD_STATS_SIZE_V1_3; k < sizeof sb; k++) clean &= sb[k] == 0xAB;
-        CHECK(clean);
+        CHECK(test_stats_sized(w, sb, sizeof sb, RBC_WORLD_STATS_SIZE_V1_3, 0xAB));
         /* And a 1.4 host: the 1.5 fields are not written. */
-        memset(sb, 0xAB, sizeof sb);
-        ((rbc_world_stats *)sb)->struct_size = RBC_WORLD_STATS_SIZE_V1_4;
-        CHECK_EQ(rbc_world_get_stats(w, (rbc_world_stats *)sb), RBC_OK);
-        clean = 1;
-        for (size_t k = RBC_WORLD_STATS_SIZE_V1_4; k < sizeof sb; k++) clean &= sb[k] == 0xAB;
-        CHECK(clean);
+        CHECK(test_stats_sized(w, sb, sizeof sb, RBC_WORLD_STATS_SIZE_V1_4, 0xAB));
         rbc_world_stats st = test_stats(w);
         CHECK_EQ(st.iteration_mode, RBC_ITERATE_FIXED);
         CHECK_EQ(st.substeps, 1);
