@@ -244,6 +244,22 @@ static inline rbc_world_stats test_stats(rbc_world_id w) {
     return s;
 }
 
+/* Steps worlds wa and wb `frames` times at dt, each step checked; then whether cloth ca
+ * of wa and cb of wb hold bitwise the same positions. */
+static inline int test_twins_same(rbc_world_id wa, rbc_cloth_id ca, rbc_world_id wb,
+                                  rbc_cloth_id cb, int frames, float dt) {
+    for (int f = 0; f < frames; ++f) {
+        CHECK_EQ(rbc_world_step(wa, dt), RBC_OK);
+        CHECK_EQ(rbc_world_step(wb, dt), RBC_OK);
+    }
+    uint32_t na = 0, nb = 0;
+    float *a = test_read(wa, ca, &na), *b = test_read(wb, cb, &nb);
+    int same = a && b && na == nb && memcmp(a, b, sizeof(float) * 3 * na) == 0;
+    free(a);
+    free(b);
+    return same;
+}
+
 /* rbc_world_get_stats as such a host calls it: the stats at the start of buf (buf_size
  * bytes, room after them) with struct_size `size`, buf marked with `mark` first.
  * Whether the call succeeded and wrote nothing past size. */

@@ -709,15 +709,8 @@ static void twin_failure(int mode, const char *what) {
     rbc_cloth_def cd = test_grid_def(&g, pins, 2);
     rbc_world_id a = make_world(3, 1), b = make_world(3, 1);
     rbc_cloth_id ca = make_cloth(a, &cd), cb = make_cloth(b, &cd);
-    for (int k = 0; k < 5; k++) {
-        STEP_OK(a, 1.0f / 60.0f);
-        STEP_OK(b, 1.0f / 60.0f);
-    }
-    float *pa = test_read(a, ca, NULL), *pb = test_read(b, cb, NULL);
-    int control = pa && pb && memcmp(pa, pb, sizeof(float) * 3 * g.vertex_count) == 0;
-    CHECK(control); /* determinism of one thread: the premise of this check */
-    free(pa);
-    free(pb);
+    /* Determinism of one thread: the premise of this check. */
+    CHECK(test_twins_same(a, ca, b, cb, 5, 1.0f / 60.0f));
 
     fail_ctx f = {mode, 2, 0};
     CHECK_EQ(rbc_world_set_collision_callback(a, failing_cb, &f), RBC_OK);
@@ -730,19 +723,13 @@ static void twin_failure(int mode, const char *what) {
     test_snap_free(&s);
     CHECK_EQ(rbc_world_set_collision_callback(a, NULL, NULL), RBC_OK);
 
-    for (int k = 0; k < 5; k++) {
-        STEP_OK(a, 1.0f / 60.0f);
-        STEP_OK(b, 1.0f / 60.0f);
-    }
-    pa = test_read(a, ca, NULL);
-    pb = test_read(b, cb, NULL);
-    int same = pa && pb && memcmp(pa, pb, sizeof(float) * 3 * g.vertex_count) == 0;
+    int same = test_twins_same(a, ca, b, cb, 5, 1.0f / 60.0f);
     CHECK(same);
     if (!same) fprintf(stderr, "  %s: the failed step left a trace (velocity not restored)\n", what);
+    float *pa = test_read(a, ca, NULL);
     CHECK(pa && test_all_finite(pa, 3 * (size_t)g.vertex_count));
     CHECK_EQ(test_stats(a).step_count, test_stats(b).step_count);
     free(pa);
-    free(pb);
     rbc_world_destroy(a);
     rbc_world_destroy(b);
     test_grid_free(&g);
