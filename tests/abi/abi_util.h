@@ -12,6 +12,7 @@
 
 #include <float.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -377,6 +378,93 @@ static inline int test_snap_same(const test_snap *s, int line) {
     }
     test_snap_free(&now);
     return same;
+}
+
+/* ------------------------------------------------------------------------- */
+/* The blocks of an allocator hook                                           */
+/* ------------------------------------------------------------------------- */
+
+/* The live blocks a test's allocator hook handed out, by pointer, with the size asked
+ * for: open addressing (linear probing from a multiplicative hash's top bits,
+ * backward-shift deletion) over arrays the test owns, of cap slots (a power of 2), so
+ * that the table allocates nothing (test_cholmod_alloc counts every malloc). add and
+ * remove hold the lock: the hooks are called from the world's threads. */
+typedef struct test_blocks {
+    pthread_mutex_t lock;
+    void **ptr;
+    size_t *size;
+    size_t cap;
+    unsigned shift; /* 64 - log2(cap) */
+    size_t live, peak_live, allocs, frees, bytes;
+    size_t bad_size, bad_ptr, table_full;
+} test_blocks;
+#define TEST_BLOCKS_INIT {.lock = PTHREAD_MUTEX_INITIALIZER}
+
+/* Empties t (its lock aside) over ptr[cap] and size[cap], while no hook runs. */
+static inline void test_blocks_reset(test_blocks *t, void **ptr, size_t *size, size_t cap) {
+    memset(ptr, 0, sizeof *ptr * cap);
+    memset(size, 0, sizeof *size * cap);
+    t->ptr = ptr;
+    t->size = size;
+    t->cap = cap;
+    t->shift = 64;
+    for (size_t c = cap; c > 1; c >>= 1) t->shift--;
+    t->live = t->peak_live = t->allocs = t->frees = t->bytes = 0;
+    t->bad_size = t->bad_ptr = t->table_full = 0;
+}
+
+static inline size_t test_blocks_home(const test_blocks *t, const void *p) {
+    uint64_t h = (uint64_t)(uintptr_t)p * 0x9E3779B97F4A7C15ull;
+    return (size_t)(h >> t->shift) & (t->cap - 1);
+}
+
+/* Block p of `size` bytes was handed out; counted in table_full if no slot is free. */
+static inline void test_blocks_add(test_blocks *t, void *p, size_t size) {
+    pthread_mutex_lock(&t->lock);
+    size_t k = test_blocks_home(t, p), tries = 0;
+    while (t->ptr[k] && ++tries < t->cap) k = (k + 1) & (t->cap - 1);
+    if (t->ptr[k]) {
+        t->table_full++;
+    } else {
+        t->ptr[k] = p;
+        t->size[k] = size;
+        t->live++;
+        t->allocs++;
+        t->bytes += size;
+        if (t->live > t->peak_live) t->peak_live = t->live;
+    }
+    pthread_mutex_unlock(&t->lock);
+}
+
+/* Block p is freed with `size`: 1 if it was live (it is no longer; a size other than
+ * the one asked for is counted in bad_size, *asked gets that one), 0 if not (bad_ptr:
+ * not one of the hook's, or freed twice). */
+static inline int test_blocks_remove(test_blocks *t, const void *p, size_t size, size_t *asked) {
+    pthread_mutex_lock(&t->lock);
+    size_t k = test_blocks_home(t, p), tries = 0;
+    while (t->ptr[k] != p && ++tries < t->cap) k = (k + 1) & (t->cap - 1);
+    if (t->ptr[k] != p) {
+        t->bad_ptr++;
+        pthread_mutex_unlock(&t->lock);
+        return 0;
+    }
+    if (asked) *asked = t->size[k];
+    if (t->size[k] != size) t->bad_size++;
+    t->live--;
+    t->frees++;
+    /* Backward-shift deletion keeps every other block findable from its home slot. */
+    size_t hole = k;
+    for (size_t j = (hole + 1) & (t->cap - 1); t->ptr[j]; j = (j + 1) & (t->cap - 1)) {
+        size_t home = test_blocks_home(t, t->ptr[j]);
+        if (((j - home) & (t->cap - 1)) >= ((j - hole) & (t->cap - 1))) {
+            t->ptr[hole] = t->ptr[j];
+            t->size[hole] = t->size[j];
+            hole = j;
+        }
+    }
+    t->ptr[hole] = NULL;
+    pthread_mutex_unlock(&t->lock);
+    return 1;
 }
 
 #endif
