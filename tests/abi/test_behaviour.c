@@ -394,6 +394,24 @@ static int count_below_plane(const float *p, uint32_t n, const double o[3], cons
     return below;
 }
 
+/* Steps w `steps` times at 1/60 s: the vertices of cloth c below the plane (o, nrm) by
+ * more than count_below_plane allows, summed over the steps; *min_d: the closest
+ * approach to plane + t in the last step read. */
+static int fall_onto_plane(rbc_world_id w, rbc_cloth_id c, int steps, const double o[3],
+                           const double nrm[3], double t, double *min_d) {
+    int below = 0;
+    uint32_t n = 0;
+    for (int s = 0; s < steps; s++) {
+        STEP_OK(w, 1.0f / 60.0f);
+        float *p = test_read(w, c, &n);
+        if (!p) { CHECK(0); break; }
+        *min_d = INFINITY;
+        below += count_below_plane(p, n, o, nrm, t, min_d, s);
+        free(p);
+    }
+    return below;
+}
+
 static void test_planes(void) {
     /* Horizontal plane at y = -0.3, thickness 0.02; cloth dropped from y = 0.5. */
     rbc_world_id w = make_world(1, 0);
@@ -408,18 +426,9 @@ static void test_planes(void) {
     rbc_cloth_id c = make_cloth(w, &cd);
     double o[3] = {0.0, (double)kd.position[1], 0.0};
     const double up[3] = {0.0, 1.0, 0.0};
-    int below = 0;
     double min_d = INFINITY;
+    CHECK_EQ(fall_onto_plane(w, c, 120, o, up, kd.thickness, &min_d), 0);
     uint32_t n = 0;
-    for (int s = 0; s < 120; s++) {
-        STEP_OK(w, 1.0f / 60.0f);
-        float *p = test_read(w, c, &n);
-        if (!p) { CHECK(0); break; }
-        min_d = INFINITY;
-        below += count_below_plane(p, n, o, up, kd.thickness, &min_d, s);
-        free(p);
-    }
-    CHECK_EQ(below, 0);
     /* After 2 s the cloth lies on the plane (fall time from 0.8 m above: 0.4 s). */
     CHECK(min_d < 1e-3);
 
@@ -473,17 +482,8 @@ static void test_planes(void) {
         const double nrm[3] = {-2.0 * qz * qw, 1.0 - 2.0 * qz * qz, 0.0};
         CHECK_NEAR(nrm[0], -sin(0.3), 1e-6);
         const double ot[3] = {0.0, (double)kd.position[1], 0.0};
-        int below_t = 0;
         double md = INFINITY;
-        for (int s = 0; s < 60; s++) {
-            STEP_OK(w, 1.0f / 60.0f);
-            float *p = test_read(w, c, &n);
-            if (!p) { CHECK(0); break; }
-            md = INFINITY;
-            below_t += count_below_plane(p, n, ot, nrm, kd.thickness, &md, s);
-            free(p);
-        }
-        CHECK_EQ(below_t, 0);
+        CHECK_EQ(fall_onto_plane(w, c, 60, ot, nrm, kd.thickness, &md), 0);
         CHECK(md < 1e-3); /* it reached the plane: the tilt was applied, not ignored */
     }
     CHECK_EQ(rbc_world_destroy(w), RBC_OK);
