@@ -28,6 +28,13 @@ static rbc_world_id make_world(uint32_t substeps, uint32_t threads) {
     return w;
 }
 
+/* The default collider def of a shape. */
+static rbc_collider_def shape_def(rbc_shape shape) {
+    rbc_collider_def d = rbc_collider_def_default();
+    d.shape = shape;
+    return d;
+}
+
 static rbc_cloth_id make_cloth(rbc_world_id w, const rbc_cloth_def *d) {
     rbc_cloth_id c = 0;
     rbc_result r = rbc_cloth_create(w, d, &c);
@@ -298,8 +305,7 @@ static double max_abs_coord(const float *p, uint32_t n) {
 
 static void test_sphere(void) {
     rbc_world_id w = make_world(2, 0);
-    rbc_collider_def kd = rbc_collider_def_default();
-    kd.shape = RBC_SHAPE_SPHERE;
+    rbc_collider_def kd = shape_def(RBC_SHAPE_SPHERE);
     kd.radius = 0.5f;
     kd.thickness = 0.01f;
     kd.position[0] = 0.0f;
@@ -415,8 +421,7 @@ static int fall_onto_plane(rbc_world_id w, rbc_cloth_id c, int steps, const doub
 static void test_planes(void) {
     /* Horizontal plane at y = -0.3, thickness 0.02; cloth dropped from y = 0.5. */
     rbc_world_id w = make_world(1, 0);
-    rbc_collider_def kd = rbc_collider_def_default();
-    kd.shape = RBC_SHAPE_PLANE;
+    rbc_collider_def kd = shape_def(RBC_SHAPE_PLANE);
     kd.thickness = 0.02f;
     kd.position[1] = -0.3f;
     rbc_collider_id k = 0;
@@ -463,8 +468,7 @@ static void test_planes(void) {
      * R(q) (0, 1, 0) = (-sin 0.3, cos 0.3, 0). Checked for 1 s of sliding. */
     w = make_world(1, 0);
     const float th = 0.3f;
-    kd = rbc_collider_def_default();
-    kd.shape = RBC_SHAPE_PLANE;
+    kd = shape_def(RBC_SHAPE_PLANE);
     kd.thickness = 0.01f;
     kd.position[1] = -0.3f;
     kd.rotation[0] = 0.0f;
@@ -695,8 +699,7 @@ typedef struct fail_ctx {
 static int32_t failing_cb(void *user, rbc_world_id world, float dt,
                           const rbc_collision_cloth *cloths, uint32_t cloth_count) {
     fail_ctx *f = (fail_ctx *)user;
-    f->calls++;
-    if (f->calls != f->on_call || cloth_count < 1) return 0;
+    if (++f->calls != f->on_call || cloth_count < 1) return 0;
     if (f->mode == 1) return -5;
     if (f->mode == 2) cloths[0].positions[3 * 3 + 1] = NAN;
     if (f->mode == 3) cloths[0].positions[3 * 3 + 1] = INFINITY;
@@ -1074,8 +1077,7 @@ static void test_counting_allocator(void) {
     const uint32_t pins[2] = {0, 19};
     rbc_cloth_def cd = test_grid_def(&g, pins, 2);
     rbc_cloth_id c = make_cloth(w, &cd), c2 = make_cloth(w, &cd);
-    rbc_collider_def kd = rbc_collider_def_default();
-    kd.shape = RBC_SHAPE_SPHERE;
+    rbc_collider_def kd = shape_def(RBC_SHAPE_SPHERE);
     kd.position[1] = 0.2f;
     rbc_collider_id k = 0;
     CHECK_EQ(rbc_collider_create(w, &kd, &k), RBC_OK);
@@ -1110,8 +1112,7 @@ static void test_failing_allocator(rbc_solver_kind kind, const char *name) {
     test_grid g = test_grid_make(12, 12, 0.05f, 0.0f, 1.0f, 0.0f);
     const uint32_t pins[2] = {0, 11};
     rbc_cloth_def cd = test_grid_def(&g, pins, 2);
-    rbc_collider_def kd = rbc_collider_def_default();
-    kd.shape = RBC_SHAPE_SPHERE;
+    rbc_collider_def kd = shape_def(RBC_SHAPE_SPHERE);
     kd.position[1] = 0.2f;
     rbc_solver_def sd;
     CHECK_EQ(rbc_solver_def_preset(&sd, (uint32_t)sizeof sd, RBC_PRESET_PAPER), RBC_OK);
