@@ -21,23 +21,14 @@
 
 #include "abi_util.h"
 #include "check.h"
+#include "files.h"
 #include "text_file.h"
 #include "rbcloth.h"
 
 static const char *g_dir;
 
-static char *path_in(const char *name) {
-    static char buf[8][1024];
-    static int next = 0;
-    char *p = buf[next++ % 8];
-    snprintf(p, sizeof buf[0], "%s/%s", g_dir, name);
-    return p;
-}
-
-static int file_exists(const char *path) {
-    struct stat st;
-    return stat(path, &st) == 0;
-}
+/* g_dir/name (fmt's buffers: it stays valid for the next 15 paths). */
+static const char *path_in(const char *name) { return fmt("%s/%s", g_dir, name); }
 
 /* Files in g_dir whose name contains ".tmp". */
 static int count_tmp_files(void) {
@@ -181,7 +172,7 @@ static void write_cache(rbc_cache_format format, const char *path, const float *
     for (uint32_t f = 0; f < count; ++f)
         CHECK_EQ(rbc_cache_write_frame(c, frames + 3 * (size_t)points * f), RBC_OK);
     /* Nothing visible before finish. */
-    CHECK(!file_exists(format == RBC_CACHE_OBJ_SEQUENCE ? objseq_frame(path, 0) : path));
+    CHECK(!exists(format == RBC_CACHE_OBJ_SEQUENCE ? objseq_frame(path, 0) : path));
     CHECK_EQ(rbc_cache_finish(c), RBC_OK);
     CHECK_EQ(count_tmp_files(), 0);
 }
@@ -202,7 +193,7 @@ static void check_all_formats(const char *stem, const float *frames, uint32_t po
     for (uint32_t f = 0; f < count; ++f)
         check_obj(objseq_frame(seq, f), frames + 3 * (size_t)points * f, points, quads,
                   quad_count);
-    CHECK(!file_exists(objseq_frame(seq, count))); /* exactly `count` files */
+    CHECK(!exists(objseq_frame(seq, count))); /* exactly `count` files */
 }
 
 /* Awkward floats, 3 frames of 4 points, one quad. */
@@ -296,7 +287,7 @@ static void test_bad_input(void) {
     d.quads = NULL;
     CHECK_EQ(rbc_cache_create(&d, &c), RBC_ERR_INVALID_ARGUMENT);
     CHECK_EQ(count_tmp_files(), 0);
-    CHECK(!file_exists(path_in("bad.pc2")) && !file_exists(path_in("badseq_0001.obj")));
+    CHECK(!exists(path_in("bad.pc2")) && !exists(path_in("badseq_0001.obj")));
 
     /* A 1.0-sized def (no quads) still works and writes a PC2. */
     rbc_cache_def old = rbc_cache_def_default();
@@ -322,7 +313,7 @@ static void test_bad_input(void) {
         CHECK(count_tmp_files() > 0);
         CHECK_EQ(rbc_cache_destroy(c), RBC_OK);
         CHECK_EQ(count_tmp_files(), 0);
-        CHECK(!file_exists(path_in("abandoned")) && !file_exists(path_in("abandoned_0001.obj")));
+        CHECK(!exists(path_in("abandoned")) && !exists(path_in("abandoned_0001.obj")));
         CHECK_EQ(rbc_cache_write_frame(c, xyz), RBC_ERR_STALE_HANDLE);
     }
 
