@@ -1,7 +1,10 @@
-/* abi_util.h -- helpers shared by the ABI tests in tests/abi: quad meshes built
- * by the test itself (so the tests depend on nothing but abi/rbcloth.h), float
- * ulp arithmetic for derived tolerances, and world snapshots for "a failing call
- * leaves every existing object exactly as it was" checks.
+/* abi_util.h -- helpers shared by the ABI tests in tests/abi (and the cache test):
+ * quad meshes built by the test itself (so the tests depend on nothing but
+ * abi/rbcloth.h), float ulp arithmetic for derived tolerances, and world snapshots
+ * for "a failing call leaves every existing object exactly as it was" checks; worlds
+ * made with their creation checked, a counter of repeated warnings, the checks that a
+ * struct of an older size gets nothing written past it, twin worlds compared bitwise,
+ * and the table of an allocator hook's live blocks.
  *
  * Everything here goes through the public functions of rbcloth.h only. The
  * conformance test does not include this file (it must not reference any
