@@ -1,7 +1,10 @@
-/* abi_util.h -- helpers shared by the ABI tests in tests/abi: quad meshes built
- * by the test itself (so the tests depend on nothing but abi/rbcloth.h), float
- * ulp arithmetic for derived tolerances, and world snapshots for "a failing call
- * leaves every existing object exactly as it was" checks.
+/* abi_util.h -- helpers shared by the ABI tests in tests/abi (and the cache test):
+ * quad meshes built by the test itself (so the tests depend on nothing but
+ * abi/rbcloth.h), float ulp arithmetic for derived tolerances, and world snapshots
+ * for "a failing call leaves every existing object exactly as it was" checks; worlds
+ * made with their creation checked, a counter of repeated warnings, the checks that a
+ * struct of an older size gets nothing written past it, twin worlds compared bitwise,
+ * and the table of an allocator hook's live blocks.
  *
  * Everything here goes through the public functions of rbcloth.h only. The
  * conformance test does not include this file (it must not reference any
@@ -12,6 +15,7 @@
 
 #include <float.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -23,6 +27,13 @@
 /* ------------------------------------------------------------------------- */
 /* Worlds                                                                    */
 /* ------------------------------------------------------------------------- */
+
+/* The default solver def with another solver. */
+static inline rbc_solver_def test_solver_def(rbc_solver_kind kind) {
+    rbc_solver_def d = rbc_solver_def_default();
+    d.solver = kind;
+    return d;
+}
 
 /* The world def of rbc_world_def_default with the paper's fixed counts
  * (RBC_PRESET_PAPER): most tests check what a step does at given substeps and
@@ -39,6 +50,41 @@ static inline rbc_world_def abi_world_def_fixed(void) {
     rbc_world_def d = rbc_world_def_default();
     d.solver = &paper;
     return d;
+}
+
+/* A world of def d, its creation checked (and the library's message printed when it
+ * is refused); 0 then. */
+static inline rbc_world_id test_world(const rbc_world_def *d) {
+    rbc_world_id w = 0;
+    rbc_result r = rbc_world_create(d, &w);
+    CHECK_EQ(r, RBC_OK);
+    if (r != RBC_OK) fprintf(stderr, "rbc_world_create: %s\n", rbc_last_error());
+    return w;
+}
+
+/* A log hook (wd.log = test_count_log, wd.log_user = the counter) for the warnings a
+ * mode repeats at the 1st, 2nd, 4th, ... time: those containing `phrase` are counted,
+ * and for the first 64 the number the message gives just before `count_before`
+ * ("(K clamped so far)") is kept in at[]. */
+typedef struct test_log_count {
+    const char *phrase;
+    const char *count_before;
+    int warnings;
+    uint64_t at[64];
+} test_log_count;
+
+static inline void RBC_CALL test_count_log(void *user, rbc_log_level level, const char *msg) {
+    test_log_count *lc = (test_log_count *)user;
+    if (level != RBC_LOG_WARNING || !strstr(msg, lc->phrase)) return;
+    const char *p = strstr(msg, lc->count_before);
+    uint64_t k = 0;
+    if (p) {
+        const char *q = p;
+        while (q > msg && q[-1] >= '0' && q[-1] <= '9') --q;
+        k = strtoull(q, NULL, 10);
+    }
+    if (lc->warnings < 64) lc->at[lc->warnings] = k;
+    lc->warnings++;
 }
 
 /* ------------------------------------------------------------------------- */
@@ -131,6 +177,25 @@ static inline int test_all_finite(const float *v, size_t n) {
     return 1;
 }
 
+/* Whether bytes [from, to) of buf all still hold `mark`: a host whose struct is older
+ * (shorter) than the library's fills it with a mark first, and a call given the old
+ * struct_size must write nothing past it. */
+static inline int test_bytes_are(const void *buf, size_t from, size_t to, unsigned char mark) {
+    const unsigned char *b = (const unsigned char *)buf;
+    for (size_t k = from; k < to; ++k)
+        if (b[k] != mark) return 0;
+    return 1;
+}
+
+/* A struct of type T and `extra` bytes after it: what a host built against an older,
+ * shorter header passes (d), marked first; the library must write nothing past the
+ * struct_size it is given (test_bytes_are). */
+#define TEST_PADDED(T, extra)      \
+    struct {                       \
+        T d;                       \
+        unsigned char tail[extra]; \
+    }
+
 /* Does the decimal number n occur in s as a whole number (not as part of a longer
  * run of digits)? Used to check that error messages name the offending index. */
 static inline int test_contains_number(const char *s, unsigned long n) {
@@ -181,6 +246,37 @@ static inline rbc_world_stats test_stats(rbc_world_id w) {
         fprintf(stderr, "test_stats: get_stats -> %s (%s)\n", rbc_result_string(r),
                 rbc_last_error());
     return s;
+}
+
+/* Steps worlds wa and wb `frames` times at dt, each step checked; then whether cloth ca
+ * of wa and cb of wb hold bitwise the same positions. */
+static inline int test_twins_same(rbc_world_id wa, rbc_cloth_id ca, rbc_world_id wb,
+                                  rbc_cloth_id cb, int frames, float dt) {
+    for (int f = 0; f < frames; ++f) {
+        CHECK_EQ(rbc_world_step(wa, dt), RBC_OK);
+        CHECK_EQ(rbc_world_step(wb, dt), RBC_OK);
+    }
+    uint32_t na = 0, nb = 0;
+    float *a = test_read(wa, ca, &na), *b = test_read(wb, cb, &nb);
+    int same = a && b && na == nb && memcmp(a, b, sizeof(float) * 3 * na) == 0;
+    free(a);
+    free(b);
+    return same;
+}
+
+/* rbc_world_get_stats as such a host calls it: the stats at the start of buf (buf_size
+ * bytes, room after them) with struct_size `size`, buf marked with `mark` first.
+ * Whether the call succeeded and wrote nothing past size. */
+static inline int test_stats_sized(rbc_world_id w, void *buf, size_t buf_size, uint32_t size,
+                                   unsigned char mark) {
+    memset(buf, mark, buf_size);
+    rbc_world_stats *s = (rbc_world_stats *)buf;
+    s->struct_size = size;
+    rbc_result r = rbc_world_get_stats(w, s);
+    if (r != RBC_OK)
+        fprintf(stderr, "test_stats_sized(%u): %s (%s)\n", (unsigned)size, rbc_result_string(r),
+                rbc_last_error());
+    return r == RBC_OK && test_bytes_are(buf, size, buf_size, mark);
 }
 
 /* The host's measure: RMS relative strain of cloth c of world w, and the largest
@@ -285,6 +381,93 @@ static inline int test_snap_same(const test_snap *s, int line) {
     }
     test_snap_free(&now);
     return same;
+}
+
+/* ------------------------------------------------------------------------- */
+/* The blocks of an allocator hook                                           */
+/* ------------------------------------------------------------------------- */
+
+/* The live blocks a test's allocator hook handed out, by pointer, with the size asked
+ * for: open addressing (linear probing from a multiplicative hash's top bits,
+ * backward-shift deletion) over arrays the test owns, of cap slots (a power of 2), so
+ * that the table allocates nothing (test_cholmod_alloc counts every malloc). add and
+ * remove hold the lock: the hooks are called from the world's threads. */
+typedef struct test_blocks {
+    pthread_mutex_t lock;
+    void **ptr;
+    size_t *size;
+    size_t cap;
+    unsigned shift; /* 64 - log2(cap) */
+    size_t live, peak_live, allocs, frees, bytes;
+    size_t bad_size, bad_ptr, table_full;
+} test_blocks;
+#define TEST_BLOCKS_INIT {.lock = PTHREAD_MUTEX_INITIALIZER}
+
+/* Empties t (its lock aside) over ptr[cap] and size[cap], while no hook runs. */
+static inline void test_blocks_reset(test_blocks *t, void **ptr, size_t *size, size_t cap) {
+    memset(ptr, 0, sizeof *ptr * cap);
+    memset(size, 0, sizeof *size * cap);
+    t->ptr = ptr;
+    t->size = size;
+    t->cap = cap;
+    t->shift = 64;
+    for (size_t c = cap; c > 1; c >>= 1) t->shift--;
+    t->live = t->peak_live = t->allocs = t->frees = t->bytes = 0;
+    t->bad_size = t->bad_ptr = t->table_full = 0;
+}
+
+static inline size_t test_blocks_home(const test_blocks *t, const void *p) {
+    uint64_t h = (uint64_t)(uintptr_t)p * 0x9E3779B97F4A7C15ull;
+    return (size_t)(h >> t->shift) & (t->cap - 1);
+}
+
+/* Block p of `size` bytes was handed out; counted in table_full if no slot is free. */
+static inline void test_blocks_add(test_blocks *t, void *p, size_t size) {
+    pthread_mutex_lock(&t->lock);
+    size_t k = test_blocks_home(t, p), tries = 0;
+    while (t->ptr[k] && ++tries < t->cap) k = (k + 1) & (t->cap - 1);
+    if (t->ptr[k]) {
+        t->table_full++;
+    } else {
+        t->ptr[k] = p;
+        t->size[k] = size;
+        t->live++;
+        t->allocs++;
+        t->bytes += size;
+        if (t->live > t->peak_live) t->peak_live = t->live;
+    }
+    pthread_mutex_unlock(&t->lock);
+}
+
+/* Block p is freed with `size`: 1 if it was live (it is no longer; a size other than
+ * the one asked for is counted in bad_size, *asked gets that one), 0 if not (bad_ptr:
+ * not one of the hook's, or freed twice). */
+static inline int test_blocks_remove(test_blocks *t, const void *p, size_t size, size_t *asked) {
+    pthread_mutex_lock(&t->lock);
+    size_t k = test_blocks_home(t, p), tries = 0;
+    while (t->ptr[k] != p && ++tries < t->cap) k = (k + 1) & (t->cap - 1);
+    if (t->ptr[k] != p) {
+        t->bad_ptr++;
+        pthread_mutex_unlock(&t->lock);
+        return 0;
+    }
+    if (asked) *asked = t->size[k];
+    if (t->size[k] != size) t->bad_size++;
+    t->live--;
+    t->frees++;
+    /* Backward-shift deletion keeps every other block findable from its home slot. */
+    size_t hole = k;
+    for (size_t j = (hole + 1) & (t->cap - 1); t->ptr[j]; j = (j + 1) & (t->cap - 1)) {
+        size_t home = test_blocks_home(t, t->ptr[j]);
+        if (((j - home) & (t->cap - 1)) >= ((j - hole) & (t->cap - 1))) {
+            t->ptr[hole] = t->ptr[j];
+            t->size[hole] = t->size[j];
+            hole = j;
+        }
+    }
+    t->ptr[hole] = NULL;
+    pthread_mutex_unlock(&t->lock);
+    return 1;
 }
 
 #endif

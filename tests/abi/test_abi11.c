@@ -18,36 +18,24 @@ static const char *const NAMES[] = {"rbgs",     "jacobi",         "jacobi_chebys
 
 static rbc_world_id make_world(rbc_solver_kind kind, rbc_iteration_mode mode, uint32_t threads) {
     rbc_world_def wd = rbc_world_def_default();
-    rbc_solver_def sd = rbc_solver_def_default();
-    sd.solver = kind;
+    rbc_solver_def sd = test_solver_def(kind);
     sd.mode = mode;
     wd.solver = &sd;
     wd.thread_count = threads;
-    rbc_world_id w = 0;
-    CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
-    return w;
+    return test_world(&wd);
 }
 
 static void test_v10_host(const test_grid *g) {
     /* A 1.0 host's world def: the bytes up to the 1.0 size, garbage after. */
-    struct {
-        rbc_world_def d;
-        char tail[64];
-    } wbuf;
+    TEST_PADDED(rbc_world_def, 64) wbuf;
     memset(&wbuf, 0xAB, sizeof wbuf);
     CHECK_EQ(rbc_world_def_init(&wbuf.d, RBC_WORLD_DEF_SIZE_V1_0), RBC_OK);
     /* init writes only the 1.0 bytes */
-    const unsigned char *raw = (const unsigned char *)&wbuf;
-    int untouched = 1;
-    for (size_t k = RBC_WORLD_DEF_SIZE_V1_0; k < sizeof wbuf; ++k) untouched &= raw[k] == 0xAB;
-    CHECK(untouched);
+    CHECK(test_bytes_are(&wbuf, RBC_WORLD_DEF_SIZE_V1_0, sizeof wbuf, 0xAB));
     rbc_world_id w = 0;
     CHECK_EQ(rbc_world_create(&wbuf.d, &w), RBC_OK);
 
-    struct {
-        rbc_cloth_def d;
-        char tail[64];
-    } cbuf;
+    TEST_PADDED(rbc_cloth_def, 64) cbuf;
     memset(&cbuf, 0xCD, sizeof cbuf);
     CHECK_EQ(rbc_cloth_def_init(&cbuf.d, RBC_CLOTH_DEF_SIZE_V1_0), RBC_OK);
     cbuf.d.vertex_count = g->vertex_count;
@@ -63,22 +51,13 @@ static void test_v10_host(const test_grid *g) {
     CHECK_EQ(colors, 2);
     CHECK_EQ(rbc_world_step(w, 0.002f), RBC_OK);
 
-    struct {
-        rbc_world_stats s;
-        char tail[64];
-    } sbuf;
-    memset(&sbuf, 0xEF, sizeof sbuf);
-    sbuf.s.struct_size = RBC_WORLD_STATS_SIZE_V1_0;
-    CHECK_EQ(rbc_world_get_stats(w, &sbuf.s), RBC_OK);
-    raw = (const unsigned char *)&sbuf;
-    untouched = 1;
-    for (size_t k = RBC_WORLD_STATS_SIZE_V1_0; k < sizeof sbuf; ++k) untouched &= raw[k] == 0xEF;
-    CHECK(untouched);
-    CHECK_EQ(sbuf.s.particle_count, g->vertex_count);
-    CHECK_EQ(sbuf.s.step_count, 1);
+    TEST_PADDED(rbc_world_stats, 64) sbuf;
+    CHECK(test_stats_sized(w, &sbuf, sizeof sbuf, RBC_WORLD_STATS_SIZE_V1_0, 0xEF));
+    CHECK_EQ(sbuf.d.particle_count, g->vertex_count);
+    CHECK_EQ(sbuf.d.step_count, 1);
     /* A size between the releases is refused. */
-    sbuf.s.struct_size = RBC_WORLD_STATS_SIZE_V1_0 + 8;
-    CHECK_EQ(rbc_world_get_stats(w, &sbuf.s), RBC_ERR_INVALID_ARGUMENT);
+    sbuf.d.struct_size = RBC_WORLD_STATS_SIZE_V1_0 + 8;
+    CHECK_EQ(rbc_world_get_stats(w, &sbuf.d), RBC_ERR_INVALID_ARGUMENT);
     /* The 1.1 default solver runs for a 1.0 host. */
     rbc_solver_def sd;
     sd.struct_size = sizeof sd;
@@ -160,8 +139,7 @@ static void test_every_solver(const test_grid *g) {
             CHECK(st.linear_residual > 0.0);
         }
         /* Switch at run time to another solver and keep stepping. */
-        rbc_solver_def sd = rbc_solver_def_default();
-        sd.solver = (rbc_solver_kind)((kind + 3) % 8);
+        rbc_solver_def sd = test_solver_def((rbc_solver_kind)((kind + 3) % 8));
         CHECK_EQ(rbc_world_set_solver(w, &sd), RBC_OK);
         CHECK_EQ(rbc_world_step(w, 0.002f), RBC_OK);
         CHECK_EQ(test_stats(w).solver, sd.solver);
@@ -292,8 +270,7 @@ static void test_multicolor_torus(void) {
         }
     for (int k = 0; k < 3 * 110; ++k) big[k] = 1.5f * pos[k];
     rbc_world_def wd = rbc_world_def_default();
-    rbc_solver_def sd = rbc_solver_def_default();
-    sd.solver = RBC_SOLVER_MULTICOLOR_GS;
+    rbc_solver_def sd = test_solver_def(RBC_SOLVER_MULTICOLOR_GS);
     sd.mode = RBC_ITERATE_TOLERANCE;
     sd.tolerance = 1e-6f;
     sd.max_linear_iterations = 5000;

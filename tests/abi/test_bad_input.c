@@ -30,6 +30,7 @@
 #include <unistd.h>
 
 #include "abi_util.h"
+#include "files.h"
 
 /* ------------------------------------------------------------------------- */
 /* The reference world and the "nothing changed" check                       */
@@ -221,58 +222,42 @@ typedef union big_cache_def { rbc_cache_def d; unsigned char pad[sizeof(rbc_cach
 
 static char TMPDIR_[256];
 
-static int file_exists(const char *path) {
-    struct stat st;
-    return stat(path, &st) == 0;
-}
+/* TMPDIR_/name (fmt's buffers: it stays valid for the next 15 paths). */
+static const char *tmp_path(const char *name) { return fmt("%s/%s", TMPDIR_, name); }
+
+/* The struct sizes a create refuses: 0; only the struct_size field; cut before the
+ * last field (a prefix that is no released version); one field larger than this
+ * header knows, and two. */
+#define BAD_STRUCT_SIZES(T, last_field)                                                   \
+    {0, 4, (uint32_t)offsetof(T, last_field), (uint32_t)sizeof(T) + 4,                    \
+     (uint32_t)sizeof(T) + 8}
+
+/* TRY (TRY_WORLD, ...) refuses def (an expression of type T, in a big_T with zeros
+ * after it) at each of those sizes. */
+#define TRY_STRUCT_SIZES(T, big_T, def, last_field, TRY, what)                             \
+    do {                                                                                  \
+        const uint32_t sizes_[] = BAD_STRUCT_SIZES(T, last_field);                        \
+        for (size_t k_ = 0; k_ < sizeof sizes_ / sizeof sizes_[0]; k_++) {                \
+            big_T b_;                                                                     \
+            memset(&b_, 0, sizeof b_);                                                    \
+            b_.d = (def);                                                                 \
+            b_.d.struct_size = sizes_[k_];                                                \
+            TRY(&b_.d, RBC_ERR_INVALID_ARGUMENT, what);                                   \
+        }                                                                                 \
+    } while (0)
 
 static void test_struct_sizes(void) {
-    /* 0; only the struct_size field; cut before the last field (a prefix that
-     * is no released version); one field larger than this header knows. */
+    TRY_STRUCT_SIZES(rbc_world_def, big_world_def, abi_world_def_fixed(), log_user, TRY_WORLD,
+                     "world def struct_size");
+    TRY_STRUCT_SIZES(rbc_cloth_def, big_cloth_def, test_grid_def(&G, NULL, 0), pins, TRY_CLOTH,
+                     "cloth def struct_size");
+    TRY_STRUCT_SIZES(rbc_collider_def, big_collider_def, rbc_collider_def_default(), rotation,
+                     TRY_COLLIDER, "collider def struct_size");
     {
-        const uint32_t sizes[] = {0, 4, (uint32_t)offsetof(rbc_world_def, log_user),
-                                  (uint32_t)sizeof(rbc_world_def) + 4,
-                                  (uint32_t)sizeof(rbc_world_def) + 8};
-        for (size_t k = 0; k < sizeof sizes / sizeof sizes[0]; k++) {
-            big_world_def b;
-            memset(&b, 0, sizeof b);
-            b.d = abi_world_def_fixed();
-            b.d.struct_size = sizes[k];
-            TRY_WORLD(&b.d, RBC_ERR_INVALID_ARGUMENT, "world def struct_size");
-        }
-    }
-    {
-        const uint32_t sizes[] = {0, 4, (uint32_t)offsetof(rbc_cloth_def, pins),
-                                  (uint32_t)sizeof(rbc_cloth_def) + 4,
-                                  (uint32_t)sizeof(rbc_cloth_def) + 8};
-        for (size_t k = 0; k < sizeof sizes / sizeof sizes[0]; k++) {
-            big_cloth_def b;
-            memset(&b, 0, sizeof b);
-            b.d = test_grid_def(&G, NULL, 0);
-            b.d.struct_size = sizes[k];
-            TRY_CLOTH(&b.d, RBC_ERR_INVALID_ARGUMENT, "cloth def struct_size");
-        }
-    }
-    {
-        const uint32_t sizes[] = {0, 4, (uint32_t)offsetof(rbc_collider_def, rotation),
-                                  (uint32_t)sizeof(rbc_collider_def) + 4,
-                                  (uint32_t)sizeof(rbc_collider_def) + 8};
-        for (size_t k = 0; k < sizeof sizes / sizeof sizes[0]; k++) {
-            big_collider_def b;
-            memset(&b, 0, sizeof b);
-            b.d = rbc_collider_def_default();
-            b.d.struct_size = sizes[k];
-            TRY_COLLIDER(&b.d, RBC_ERR_INVALID_ARGUMENT, "collider def struct_size");
-        }
-    }
-    {
-        char path[512];
-        snprintf(path, sizeof path, "%s/size.pc2", TMPDIR_);
+        const char *path = tmp_path("size.pc2");
         char tmp[520];
         snprintf(tmp, sizeof tmp, "%s.tmp", path);
-        const uint32_t sizes[] = {0, 4, (uint32_t)offsetof(rbc_cache_def, sample_rate),
-                                  (uint32_t)sizeof(rbc_cache_def) + 4,
-                                  (uint32_t)sizeof(rbc_cache_def) + 8};
+        const uint32_t sizes[] = BAD_STRUCT_SIZES(rbc_cache_def, sample_rate);
         for (size_t k = 0; k < sizeof sizes / sizeof sizes[0]; k++) {
             big_cache_def b;
             memset(&b, 0, sizeof b);
@@ -285,7 +270,7 @@ static void test_struct_sizes(void) {
             if (r == RBC_OK && c != 0) rbc_cache_destroy(c);
             after_fail(r, RBC_ERR_INVALID_ARGUMENT, "cache def struct_size", __LINE__);
             /* A refused cache leaves no file behind. */
-            CHECK(!file_exists(path) && !file_exists(tmp));
+            CHECK(!exists(path) && !exists(tmp));
         }
     }
     /* *_def_init: a struct_size that is no released size, or a NULL def, is
@@ -339,8 +324,7 @@ static void test_null_pointers(void) {
     rbc_cloth_def cd = test_grid_def(&G, NULL, 0);
     rbc_collider_def kd = rbc_collider_def_default();
     rbc_cache_def hd = rbc_cache_def_default();
-    char path[512];
-    snprintf(path, sizeof path, "%s/null.pc2", TMPDIR_);
+    const char *path = tmp_path("null.pc2");
     hd.path = path;
     hd.point_count = 4;
 
@@ -352,7 +336,7 @@ static void test_null_pointers(void) {
     EXPECT(rbc_collider_create(W, &kd, NULL), RBC_ERR_INVALID_ARGUMENT);
     EXPECT(rbc_cache_create(NULL, &h), RBC_ERR_INVALID_ARGUMENT);
     EXPECT(rbc_cache_create(&hd, NULL), RBC_ERR_INVALID_ARGUMENT);
-    CHECK(!file_exists(path));
+    CHECK(!exists(path));
     EXPECT(rbc_world_get_stats(W, NULL), RBC_ERR_INVALID_ARGUMENT);
     EXPECT(rbc_world_set_gravity(W, NULL), RBC_ERR_INVALID_ARGUMENT);
     EXPECT(rbc_cloth_get_vertex_count(W, C, NULL), RBC_ERR_INVALID_ARGUMENT);
@@ -371,7 +355,7 @@ static void test_null_pointers(void) {
         CHECK_EQ(rbc_cache_create(&hd, &ok), RBC_OK);
         EXPECT(rbc_cache_write_frame(ok, NULL), RBC_ERR_INVALID_ARGUMENT);
         CHECK_EQ(rbc_cache_destroy(ok), RBC_OK);
-        CHECK(!file_exists(path));
+        CHECK(!exists(path));
     }
 }
 
@@ -456,86 +440,56 @@ static void test_world_def(void) {
 /* Cloth def fields                                                          */
 /* ------------------------------------------------------------------------- */
 
-/* An 11 x 10 quad torus: periodic in both directions, 11 columns wrapping. The
- * cycle around the 11 columns has odd length, so the spring graph is not
- * bipartite (docs/facts.md, Coloring: an 11 x 10 torus is not bipartite). Since ABI 1.1 such
- * a graph is colored with more colors instead of refused: it is accepted with 3
- * (an odd cycle needs 3; 3 suffice here). Embedded as a real torus (R = 1,
- * r = 0.3) so no quad is degenerate. */
-static void test_torus(void) {
-    enum { NU = 11, NV = 10 };
-    float pos[3 * NU * NV];
-    uint32_t quads[4 * NU * NV];
+/* A nu x nv quad torus (periodic both ways) embedded as a real torus (R = 1, r = 0.3,
+ * so no quad is degenerate) is accepted in W with one u and one v edge per vertex
+ * and `colors` colors; destroyed again, W as it was. */
+static void check_torus(uint32_t nu, uint32_t nv, uint32_t colors_expected) {
+    float *pos = (float *)malloc(sizeof(float) * 3 * nu * nv);
+    uint32_t *quads = (uint32_t *)malloc(sizeof(uint32_t) * 4 * nu * nv);
     const double R = 1.0, r = 0.3, two_pi = 6.283185307179586;
-    for (uint32_t j = 0; j < NV; j++)
-        for (uint32_t i = 0; i < NU; i++) {
-            double u = two_pi * i / NU, v = two_pi * j / NV;
-            uint32_t k = i + NU * j;
+    for (uint32_t j = 0; j < nv; j++)
+        for (uint32_t i = 0; i < nu; i++) {
+            double u = two_pi * i / nu, v = two_pi * j / nv;
+            uint32_t k = i + nu * j;
             pos[3 * k + 0] = (float)((R + r * cos(v)) * cos(u));
             pos[3 * k + 1] = (float)(r * sin(v));
             pos[3 * k + 2] = (float)((R + r * cos(v)) * sin(u));
         }
-    for (uint32_t j = 0; j < NV; j++)
-        for (uint32_t i = 0; i < NU; i++) {
-            uint32_t q = i + NU * j, i1 = (i + 1) % NU, j1 = (j + 1) % NV;
-            quads[4 * q + 0] = i + NU * j;
-            quads[4 * q + 1] = i1 + NU * j;
-            quads[4 * q + 2] = i1 + NU * j1;
-            quads[4 * q + 3] = i + NU * j1;
+    for (uint32_t j = 0; j < nv; j++)
+        for (uint32_t i = 0; i < nu; i++) {
+            uint32_t q = i + nu * j, i1 = (i + 1) % nu, j1 = (j + 1) % nv;
+            quads[4 * q + 0] = i + nu * j;
+            quads[4 * q + 1] = i1 + nu * j;
+            quads[4 * q + 2] = i1 + nu * j1;
+            quads[4 * q + 3] = i + nu * j1;
         }
     rbc_cloth_def d = rbc_cloth_def_default();
-    d.vertex_count = NU * NV;
+    d.vertex_count = nu * nv;
     d.positions = pos;
-    d.quad_count = NU * NV;
+    d.quad_count = nu * nv;
     d.quads = quads;
-    {
-        rbc_cloth_id c = 0;
-        CHECK_EQ(rbc_cloth_create(W, &d, &c), RBC_OK);
-        if (c) {
-            uint32_t springs = 0, colors = 0;
-            CHECK_EQ(rbc_cloth_get_topology(W, c, &springs, &colors), RBC_OK);
-            CHECK_EQ(springs, 2 * NU * NV);
-            CHECK_EQ(colors, 3); /* "11x10 torus (non-bipartite)": 3 colors, not refused */
-            CHECK_EQ(rbc_cloth_destroy(W, c), RBC_OK);
-        }
-        CHECK(test_snap_same(&S, __LINE__));
-    }
-
-    /* Control: a 12 x 10 torus (even cycles both ways) is bipartite: red-black,
-     * 2 colors. */
-    enum { MU = 12 };
-    float pos2[3 * MU * NV];
-    uint32_t quads2[4 * MU * NV];
-    for (uint32_t j = 0; j < NV; j++)
-        for (uint32_t i = 0; i < MU; i++) {
-            double u = two_pi * i / MU, v = two_pi * j / NV;
-            uint32_t k = i + MU * j;
-            pos2[3 * k + 0] = (float)((R + r * cos(v)) * cos(u));
-            pos2[3 * k + 1] = (float)(r * sin(v));
-            pos2[3 * k + 2] = (float)((R + r * cos(v)) * sin(u));
-        }
-    for (uint32_t j = 0; j < NV; j++)
-        for (uint32_t i = 0; i < MU; i++) {
-            uint32_t q = i + MU * j, i1 = (i + 1) % MU, j1 = (j + 1) % NV;
-            quads2[4 * q + 0] = i + MU * j;
-            quads2[4 * q + 1] = i1 + MU * j;
-            quads2[4 * q + 2] = i1 + MU * j1;
-            quads2[4 * q + 3] = i + MU * j1;
-        }
-    d.vertex_count = MU * NV;
-    d.positions = pos2;
-    d.quad_count = MU * NV;
-    d.quads = quads2;
     rbc_cloth_id c = 0;
     CHECK_EQ(rbc_cloth_create(W, &d, &c), RBC_OK);
     if (c) {
         uint32_t springs = 0, colors = 0;
         CHECK_EQ(rbc_cloth_get_topology(W, c, &springs, &colors), RBC_OK);
-        CHECK_EQ(springs, 2 * MU * NV); /* each vertex owns one u and one v edge */
-        CHECK_EQ(colors, 2);
+        CHECK_EQ(springs, 2 * nu * nv);
+        CHECK_EQ(colors, colors_expected);
         CHECK_EQ(rbc_cloth_destroy(W, c), RBC_OK);
     }
     CHECK(test_snap_same(&S, __LINE__));
+    free(pos);
+    free(quads);
+}
+
+/* An 11 x 10 torus: its cycle around the 11 columns has odd length, so the spring
+ * graph is not bipartite (docs/facts.md, Coloring: an 11 x 10 torus is not bipartite).
+ * Since ABI 1.1 such a graph is colored with more colors instead of refused: it is
+ * accepted with 3 (an odd cycle needs 3; 3 suffice here). The control, a 12 x 10
+ * torus (even cycles both ways), is bipartite: red-black, 2 colors. */
+static void test_torus(void) {
+    check_torus(11, 10, 3);
+    check_torus(12, 10, 2);
 }
 
 static void test_cloth_def(void) {
@@ -666,35 +620,21 @@ static void test_cloth_def(void) {
     }
     RESET();
     /* vertex_mass (used: masses NULL and density 0) and density. */
-    {
-        const float bad[] = {0.0f, -1e-4f, NAN, INFINITY};
-        for (size_t k = 0; k < 4; k++) {
-            rbc_cloth_def d = base;
-            d.vertex_mass = bad[k];
-            TRY_CLOTH(&d, RBC_ERR_INVALID_ARGUMENT, "bad vertex_mass");
-        }
-        const float bad_density[] = {-1.0f, NAN, INFINITY};
-        for (size_t k = 0; k < 3; k++) {
-            rbc_cloth_def d = base;
-            d.density = bad_density[k];
-            TRY_CLOTH(&d, RBC_ERR_INVALID_ARGUMENT, "bad density");
-        }
-    }
+    /* base with `field` set to each of the values after `what`: refused. */
+#define TRY_CLOTH_FIELD(field, what, ...)                                                 \
+    do {                                                                                  \
+        const float bad_[] = {__VA_ARGS__};                                               \
+        for (size_t k_ = 0; k_ < sizeof bad_ / sizeof bad_[0]; k_++) {                    \
+            rbc_cloth_def d_ = base;                                                      \
+            d_.field = bad_[k_];                                                          \
+            TRY_CLOTH(&d_, RBC_ERR_INVALID_ARGUMENT, what);                               \
+        }                                                                                 \
+    } while (0)
+    TRY_CLOTH_FIELD(vertex_mass, "bad vertex_mass", 0.0f, -1e-4f, NAN, INFINITY);
+    TRY_CLOTH_FIELD(density, "bad density", -1.0f, NAN, INFINITY);
     /* Stiffness zero / negative / non-finite; damping negative / non-finite. */
-    {
-        const float bad[] = {0.0f, -1.0f, NAN, INFINITY};
-        for (size_t k = 0; k < 4; k++) {
-            rbc_cloth_def d = base;
-            d.stiffness = bad[k];
-            TRY_CLOTH(&d, RBC_ERR_INVALID_ARGUMENT, "bad stiffness");
-        }
-        const float bad_damping[] = {-0.5f, NAN, INFINITY};
-        for (size_t k = 0; k < 3; k++) {
-            rbc_cloth_def d = base;
-            d.damping = bad_damping[k];
-            TRY_CLOTH(&d, RBC_ERR_INVALID_ARGUMENT, "bad damping");
-        }
-    }
+    TRY_CLOTH_FIELD(stiffness, "bad stiffness", 0.0f, -1.0f, NAN, INFINITY);
+    TRY_CLOTH_FIELD(damping, "bad damping", -0.5f, NAN, INFINITY);
     /* Pins: an index out of range (entry 1 of 3), and NULL with pin_count > 0. */
     {
         uint32_t pins[3] = {0, nv, 19};
@@ -756,6 +696,7 @@ static void test_cloth_def(void) {
         CHECK(test_snap_same(&S, __LINE__));
     }
     test_torus();
+#undef TRY_CLOTH_FIELD
 #undef RESET
     free(pos);
     free(quads);
@@ -1258,8 +1199,7 @@ static void test_stale_handles(void) {
 
     /* Cache ids: finished, destroyed, made-up and of another kind. */
     {
-        char path[512];
-        snprintf(path, sizeof path, "%s/stale.pc2", TMPDIR_);
+        const char *path = tmp_path("stale.pc2");
         rbc_cache_def hd = rbc_cache_def_default();
         hd.path = path;
         hd.point_count = 2;
@@ -1268,7 +1208,7 @@ static void test_stale_handles(void) {
         CHECK_EQ(rbc_cache_create(&hd, &h), RBC_OK);
         CHECK_EQ(rbc_cache_write_frame(h, frame), RBC_OK);
         CHECK_EQ(rbc_cache_finish(h), RBC_OK);
-        CHECK(file_exists(path));
+        CHECK(exists(path));
         EXPECT(rbc_cache_write_frame(h, frame), RBC_ERR_STALE_HANDLE);
         EXPECT(rbc_cache_finish(h), RBC_ERR_STALE_HANDLE);
         EXPECT(rbc_cache_destroy(h), RBC_ERR_STALE_HANDLE);
@@ -1289,8 +1229,7 @@ static void test_stale_handles(void) {
 /* ------------------------------------------------------------------------- */
 
 static void test_writers(void) {
-    char path[512];
-    snprintf(path, sizeof path, "%s/w.pc2", TMPDIR_);
+    const char *path = tmp_path("w.pc2");
     rbc_cache_def hd = rbc_cache_def_default();
     hd.path = path;
     hd.point_count = 0;
@@ -1302,11 +1241,10 @@ static void test_writers(void) {
     hd.format = RBC_CACHE_PC2;
     hd.sample_rate = NAN;
     EXPECT(rbc_cache_create(&hd, &h), RBC_ERR_INVALID_ARGUMENT);
-    CHECK(!file_exists(path));
+    CHECK(!exists(path));
     /* A directory that does not exist: IO, at create or at the latest at finish. */
     {
-        char nodir[512];
-        snprintf(nodir, sizeof nodir, "%s/no/such/dir/x.pc2", TMPDIR_);
+        const char *nodir = tmp_path("no/such/dir/x.pc2");
         rbc_cache_def d = rbc_cache_def_default();
         d.path = nodir;
         d.point_count = 2;
@@ -1326,23 +1264,34 @@ static void test_writers(void) {
     const float xyz[12] = {0, 0, 0, 1, 0, 0, 1, 0, 1, 0, 0, 1};
     const uint32_t q_ok[4] = {0, 1, 2, 3};
     const uint32_t q_bad[4] = {0, 1, 2, 4};
-    char obj[512];
-    snprintf(obj, sizeof obj, "%s/m.obj", TMPDIR_);
+    const char *obj = tmp_path("m.obj");
     EXPECT(rbc_write_obj(NULL, xyz, 4, q_ok, 1), RBC_ERR_INVALID_ARGUMENT);
     EXPECT(rbc_write_obj(obj, NULL, 4, q_ok, 1), RBC_ERR_INVALID_ARGUMENT);
     EXPECT(rbc_write_obj(obj, xyz, 4, NULL, 1), RBC_ERR_INVALID_ARGUMENT);
     EXPECT(rbc_write_obj(obj, xyz, 4, q_bad, 1), RBC_ERR_BAD_MESH);
-    CHECK(!file_exists(obj));
-    char nodir[512];
-    snprintf(nodir, sizeof nodir, "%s/no/such/dir/m.obj", TMPDIR_);
+    CHECK(!exists(obj));
+    const char *nodir = tmp_path("no/such/dir/m.obj");
     EXPECT(rbc_write_obj(nodir, xyz, 4, q_ok, 1), RBC_ERR_IO);
     /* Control: the same call with a good path works. */
     CHECK_EQ(rbc_write_obj(obj, xyz, 4, q_ok, 1), RBC_OK);
-    CHECK(file_exists(obj));
+    CHECK(exists(obj));
     unlink(obj);
 }
 
 /* ------------------------------------------------------------------------- */
+
+/* Solver def d is refused by rbc_world_set_solver and, in a world def, by
+ * rbc_world_create, each time with a message naming `field`. */
+static void refuse_target_def(const rbc_solver_def *d, const char *field, const char *what,
+                              int line) {
+    after_fail(rbc_world_set_solver(W, d), RBC_ERR_INVALID_ARGUMENT, "rbc_world_set_solver",
+               line);
+    CHECK(strstr(rbc_last_error(), field) != NULL);
+    rbc_world_def wd = abi_world_def_fixed();
+    wd.solver = d;
+    try_world(&wd, RBC_ERR_INVALID_ARGUMENT, what, line);
+    CHECK(strstr(rbc_last_error(), field) != NULL);
+}
 
 /* ABI 1.4: the target error mode's fields and the presets. Each bad value is refused
  * by rbc_world_set_solver (the settings in use stay as they were) and by
@@ -1356,24 +1305,14 @@ static void test_v14(void) {
         rbc_solver_def d = rbc_solver_def_default();
         d.mode = RBC_ITERATE_TARGET;
         d.target_strain = bad_target[k];
-        EXPECT(rbc_world_set_solver(W, &d), RBC_ERR_INVALID_ARGUMENT);
-        CHECK(strstr(rbc_last_error(), "target_strain") != NULL);
-        rbc_world_def wd = abi_world_def_fixed();
-        wd.solver = &d;
-        TRY_WORLD(&wd, RBC_ERR_INVALID_ARGUMENT, "world with a bad target_strain");
-        CHECK(strstr(rbc_last_error(), "target_strain") != NULL);
+        refuse_target_def(&d, "target_strain", "world with a bad target_strain", __LINE__);
     }
     const uint32_t bad_cap[] = {0, 1025, 0xFFFFFFFFu};
     for (size_t k = 0; k < sizeof bad_cap / sizeof bad_cap[0]; k++) {
         rbc_solver_def d = rbc_solver_def_default();
         d.mode = RBC_ITERATE_TARGET;
         d.max_substeps = bad_cap[k];
-        EXPECT(rbc_world_set_solver(W, &d), RBC_ERR_INVALID_ARGUMENT);
-        CHECK(strstr(rbc_last_error(), "max_substeps") != NULL);
-        rbc_world_def wd = abi_world_def_fixed();
-        wd.solver = &d;
-        TRY_WORLD(&wd, RBC_ERR_INVALID_ARGUMENT, "world with a bad max_substeps");
-        CHECK(strstr(rbc_last_error(), "max_substeps") != NULL);
+        refuse_target_def(&d, "max_substeps", "world with a bad max_substeps", __LINE__);
     }
     {   /* the other cap of the mode: max_linear_iterations 0 */
         rbc_solver_def d = rbc_solver_def_default();

@@ -23,14 +23,16 @@ static rbc_world_id make_world(uint32_t substeps, uint32_t threads) {
     rbc_world_def d = abi_world_def_fixed();
     d.substeps = substeps;
     d.thread_count = threads;
-    rbc_world_id w = 0;
-    rbc_result r = rbc_world_create(&d, &w);
-    CHECK_EQ(r, RBC_OK);
-    if (r != RBC_OK) {
-        fprintf(stderr, "make_world: %s\n", rbc_last_error());
-        exit(1);
-    }
+    rbc_world_id w = test_world(&d);
+    if (!w) exit(1); /* every test needs its world */
     return w;
+}
+
+/* The default collider def of a shape. */
+static rbc_collider_def shape_def(rbc_shape shape) {
+    rbc_collider_def d = rbc_collider_def_default();
+    d.shape = shape;
+    return d;
 }
 
 static rbc_cloth_id make_cloth(rbc_world_id w, const rbc_cloth_def *d) {
@@ -303,8 +305,7 @@ static double max_abs_coord(const float *p, uint32_t n) {
 
 static void test_sphere(void) {
     rbc_world_id w = make_world(2, 0);
-    rbc_collider_def kd = rbc_collider_def_default();
-    kd.shape = RBC_SHAPE_SPHERE;
+    rbc_collider_def kd = shape_def(RBC_SHAPE_SPHERE);
     kd.radius = 0.5f;
     kd.thickness = 0.01f;
     kd.position[0] = 0.0f;
@@ -399,11 +400,28 @@ static int count_below_plane(const float *p, uint32_t n, const double o[3], cons
     return below;
 }
 
+/* Steps w `steps` times at 1/60 s: the vertices of cloth c below the plane (o, nrm) by
+ * more than count_below_plane allows, summed over the steps; *min_d: the closest
+ * approach to plane + t in the last step read. */
+static int fall_onto_plane(rbc_world_id w, rbc_cloth_id c, int steps, const double o[3],
+                           const double nrm[3], double t, double *min_d) {
+    int below = 0;
+    uint32_t n = 0;
+    for (int s = 0; s < steps; s++) {
+        STEP_OK(w, 1.0f / 60.0f);
+        float *p = test_read(w, c, &n);
+        if (!p) { CHECK(0); break; }
+        *min_d = INFINITY;
+        below += count_below_plane(p, n, o, nrm, t, min_d, s);
+        free(p);
+    }
+    return below;
+}
+
 static void test_planes(void) {
     /* Horizontal plane at y = -0.3, thickness 0.02; cloth dropped from y = 0.5. */
     rbc_world_id w = make_world(1, 0);
-    rbc_collider_def kd = rbc_collider_def_default();
-    kd.shape = RBC_SHAPE_PLANE;
+    rbc_collider_def kd = shape_def(RBC_SHAPE_PLANE);
     kd.thickness = 0.02f;
     kd.position[1] = -0.3f;
     rbc_collider_id k = 0;
@@ -413,18 +431,9 @@ static void test_planes(void) {
     rbc_cloth_id c = make_cloth(w, &cd);
     double o[3] = {0.0, (double)kd.position[1], 0.0};
     const double up[3] = {0.0, 1.0, 0.0};
-    int below = 0;
     double min_d = INFINITY;
+    CHECK_EQ(fall_onto_plane(w, c, 120, o, up, kd.thickness, &min_d), 0);
     uint32_t n = 0;
-    for (int s = 0; s < 120; s++) {
-        STEP_OK(w, 1.0f / 60.0f);
-        float *p = test_read(w, c, &n);
-        if (!p) { CHECK(0); break; }
-        min_d = INFINITY;
-        below += count_below_plane(p, n, o, up, kd.thickness, &min_d, s);
-        free(p);
-    }
-    CHECK_EQ(below, 0);
     /* After 2 s the cloth lies on the plane (fall time from 0.8 m above: 0.4 s). */
     CHECK(min_d < 1e-3);
 
@@ -459,8 +468,7 @@ static void test_planes(void) {
      * R(q) (0, 1, 0) = (-sin 0.3, cos 0.3, 0). Checked for 1 s of sliding. */
     w = make_world(1, 0);
     const float th = 0.3f;
-    kd = rbc_collider_def_default();
-    kd.shape = RBC_SHAPE_PLANE;
+    kd = shape_def(RBC_SHAPE_PLANE);
     kd.thickness = 0.01f;
     kd.position[1] = -0.3f;
     kd.rotation[0] = 0.0f;
@@ -478,17 +486,8 @@ static void test_planes(void) {
         const double nrm[3] = {-2.0 * qz * qw, 1.0 - 2.0 * qz * qz, 0.0};
         CHECK_NEAR(nrm[0], -sin(0.3), 1e-6);
         const double ot[3] = {0.0, (double)kd.position[1], 0.0};
-        int below_t = 0;
         double md = INFINITY;
-        for (int s = 0; s < 60; s++) {
-            STEP_OK(w, 1.0f / 60.0f);
-            float *p = test_read(w, c, &n);
-            if (!p) { CHECK(0); break; }
-            md = INFINITY;
-            below_t += count_below_plane(p, n, ot, nrm, kd.thickness, &md, s);
-            free(p);
-        }
-        CHECK_EQ(below_t, 0);
+        CHECK_EQ(fall_onto_plane(w, c, 60, ot, nrm, kd.thickness, &md), 0);
         CHECK(md < 1e-3); /* it reached the plane: the tilt was applied, not ignored */
     }
     CHECK_EQ(rbc_world_destroy(w), RBC_OK);
@@ -582,6 +581,20 @@ static int32_t record_cb(void *user, rbc_world_id world, float dt,
     return 0;
 }
 
+/* How often record_cb found each thing wrong (world, dt, counts, ids, thread, previous
+ * positions), those that did named on stderr: 0 when nothing was. */
+static int cb_wrong(const cb_ctx *x) {
+    const int n[6] = {x->bad_world, x->bad_dt,     x->bad_count,
+                      x->bad_ids,   x->bad_thread, x->bad_prev};
+    static const char *const what[6] = {"world", "dt", "count", "ids", "thread", "prev"};
+    int sum = 0;
+    for (int k = 0; k < 6; ++k) {
+        if (n[k]) fprintf(stderr, "  callback: bad_%s %d times\n", what[k], n[k]);
+        sum += n[k];
+    }
+    return sum;
+}
+
 static void test_callback(void) {
     rbc_world_id w = make_world(3, 0);
     test_grid ga = test_grid_make(5, 5, 0.1f, 0.0f, 1.0f, 0.0f);
@@ -650,12 +663,7 @@ static void test_callback(void) {
     STEP_OK(w, x.dt);
     CHECK_EQ(x.calls, 5);
     CHECK_EQ(x.total_calls, 3 + 3 + 3 + 3 + 5);
-    CHECK_EQ(x.bad_world, 0);
-    CHECK_EQ(x.bad_dt, 0);
-    CHECK_EQ(x.bad_count, 0);
-    CHECK_EQ(x.bad_ids, 0);
-    CHECK_EQ(x.bad_thread, 0);
-    CHECK_EQ(x.bad_prev, 0);
+    CHECK_EQ(cb_wrong(&x), 0);
 
     /* A failing callback (on substep 2 of 5): RBC_ERR_CALLBACK, the world as it
      * was, step_count unchanged. */
@@ -700,8 +708,7 @@ typedef struct fail_ctx {
 static int32_t failing_cb(void *user, rbc_world_id world, float dt,
                           const rbc_collision_cloth *cloths, uint32_t cloth_count) {
     fail_ctx *f = (fail_ctx *)user;
-    f->calls++;
-    if (f->calls != f->on_call || cloth_count < 1) return 0;
+    if (++f->calls != f->on_call || cloth_count < 1) return 0;
     if (f->mode == 1) return -5;
     if (f->mode == 2) cloths[0].positions[3 * 3 + 1] = NAN;
     if (f->mode == 3) cloths[0].positions[3 * 3 + 1] = INFINITY;
@@ -714,15 +721,8 @@ static void twin_failure(int mode, const char *what) {
     rbc_cloth_def cd = test_grid_def(&g, pins, 2);
     rbc_world_id a = make_world(3, 1), b = make_world(3, 1);
     rbc_cloth_id ca = make_cloth(a, &cd), cb = make_cloth(b, &cd);
-    for (int k = 0; k < 5; k++) {
-        STEP_OK(a, 1.0f / 60.0f);
-        STEP_OK(b, 1.0f / 60.0f);
-    }
-    float *pa = test_read(a, ca, NULL), *pb = test_read(b, cb, NULL);
-    int control = pa && pb && memcmp(pa, pb, sizeof(float) * 3 * g.vertex_count) == 0;
-    CHECK(control); /* determinism of one thread: the premise of this check */
-    free(pa);
-    free(pb);
+    /* Determinism of one thread: the premise of this check. */
+    CHECK(test_twins_same(a, ca, b, cb, 5, 1.0f / 60.0f));
 
     fail_ctx f = {mode, 2, 0};
     CHECK_EQ(rbc_world_set_collision_callback(a, failing_cb, &f), RBC_OK);
@@ -735,19 +735,13 @@ static void twin_failure(int mode, const char *what) {
     test_snap_free(&s);
     CHECK_EQ(rbc_world_set_collision_callback(a, NULL, NULL), RBC_OK);
 
-    for (int k = 0; k < 5; k++) {
-        STEP_OK(a, 1.0f / 60.0f);
-        STEP_OK(b, 1.0f / 60.0f);
-    }
-    pa = test_read(a, ca, NULL);
-    pb = test_read(b, cb, NULL);
-    int same = pa && pb && memcmp(pa, pb, sizeof(float) * 3 * g.vertex_count) == 0;
+    int same = test_twins_same(a, ca, b, cb, 5, 1.0f / 60.0f);
     CHECK(same);
     if (!same) fprintf(stderr, "  %s: the failed step left a trace (velocity not restored)\n", what);
+    float *pa = test_read(a, ca, NULL);
     CHECK(pa && test_all_finite(pa, 3 * (size_t)g.vertex_count));
     CHECK_EQ(test_stats(a).step_count, test_stats(b).step_count);
     free(pa);
-    free(pb);
     rbc_world_destroy(a);
     rbc_world_destroy(b);
     test_grid_free(&g);
@@ -984,10 +978,7 @@ static void test_stats_figures(void) {
         const size_t cut = offsetof(rbc_world_stats, step_count);
         u.s.struct_size = (uint32_t)cut;
         rbc_result r = rbc_world_get_stats(w, &u.s);
-        int untouched = 1;
-        for (size_t k = cut; k < sizeof u; k++)
-            if (u.b[k] != 0xAB) untouched = 0;
-        CHECK(untouched);
+        CHECK(test_bytes_are(&u, cut, sizeof u, 0xAB));
         if (r == RBC_OK) {
             CHECK_EQ(u.s.cloth_count, 1);
             CHECK_EQ(u.s.particle_count, 10000);
@@ -1095,8 +1086,7 @@ static void test_counting_allocator(void) {
     const uint32_t pins[2] = {0, 19};
     rbc_cloth_def cd = test_grid_def(&g, pins, 2);
     rbc_cloth_id c = make_cloth(w, &cd), c2 = make_cloth(w, &cd);
-    rbc_collider_def kd = rbc_collider_def_default();
-    kd.shape = RBC_SHAPE_SPHERE;
+    rbc_collider_def kd = shape_def(RBC_SHAPE_SPHERE);
     kd.position[1] = 0.2f;
     rbc_collider_id k = 0;
     CHECK_EQ(rbc_collider_create(w, &kd, &k), RBC_OK);
@@ -1131,8 +1121,7 @@ static void test_failing_allocator(rbc_solver_kind kind, const char *name) {
     test_grid g = test_grid_make(12, 12, 0.05f, 0.0f, 1.0f, 0.0f);
     const uint32_t pins[2] = {0, 11};
     rbc_cloth_def cd = test_grid_def(&g, pins, 2);
-    rbc_collider_def kd = rbc_collider_def_default();
-    kd.shape = RBC_SHAPE_SPHERE;
+    rbc_collider_def kd = shape_def(RBC_SHAPE_SPHERE);
     kd.position[1] = 0.2f;
     rbc_solver_def sd;
     CHECK_EQ(rbc_solver_def_preset(&sd, (uint32_t)sizeof sd, RBC_PRESET_PAPER), RBC_OK);

@@ -128,83 +128,32 @@ static long report_bypass(const char *what, long *from_ldso) {
 /* ------------------------------------------------------------------------- */
 
 enum { TABLE = 1 << 14 };
-typedef struct tracker {
-    pthread_mutex_t lock;
-    void *ptr[TABLE];
-    size_t size[TABLE];
-    size_t live, allocs, frees, bytes;
-    size_t bad_size, bad_ptr, bad_align, table_full;
-} tracker;
-static tracker T = {.lock = PTHREAD_MUTEX_INITIALIZER};
-
-static size_t slot_of(const void *p) {
-    uint64_t h = (uint64_t)(uintptr_t)p * 0x9E3779B97F4A7C15ull;
-    return (size_t)(h >> 50) & (TABLE - 1);
-}
+static void *block_ptr[TABLE];
+static size_t block_size[TABLE];
+static test_blocks T = TEST_BLOCKS_INIT;
+static size_t bad_align; /* alignments the hook contract does not allow */
 
 static void *RBC_CALL track_alloc(void *user, size_t size, size_t alignment) {
-    tracker *t = user;
     if (alignment == 0 || (alignment & (alignment - 1)) != 0 || alignment > 64) {
-        t->bad_align++;
+        bad_align++;
         return NULL;
     }
     size_t rounded = (size + alignment - 1) / alignment * alignment;
     test_own++;
     void *p = aligned_alloc(alignment, rounded ? rounded : alignment);
     test_own--;
-    if (!p) return NULL;
-    pthread_mutex_lock(&t->lock);
-    size_t k = slot_of(p), tries = 0;
-    while (t->ptr[k] && ++tries < TABLE) k = (k + 1) & (TABLE - 1);
-    if (t->ptr[k]) {
-        t->table_full++;
-    } else {
-        t->ptr[k] = p;
-        t->size[k] = size;
-        t->live++;
-        t->allocs++;
-        t->bytes += size;
-    }
-    pthread_mutex_unlock(&t->lock);
+    if (p) test_blocks_add(user, p, size);
     return p;
 }
 
 static void RBC_CALL track_free(void *user, void *ptr, size_t size) {
-    tracker *t = user;
-    if (!ptr) return;
-    pthread_mutex_lock(&t->lock);
-    size_t k = slot_of(ptr), tries = 0;
-    while (t->ptr[k] != ptr && ++tries < TABLE) k = (k + 1) & (TABLE - 1);
-    if (t->ptr[k] != ptr) {
-        t->bad_ptr++; /* not ours, or freed twice: leave it */
-        pthread_mutex_unlock(&t->lock);
-        return;
-    }
-    if (t->size[k] != size) t->bad_size++;
-    t->live--;
-    t->frees++;
-    /* Backward-shift deletion keeps every other block findable from its slot. */
-    size_t hole = k;
-    for (size_t j = (hole + 1) & (TABLE - 1); t->ptr[j]; j = (j + 1) & (TABLE - 1)) {
-        size_t home = slot_of(t->ptr[j]);
-        if (((j - home) & (TABLE - 1)) >= ((j - hole) & (TABLE - 1))) {
-            t->ptr[hole] = t->ptr[j];
-            t->size[hole] = t->size[j];
-            hole = j;
-        }
-    }
-    t->ptr[hole] = NULL;
-    pthread_mutex_unlock(&t->lock);
-    free(ptr);
+    /* Not ours, or freed twice: leave it. */
+    if (ptr && test_blocks_remove(user, ptr, size, NULL)) free(ptr);
 }
 
 static void tracker_reset(void) {
-    pthread_mutex_lock(&T.lock);
-    memset(T.ptr, 0, sizeof T.ptr);
-    memset(T.size, 0, sizeof T.size);
-    T.live = T.allocs = T.frees = T.bytes = 0;
-    T.bad_size = T.bad_ptr = T.bad_align = T.table_full = 0;
-    pthread_mutex_unlock(&T.lock);
+    test_blocks_reset(&T, block_ptr, block_size, TABLE);
+    bad_align = 0;
 }
 
 /* ------------------------------------------------------------------------- */
@@ -276,15 +225,16 @@ static outcome run_scenario(rbc_solver_kind kind, const char *what) {
 
     outcome o = {hook_allocs, 0, 0};
     o.bypass = report_bypass(what, &o.from_ldso);
-    printf("%s: %zu hook allocations (%zu bytes), %zu frees\n", what, T.allocs, T.bytes,
-           T.frees);
-    CHECK(T.allocs > 0);
-    CHECK_EQ(T.live, 0);
-    CHECK_EQ(T.allocs, T.frees);
-    CHECK_EQ(T.bad_size, 0);
-    CHECK_EQ(T.bad_ptr, 0);
-    CHECK_EQ(T.bad_align, 0);
-    CHECK_EQ(T.table_full, 0);
+    const test_blocks *b = &T;
+    printf("%s: %zu hook allocations (%zu bytes), %zu frees\n", what, b->allocs, b->bytes,
+           b->frees);
+    CHECK(b->allocs > 0);
+    CHECK_EQ(b->live, 0);
+    CHECK_EQ(b->allocs, b->frees);
+    CHECK_EQ(b->bad_size, 0);
+    CHECK_EQ(b->bad_ptr, 0);
+    CHECK_EQ(bad_align, 0);
+    CHECK_EQ(b->table_full, 0);
     test_own++;
     test_grid_free(&g);
     test_own--;

@@ -21,9 +21,33 @@ static rbc_world_id make_world(uint32_t threads, uint32_t substeps, float gy) {
     wd.thread_count = threads;
     wd.substeps = substeps;
     wd.gravity[1] = gy;
-    rbc_world_id w = 0;
-    CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
-    return w;
+    return test_world(&wd);
+}
+
+/* An nx x ny grid in the plane z = 0: test_grid_make's turned about x, vertex i + nx j at
+ * (i spacing, j spacing, 0); its top row (y largest) is j = ny - 1. */
+static test_grid upright_grid(uint32_t nx, uint32_t ny, float spacing) {
+    test_grid g = test_grid_make(nx, ny, spacing, 0.0f, 0.0f, 0.0f);
+    for (uint32_t k = 0; k < g.vertex_count; ++k) {
+        g.positions[3 * k + 1] = g.positions[3 * k + 2];
+        g.positions[3 * k + 2] = 0.0f;
+    }
+    return g;
+}
+
+/* A cloth of w hanging from its top row: the upright_grid of spacing 2 cm (into *g),
+ * every vertex of row ny - 1 pinned; tear_strain as in rbc_cloth_def (0: never). */
+static rbc_cloth_id hanging_cloth(rbc_world_id w, uint32_t nx, uint32_t ny, float tear_strain,
+                                  test_grid *g) {
+    *g = upright_grid(nx, ny, 0.02f);
+    uint32_t *pins = malloc(sizeof *pins * nx);
+    for (uint32_t i = 0; i < nx; ++i) pins[i] = i + nx * (ny - 1);
+    rbc_cloth_def cd = test_grid_def(g, pins, nx);
+    cd.tear_strain = tear_strain;
+    rbc_cloth_id cl = 0;
+    CHECK_EQ(rbc_cloth_create(w, &cd, &cl), RBC_OK);
+    free(pins);
+    return cl;
 }
 
 static rbc_collider_id add_collider(rbc_world_id w, rbc_shape shape, float radius,
@@ -70,6 +94,41 @@ static double sd_capsule(const float *p, const float c[3], double r, double hh) 
 /* A cloth dropped on each shape: never inside beyond the bound.              */
 /* ------------------------------------------------------------------------- */
 
+/* A 40 x 40 cloth, 1.2 m wide, damping 0.5, dropped from 0.5 m above `top` onto the
+ * collider of w for 90 frames of 1/60 s: the deepest any particle got below the
+ * thickness, by the host's measure of the solid (shape sphere, box or capsule at c,
+ * radius r, half extents he: sd_sphere, sd_box, sd_capsule with he[1]). most_contacts
+ * (unless NULL): the most collider contacts the stats of a frame report. */
+static double drop_cloth(rbc_world_id w, rbc_shape shape, const float c[3], float r,
+                         const float he[3], float top, float thickness,
+                         uint32_t *most_contacts) {
+    test_grid g = test_grid_make(40, 40, 1.2f / 39.0f, -0.6f, top + 0.5f, -0.6f);
+    rbc_cloth_def cd = test_grid_def(&g, NULL, 0);
+    cd.damping = 0.5f;
+    rbc_cloth_id cl = 0;
+    CHECK_EQ(rbc_cloth_create(w, &cd, &cl), RBC_OK);
+    test_grid_free(&g);
+    double worst = 1e30;
+    for (int f = 0; f < 90; ++f) {
+        CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_OK);
+        uint32_t n = 0;
+        float *x = test_read(w, cl, &n);
+        for (uint32_t v = 0; x && v < n; ++v) {
+            const float *p = &x[3 * v];
+            double sd = shape == RBC_SHAPE_SPHERE    ? sd_sphere(p, c, r)
+                        : shape == RBC_SHAPE_BOX     ? sd_box(p, c, he)
+                                                     : sd_capsule(p, c, r, he[1]);
+            if (sd - thickness < worst) worst = sd - thickness;
+        }
+        free(x);
+        if (most_contacts) {
+            rbc_world_stats st = test_stats(w);
+            if (st.collider_contacts > *most_contacts) *most_contacts = st.collider_contacts;
+        }
+    }
+    return worst;
+}
+
 /* The bound: a contact keeps a particle on the tangent plane of the surface point
  * found at the substep's prediction; on a curved surface the particle can slide
  * along that plane by what it moves in a substep (s <= v h, v <= sqrt(2 g 0.5 m) =
@@ -82,43 +141,20 @@ static void test_drop(rbc_shape shape) {
     const float he[3] = {0.3f, 0.3f, 0.3f};
     const float cap_he[3] = {0.0f, 0.2f, 0.0f};
     const float r = 0.3f, thick = 0.004f;
-    if (shape == RBC_SHAPE_CAPSULE)
-        add_collider(w, shape, r, cap_he, c, thick, 0.0f);
-    else
-        add_collider(w, shape, r, he, c, thick, 0.0f);
-    /* A 40 x 40 cloth, 1.2 m wide, 0.5 m above the top. */
-    float top = shape == RBC_SHAPE_CAPSULE ? r + cap_he[1] : (shape == RBC_SHAPE_BOX ? he[1] : r);
-    test_grid g = test_grid_make(40, 40, 1.2f / 39.0f, -0.6f, top + 0.5f, -0.6f);
-    rbc_cloth_def cd = test_grid_def(&g, NULL, 0);
-    cd.damping = 0.5f;
-    rbc_cloth_id cl = 0;
-    CHECK_EQ(rbc_cloth_create(w, &cd, &cl), RBC_OK);
-    double worst = 1e30;
+    const int capsule = shape == RBC_SHAPE_CAPSULE;
+    add_collider(w, shape, r, capsule ? cap_he : he, c, thick, 0.0f);
+    float top = capsule ? r + cap_he[1] : (shape == RBC_SHAPE_BOX ? he[1] : r);
     uint32_t most_contacts = 0;
-    for (int f = 0; f < 90; ++f) {
-        CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_OK);
-        uint32_t n = 0;
-        float *x = test_read(w, cl, &n);
-        for (uint32_t v = 0; x && v < n; ++v) {
-            const float *p = &x[3 * v];
-            double sd = shape == RBC_SHAPE_SPHERE    ? sd_sphere(p, c, r)
-                        : shape == RBC_SHAPE_BOX     ? sd_box(p, c, he)
-                                                     : sd_capsule(p, c, r, cap_he[1]);
-            if (sd - thick < worst) worst = sd - thick;
-        }
-        free(x);
-        rbc_world_stats st = test_stats(w);
-        if (st.collider_contacts > most_contacts) most_contacts = st.collider_contacts;
-    }
+    double worst = drop_cloth(w, shape, c, r, capsule ? cap_he : he, top, thick, &most_contacts);
     printf("drop on shape %d: deepest particle %.3g mm below thickness, most contacts %u\n",
            (int)shape, -worst * 1e3, most_contacts);
     CHECK(worst >= -0.5e-3);
     CHECK(most_contacts > 100); /* it did land */
-    test_grid_free(&g);
     CHECK_EQ(rbc_world_destroy(w), RBC_OK);
 }
 
-/* The same on a closed triangle mesh: a cube of 12 triangles, half size 0.3. */
+/* The same on a closed triangle mesh: a cube of 12 triangles, half size 0.3, measured
+ * as the box it is. */
 static void test_drop_mesh(void) {
     rbc_world_id w = make_world(2, 8, -9.81f);
     const float hs = 0.3f;
@@ -140,27 +176,11 @@ static void test_drop_mesh(void) {
     d.thickness = 0.004f;
     rbc_collider_id id = 0;
     CHECK_EQ(rbc_collider_create(w, &d, &id), RBC_OK);
-    test_grid g = test_grid_make(40, 40, 1.2f / 39.0f, -0.6f, hs + 0.5f, -0.6f);
-    rbc_cloth_def cd = test_grid_def(&g, NULL, 0);
-    cd.damping = 0.5f;
-    rbc_cloth_id cl = 0;
-    CHECK_EQ(rbc_cloth_create(w, &cd, &cl), RBC_OK);
     const float c[3] = {0, 0, 0}, he[3] = {hs, hs, hs};
-    double worst = 1e30;
-    for (int f = 0; f < 90; ++f) {
-        CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_OK);
-        uint32_t n = 0;
-        float *x = test_read(w, cl, &n);
-        for (uint32_t k = 0; x && k < n; ++k) {
-            double sd = sd_box(&x[3 * k], c, he) - d.thickness;
-            if (sd < worst) worst = sd;
-        }
-        free(x);
-    }
+    double worst = drop_cloth(w, RBC_SHAPE_BOX, c, 0.0f, he, hs, d.thickness, NULL);
     printf("drop on a triangle-mesh cube: deepest particle %.3g mm below thickness\n",
            -worst * 1e3);
     CHECK(worst >= -0.5e-3);
-    test_grid_free(&g);
     CHECK_EQ(rbc_world_destroy(w), RBC_OK);
 }
 
@@ -182,12 +202,7 @@ static void test_fast_sphere(void) {
     const float r = 0.05f;
     float pos[3] = {0.1f, 0.1f, -0.5f};
     rbc_collider_id s = add_collider(w, RBC_SHAPE_SPHERE, r, NULL, pos, 0.001f, 0.0f);
-    test_grid g = test_grid_make(20, 20, 0.2f / 19.0f, 0.0f, 0.0f, 0.0f);
-    /* Turn the grid into the plane z = 0 (x, y). */
-    for (uint32_t k = 0; k < g.vertex_count; ++k) {
-        g.positions[3 * k + 1] = g.positions[3 * k + 2];
-        g.positions[3 * k + 2] = 0.0f;
-    }
+    test_grid g = upright_grid(20, 20, 0.2f / 19.0f);
     rbc_cloth_def cd = test_grid_def(&g, NULL, 0);
     rbc_cloth_id cl = 0;
     CHECK_EQ(rbc_cloth_create(w, &cd, &cl), RBC_OK);
@@ -474,17 +489,8 @@ static uint32_t pieces(const uint32_t *pairs, size_t values, uint32_t n) {
 static void test_cut(void) {
     rbc_world_id w = make_world(2, 1, -9.81f);
     const uint32_t nx = 10, ny = 8;
-    /* Hanging: the grid in the x-y plane, pinned along its top row (y largest). */
-    test_grid g = test_grid_make(nx, ny, 0.02f, 0.0f, 0.0f, 0.0f);
-    for (uint32_t k = 0; k < g.vertex_count; ++k) {
-        g.positions[3 * k + 1] = g.positions[3 * k + 2];
-        g.positions[3 * k + 2] = 0.0f;
-    }
-    uint32_t pins[10];
-    for (uint32_t i = 0; i < nx; ++i) pins[i] = i + nx * (ny - 1);
-    rbc_cloth_def cd = test_grid_def(&g, pins, nx);
-    rbc_cloth_id cl = 0;
-    CHECK_EQ(rbc_cloth_create(w, &cd, &cl), RBC_OK);
+    test_grid g;
+    rbc_cloth_id cl = hanging_cloth(w, nx, ny, 0.0f, &g);
     /* Cut every vertical spring between rows 3 and 4: two pieces, and the row of
      * quads between them gone. */
     uint32_t pairs[2 * 10];
@@ -533,17 +539,8 @@ static void test_cut(void) {
 static void test_tear(void) {
     rbc_world_id w = make_world(2, 4, -9.81f);
     const uint32_t nx = 16, ny = 16;
-    test_grid g = test_grid_make(nx, ny, 0.02f, 0.0f, 0.0f, 0.0f);
-    for (uint32_t k = 0; k < g.vertex_count; ++k) {
-        g.positions[3 * k + 1] = g.positions[3 * k + 2];
-        g.positions[3 * k + 2] = 0.0f;
-    }
-    uint32_t pins[16];
-    for (uint32_t i = 0; i < nx; ++i) pins[i] = i + nx * (ny - 1);
-    rbc_cloth_def cd = test_grid_def(&g, pins, nx);
-    cd.tear_strain = 0.5f;
-    rbc_cloth_id cl = 0;
-    CHECK_EQ(rbc_cloth_create(w, &cd, &cl), RBC_OK);
+    test_grid g;
+    rbc_cloth_id cl = hanging_cloth(w, nx, ny, 0.5f, &g);
     /* Pick the bottom middle vertex with a ray along -z through it. */
     const float o[3] = {0.02f * 8, 0.0f, 1.0f}, d[3] = {0, 0, -1};
     rbc_cloth_id got = 0;
@@ -609,11 +606,7 @@ static void test_attach(void) {
 /* Wind pushes a hanging cloth downwind; wind set to zero is bitwise no wind. */
 static float *hang(int wind_mode) {
     rbc_world_id w = make_world(1, 1, -9.81f);
-    test_grid g = test_grid_make(10, 10, 0.02f, 0.0f, 0.0f, 0.0f);
-    for (uint32_t k = 0; k < g.vertex_count; ++k) {
-        g.positions[3 * k + 1] = g.positions[3 * k + 2];
-        g.positions[3 * k + 2] = 0.0f;
-    }
+    test_grid g = upright_grid(10, 10, 0.02f);
     uint32_t pins[2] = {90, 99};
     rbc_cloth_def cd = test_grid_def(&g, pins, 2);
     rbc_cloth_id cl = 0;

@@ -19,43 +19,20 @@
 #define STIFF 1000.0f
 #define DT 0.002f
 
-typedef struct log_count {
-    int warnings;
-    uint64_t clamps_at_warning[64];
-} log_count;
-
-static void RBC_CALL count_log(void *user, rbc_log_level level, const char *msg) {
-    log_count *lc = (log_count *)user;
-    if (level != RBC_LOG_WARNING || !strstr(msg, "energy guard")) return;
-    /* "... (K clamped so far) ..." */
-    const char *p = strstr(msg, " clamped so far");
-    uint64_t k = 0;
-    if (p) {
-        const char *q = p;
-        while (q > msg && q[-1] >= '0' && q[-1] <= '9') --q;
-        k = strtoull(q, NULL, 10);
-    }
-    if (lc->warnings < 64) lc->clamps_at_warning[lc->warnings] = k;
-    lc->warnings++;
-}
-
 static rbc_world_id make_world(rbc_solver_kind kind, uint32_t linear, rbc_energy_guard guard,
-                               uint32_t threads, log_count *lc) {
+                               uint32_t threads, test_log_count *lc) {
     rbc_world_def wd = abi_world_def_fixed();
-    rbc_solver_def sd = rbc_solver_def_default();
-    sd.solver = kind;
+    rbc_solver_def sd = test_solver_def(kind);
     sd.energy_guard = guard;
     wd.solver = &sd;
     wd.thread_count = threads;
     wd.linear_iterations = linear;
     if (lc) {
-        wd.log = count_log;
+        wd.log = test_count_log;
         wd.log_user = lc;
         wd.log_level = RBC_LOG_WARNING;
     }
-    rbc_world_id w = 0;
-    CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
-    return w;
+    return test_world(&wd);
 }
 
 static rbc_cloth_id add_cloth(rbc_world_id w, const test_grid *g, const uint32_t *pins,
@@ -120,16 +97,10 @@ static double guarded_energy(rbc_world_id w, rbc_cloth_id c, const uint8_t *pinn
 
 static void test_abi_sizes(const test_grid *g) {
     /* A 1.1 host's solver def: garbage past the 1.1 size, default guard applies. */
-    struct {
-        rbc_solver_def d;
-        char tail[32];
-    } sbuf;
+    TEST_PADDED(rbc_solver_def, 32) sbuf;
     memset(&sbuf, 0xAB, sizeof sbuf);
     CHECK_EQ(rbc_solver_def_init(&sbuf.d, RBC_SOLVER_DEF_SIZE_V1_1), RBC_OK);
-    const unsigned char *raw = (const unsigned char *)&sbuf;
-    int untouched = 1;
-    for (size_t k = RBC_SOLVER_DEF_SIZE_V1_1; k < sizeof sbuf; ++k) untouched &= raw[k] == 0xAB;
-    CHECK(untouched);
+    CHECK(test_bytes_are(&sbuf, RBC_SOLVER_DEF_SIZE_V1_1, sizeof sbuf, 0xAB));
     rbc_world_def wd = abi_world_def_fixed();
     wd.solver = &sbuf.d;
     rbc_world_id w = 0;
@@ -142,14 +113,11 @@ static void test_abi_sizes(const test_grid *g) {
     memset(&sbuf, 0xAB, sizeof sbuf);
     sbuf.d.struct_size = RBC_SOLVER_DEF_SIZE_V1_1;
     CHECK_EQ(rbc_world_get_solver(w, &sbuf.d), RBC_OK);
-    untouched = 1;
-    for (size_t k = RBC_SOLVER_DEF_SIZE_V1_1; k < sizeof sbuf; ++k) untouched &= raw[k] == 0xAB;
-    CHECK(untouched);
+    CHECK(test_bytes_are(&sbuf, RBC_SOLVER_DEF_SIZE_V1_1, sizeof sbuf, 0xAB));
     CHECK_EQ(sbuf.d.solver, RBC_SOLVER_RBGS);
 
     /* A bad guard is refused, names the field, and changes nothing. */
-    rbc_solver_def bad = rbc_solver_def_default();
-    bad.solver = RBC_SOLVER_JACOBI;
+    rbc_solver_def bad = test_solver_def(RBC_SOLVER_JACOBI);
     bad.energy_guard = 7;
     CHECK_EQ(rbc_world_set_solver(w, &bad), RBC_ERR_INVALID_ARGUMENT);
     CHECK(strstr(rbc_last_error(), "energy_guard 7") != NULL);
@@ -160,18 +128,9 @@ static void test_abi_sizes(const test_grid *g) {
     /* 1.1 stats: nothing past their size. */
     add_cloth(w, g, NULL, 0);
     CHECK_EQ(rbc_world_step(w, DT), RBC_OK);
-    struct {
-        rbc_world_stats s;
-        char tail[32];
-    } st;
-    memset(&st, 0xEF, sizeof st);
-    st.s.struct_size = RBC_WORLD_STATS_SIZE_V1_1;
-    CHECK_EQ(rbc_world_get_stats(w, &st.s), RBC_OK);
-    raw = (const unsigned char *)&st;
-    untouched = 1;
-    for (size_t k = RBC_WORLD_STATS_SIZE_V1_1; k < sizeof st; ++k) untouched &= raw[k] == 0xEF;
-    CHECK(untouched);
-    CHECK_EQ(st.s.step_count, 1);
+    TEST_PADDED(rbc_world_stats, 32) st;
+    CHECK(test_stats_sized(w, &st, sizeof st, RBC_WORLD_STATS_SIZE_V1_1, 0xEF));
+    CHECK_EQ(st.d.step_count, 1);
 
     /* skip_measures: counts and timings without the pass over the cloth; the
      * measured fields read 0, and the flag is kept. */
@@ -199,12 +158,7 @@ static void test_paper_scene_untouched(const test_grid *g, rbc_solver_kind kind)
     rbc_world_id w0 = make_world(kind, 11, RBC_ENERGY_GUARD_OFF, 1, NULL);
     rbc_world_id w1 = make_world(kind, 11, RBC_ENERGY_GUARD_CLAMP, 1, NULL);
     rbc_cloth_id c0 = add_cloth(w0, g, pins, 2), c1 = add_cloth(w1, g, pins, 2);
-    for (int f = 0; f < 240; ++f) {
-        CHECK_EQ(rbc_world_step(w0, DT), RBC_OK);
-        CHECK_EQ(rbc_world_step(w1, DT), RBC_OK);
-    }
-    float *a = test_read(w0, c0, NULL), *b = test_read(w1, c1, NULL);
-    CHECK(memcmp(a, b, sizeof(float) * 3 * g->vertex_count) == 0);
+    CHECK(test_twins_same(w0, c0, w1, c1, 240, DT));
     rbc_world_stats s0 = test_stats(w0), s1 = test_stats(w1);
     CHECK_EQ(s1.energy_clamped_steps, 0);
     CHECK_EQ(s0.energy_clamped_steps, 0);
@@ -213,8 +167,6 @@ static void test_paper_scene_untouched(const test_grid *g, rbc_solver_kind kind)
      * kinetic + gravitational energy must be at most that. */
     CHECK(s1.energy_budget == 0.0);
     CHECK(s1.kinetic_energy > 0.0);
-    free(a);
-    free(b);
     rbc_world_destroy(w0);
     rbc_world_destroy(w1);
 }
@@ -224,8 +176,7 @@ static void test_diverging_jacobi_held(const test_grid *g) {
     const uint32_t pins[2] = {0, N - 1};
     uint8_t *pinned = calloc(g->vertex_count, 1);
     pinned[0] = pinned[N - 1] = 1;
-    log_count lc;
-    memset(&lc, 0, sizeof lc);
+    test_log_count lc = {.phrase = "energy guard", .count_before = " clamped so far"};
     rbc_world_id w = make_world(RBC_SOLVER_JACOBI, 1, RBC_ENERGY_GUARD_CLAMP, 2, &lc);
     rbc_world_id w1 = make_world(RBC_SOLVER_JACOBI, 1, RBC_ENERGY_GUARD_CLAMP, 1, NULL);
     rbc_cloth_id c = add_cloth(w, g, pins, 2), c1 = add_cloth(w1, g, pins, 2);
@@ -250,7 +201,7 @@ static void test_diverging_jacobi_held(const test_grid *g) {
     int expect = 0;
     for (uint64_t k = st.energy_clamped_steps; k; k >>= 1) ++expect;
     CHECK_EQ(lc.warnings, expect);
-    for (int k = 0; k < lc.warnings && k < 64; ++k) CHECK_EQ(lc.clamps_at_warning[k], 1ull << k);
+    for (int k = 0; k < lc.warnings && k < 64; ++k) CHECK_EQ(lc.at[k], 1ull << k);
     uint32_t n = 0;
     float *x = test_read(w, c, &n), *x1 = test_read(w1, c1, NULL);
     CHECK(test_all_finite(x, 3 * (size_t)n));

@@ -25,69 +25,22 @@
 /* ------------------------------------------------------------------------- */
 
 enum { TABLE = 1 << 16 };
-typedef struct checker {
-    pthread_mutex_t lock;
-    void *ptr[TABLE];
-    size_t size[TABLE];
-    size_t live, peak_live, allocs, frees;
-    size_t bad_size, bad_ptr, table_full;
-} checker;
-
-static size_t slot_of(const void *p) {
-    uint64_t h = (uint64_t)(uintptr_t)p * 0x9E3779B97F4A7C15ull;
-    return (size_t)(h >> 48) & (TABLE - 1);
-}
+static void *block_ptr[TABLE]; /* 1 MiB of table: static */
+static size_t block_size[TABLE];
 
 static void *RBC_CALL check_alloc(void *user, size_t size, size_t alignment) {
-    checker *c = user;
     size_t rounded = (size + alignment - 1) / alignment * alignment;
     void *p = aligned_alloc(alignment, rounded ? rounded : alignment);
-    if (!p) return NULL;
-    pthread_mutex_lock(&c->lock);
-    size_t k = slot_of(p), tries = 0;
-    while (c->ptr[k] && tries++ < TABLE) k = (k + 1) & (TABLE - 1);
-    if (c->ptr[k]) {
-        c->table_full++;
-    } else {
-        c->ptr[k] = p;
-        c->size[k] = size;
-        c->live++;
-        c->allocs++;
-        if (c->live > c->peak_live) c->peak_live = c->live;
-    }
-    pthread_mutex_unlock(&c->lock);
+    if (p) test_blocks_add(user, p, size);
     return p;
 }
 
 static void RBC_CALL check_free(void *user, void *ptr, size_t size) {
-    checker *c = user;
-    pthread_mutex_lock(&c->lock);
-    size_t k = slot_of(ptr), tries = 0;
-    while (c->ptr[k] != ptr && tries++ < TABLE) k = (k + 1) & (TABLE - 1);
-    if (c->ptr[k] != ptr) {
-        c->bad_ptr++;
+    size_t asked = size;
+    if (!test_blocks_remove(user, ptr, size, &asked))
         fprintf(stderr, "  free of %p (%zu bytes): not a live block\n", ptr, size);
-    } else {
-        if (c->size[k] != size) {
-            c->bad_size++;
-            fprintf(stderr, "  free of %p: %zu bytes given, %zu allocated\n", ptr, size,
-                    c->size[k]);
-        }
-        /* Backward-shift deletion keeps every probe chain unbroken. */
-        size_t hole = k;
-        for (size_t j = (hole + 1) & (TABLE - 1); c->ptr[j]; j = (j + 1) & (TABLE - 1)) {
-            size_t home = slot_of(c->ptr[j]);
-            if (((j - home) & (TABLE - 1)) >= ((j - hole) & (TABLE - 1))) {
-                c->ptr[hole] = c->ptr[j];
-                c->size[hole] = c->size[j];
-                hole = j;
-            }
-        }
-        c->ptr[hole] = NULL;
-        c->live--;
-        c->frees++;
-    }
-    pthread_mutex_unlock(&c->lock);
+    else if (asked != size)
+        fprintf(stderr, "  free of %p: %zu bytes given, %zu allocated\n", ptr, size, asked);
     free(ptr);
 }
 
@@ -113,7 +66,7 @@ static uint32_t cut_pairs(uint32_t *pairs) {
 /* Make a world (hooks or the default allocator), a cut cloth and a tearing one,
  * step, destroy the cloths one by one, then the world. Returns 0 if every call
  * succeeded. */
-static int cut_tear_destroy(checker *hooks, uint32_t threads, uint32_t *out_cut,
+static int cut_tear_destroy(test_blocks *hooks, uint32_t threads, uint32_t *out_cut,
                             uint32_t *out_torn, size_t *out_quads_left) {
     rbc_world_def wd = rbc_world_def_default();
     wd.thread_count = threads;
@@ -180,8 +133,8 @@ static int cut_tear_destroy(checker *hooks, uint32_t threads, uint32_t *out_cut,
 }
 
 static void test_cut_and_torn_destroy(void) {
-    static checker hooks; /* 1 MiB of table: static */
-    pthread_mutex_init(&hooks.lock, NULL);
+    static test_blocks hooks = TEST_BLOCKS_INIT;
+    test_blocks_reset(&hooks, block_ptr, block_size, TABLE);
     for (uint32_t threads = 1; threads <= 2; ++threads) {
         uint32_t cut = 0, torn = 0;
         size_t quads_left = 0;
@@ -214,8 +167,7 @@ static void test_cut_and_torn_destroy(void) {
 static rbc_world_id grid_world(const rbc_world_def *wd, uint32_t nx, float spacing, float y,
                                const uint32_t *pins, uint32_t pin_count, test_grid *g,
                                rbc_cloth_id *c) {
-    rbc_world_id w = 0;
-    CHECK_EQ(rbc_world_create(wd, &w), RBC_OK);
+    rbc_world_id w = test_world(wd);
     *g = test_grid_make(nx, nx, spacing, 0.0f, y, 0.0f);
     rbc_cloth_def cd = test_grid_def(g, pins, pin_count);
     *c = 0;

@@ -35,26 +35,7 @@
  * two double sums of at most 20,000 terms, below 1e-12 of values under 10. */
 static double strain_tol(double max_r) { return (1.0 + max_r) * ldexp(1.0, -24) + 1e-12; }
 
-typedef struct log_count {
-    int warnings;
-    uint64_t at[64]; /* "(K missed at the cap so far)" of each warning */
-} log_count;
-
-static void RBC_CALL count_log(void *user, rbc_log_level level, const char *msg) {
-    log_count *lc = (log_count *)user;
-    if (level != RBC_LOG_WARNING || !strstr(msg, "not met within the cap")) return;
-    const char *p = strstr(msg, " missed at the cap so far");
-    uint64_t k = 0;
-    if (p) {
-        const char *q = p;
-        while (q > msg && q[-1] >= '0' && q[-1] <= '9') --q;
-        k = strtoull(q, NULL, 10);
-    }
-    if (lc->warnings < 64) lc->at[lc->warnings] = k;
-    lc->warnings++;
-}
-
-static rbc_world_id make_world(const rbc_solver_def *sd, uint32_t threads, log_count *lc) {
+static rbc_world_id make_world(const rbc_solver_def *sd, uint32_t threads, test_log_count *lc) {
     rbc_world_def wd = rbc_world_def_default();
     /* The world counts this test was written with (the paper's 1 substep; the fixed
      * mode checks read them), and only the target mode's own warnings in the log. */
@@ -63,12 +44,10 @@ static rbc_world_id make_world(const rbc_solver_def *sd, uint32_t threads, log_c
     wd.solver = sd;
     wd.thread_count = threads;
     if (lc) {
-        wd.log = count_log;
+        wd.log = test_count_log;
         wd.log_user = lc;
     }
-    rbc_world_id w = 0;
-    CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
-    return w;
+    return test_world(&wd);
 }
 
 static rbc_solver_def game_preset(void) {
@@ -100,16 +79,12 @@ static void test_sizes(void) {
     unsigned char buf[sizeof(rbc_solver_def) + 16];
     memset(buf, 0xAB, sizeof buf);
     CHECK_EQ(rbc_solver_def_init((rbc_solver_def *)buf, RBC_SOLVER_DEF_SIZE_V1_2), RBC_OK);
-    int clean = 1;
-    for (size_t k = RBC_SOLVER_DEF_SIZE_V1_2; k < sizeof buf; k++) clean &= buf[k] == 0xAB;
-    CHECK(clean);
+    CHECK(test_bytes_are(buf, RBC_SOLVER_DEF_SIZE_V1_2, sizeof buf, 0xAB));
     memset(buf, 0xAB, sizeof buf);
     CHECK_EQ(rbc_solver_def_preset((rbc_solver_def *)buf, RBC_SOLVER_DEF_SIZE_V1_2,
                                    RBC_PRESET_DEFAULT),
              RBC_OK);
-    clean = 1;
-    for (size_t k = RBC_SOLVER_DEF_SIZE_V1_2; k < sizeof buf; k++) clean &= buf[k] == 0xAB;
-    CHECK(clean);
+    CHECK(test_bytes_are(buf, RBC_SOLVER_DEF_SIZE_V1_2, sizeof buf, 0xAB));
 
     /* A 1.3-size def (fixed mode) runs bitwise as the 1.4 default and reads back the
      * new fields' defaults; 1.3-size stats and solver reads get no byte past them. */
@@ -136,23 +111,11 @@ static void test_sizes(void) {
         memset(buf, 0xAB, sizeof buf);
         ((rbc_solver_def *)buf)->struct_size = RBC_SOLVER_DEF_SIZE_V1_2;
         CHECK_EQ(rbc_world_get_solver(w, (rbc_solver_def *)buf), RBC_OK);
-        clean = 1;
-        for (size_t k = RBC_SOLVER_DEF_SIZE_V1_2; k < sizeof buf; k++) clean &= buf[k] == 0xAB;
-        CHECK(clean);
+        CHECK(test_bytes_are(buf, RBC_SOLVER_DEF_SIZE_V1_2, sizeof buf, 0xAB));
         unsigned char sb[sizeof(rbc_world_stats) + 16];
-        memset(sb, 0xAB, sizeof sb);
-        ((rbc_world_stats *)sb)->struct_size = RBC_WORLD_STATS_SIZE_V1_3;
-        CHECK_EQ(rbc_world_get_stats(w, (rbc_world_stats *)sb), RBC_OK);
-        clean = 1;
-        for (size_t k = RBC_WORLD_STATS_SIZE_V1_3; k < sizeof sb; k++) clean &= sb[k] == 0xAB;
-        CHECK(clean);
+        CHECK(test_stats_sized(w, sb, sizeof sb, RBC_WORLD_STATS_SIZE_V1_3, 0xAB));
         /* And a 1.4 host: the 1.5 fields are not written. */
-        memset(sb, 0xAB, sizeof sb);
-        ((rbc_world_stats *)sb)->struct_size = RBC_WORLD_STATS_SIZE_V1_4;
-        CHECK_EQ(rbc_world_get_stats(w, (rbc_world_stats *)sb), RBC_OK);
-        clean = 1;
-        for (size_t k = RBC_WORLD_STATS_SIZE_V1_4; k < sizeof sb; k++) clean &= sb[k] == 0xAB;
-        CHECK(clean);
+        CHECK(test_stats_sized(w, sb, sizeof sb, RBC_WORLD_STATS_SIZE_V1_4, 0xAB));
         rbc_world_stats st = test_stats(w);
         CHECK_EQ(st.iteration_mode, RBC_ITERATE_FIXED);
         CHECK_EQ(st.substeps, 1);
@@ -292,8 +255,8 @@ static void test_impossible(void) {
     sd.target_strain = 1e-4f; /* gravity alone stretches the pinned cloth far more */
     sd.max_substeps = 2;
     sd.max_linear_iterations = 2;
-    log_count lc;
-    memset(&lc, 0, sizeof lc);
+    test_log_count lc = {.phrase = "not met within the cap",
+                         .count_before = " missed at the cap so far"};
     rbc_world_id w = make_world(&sd, 1, &lc);
     rbc_cloth_def cd = test_grid_def(&g, pins, 2);
     rbc_cloth_id c = 0;

@@ -19,24 +19,16 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "abi_util.h"
 #include "check.h"
+#include "files.h"
 #include "text_file.h"
 #include "rbcloth.h"
 
 static const char *g_dir;
 
-static char *path_in(const char *name) {
-    static char buf[8][1024];
-    static int next = 0;
-    char *p = buf[next++ % 8];
-    snprintf(p, sizeof buf[0], "%s/%s", g_dir, name);
-    return p;
-}
-
-static int file_exists(const char *path) {
-    struct stat st;
-    return stat(path, &st) == 0;
-}
+/* g_dir/name (fmt's buffers: it stays valid for the next 15 paths). */
+static const char *path_in(const char *name) { return fmt("%s/%s", g_dir, name); }
 
 /* Files in g_dir whose name contains ".tmp". */
 static int count_tmp_files(void) {
@@ -73,51 +65,53 @@ static size_t mismatches(const float *expect, const float *got, size_t n) {
     return bad;
 }
 
-/* PC2: "POINTCACHE2\0", version 1, points, start, rate, samples; little-endian. */
-static void check_pc2(const char *path, const float *frames, uint32_t points, uint32_t count,
-                      float start, float rate) {
+/* The file at path, if it could be read and has `expect` bytes (both checked); NULL
+ * otherwise. */
+static unsigned char *read_sized(const char *path, size_t expect) {
     size_t size = 0;
     unsigned char *b = file_read_bytes(path, &size);
     CHECK(b != NULL);
+    if (!b) return NULL;
+    CHECK_EQ(size, expect);
+    if (size == expect) return b;
+    free(b);
+    return NULL;
+}
+
+/* The n floats at data, read by word (le32 or be32), against frames: no float differs. */
+static void check_floats(const unsigned char *data, uint32_t (*word)(const unsigned char *),
+                         const float *frames, size_t n) {
+    float *got = malloc(n * sizeof *got);
+    for (size_t k = 0; k < n; ++k) got[k] = from_bits(word(data + 4 * k));
+    CHECK_EQ(mismatches(frames, got, n), 0);
+    free(got);
+}
+
+/* PC2: "POINTCACHE2\0", version 1, points, start, rate, samples; little-endian. */
+static void check_pc2(const char *path, const float *frames, uint32_t points, uint32_t count,
+                      float start, float rate) {
+    unsigned char *b = read_sized(path, 32 + (size_t)count * points * 12);
     if (!b) return;
-    CHECK_EQ(size, 32 + (size_t)count * points * 12);
-    if (size == 32 + (size_t)count * points * 12) {
-        CHECK(memcmp(b, "POINTCACHE2\0", 12) == 0);
-        CHECK_EQ(le32(b + 12), 1);
-        CHECK_EQ(le32(b + 16), points);
-        CHECK_EQ(le32(b + 20), bits(start));
-        CHECK_EQ(le32(b + 24), bits(rate));
-        CHECK_EQ(le32(b + 28), count);
-        size_t n = (size_t)count * points * 3;
-        float *got = malloc(n * sizeof *got);
-        for (size_t k = 0; k < n; ++k) got[k] = from_bits(le32(b + 32 + 4 * k));
-        CHECK_EQ(mismatches(frames, got, n), 0);
-        free(got);
-    }
+    CHECK(memcmp(b, "POINTCACHE2\0", 12) == 0);
+    CHECK_EQ(le32(b + 12), 1);
+    CHECK_EQ(le32(b + 16), points);
+    CHECK_EQ(le32(b + 20), bits(start));
+    CHECK_EQ(le32(b + 24), bits(rate));
+    CHECK_EQ(le32(b + 28), count);
+    check_floats(b + 32, le32, frames, (size_t)count * points * 3);
     free(b);
 }
 
 /* MDD: frames, points, times[frames], positions; big-endian. */
 static void check_mdd(const char *path, const float *frames, uint32_t points, uint32_t count,
                       float start, float rate) {
-    size_t size = 0;
-    unsigned char *b = file_read_bytes(path, &size);
-    CHECK(b != NULL);
+    unsigned char *b = read_sized(path, 8 + 4 * (size_t)count + (size_t)count * points * 12);
     if (!b) return;
-    size_t expect_size = 8 + 4 * (size_t)count + (size_t)count * points * 12;
-    CHECK_EQ(size, expect_size);
-    if (size == expect_size) {
-        CHECK_EQ(be32(b), count);
-        CHECK_EQ(be32(b + 4), points);
-        for (uint32_t k = 0; k < count; ++k)
-            CHECK_EQ(be32(b + 8 + 4 * k), bits(start + (float)k * rate));
-        size_t n = (size_t)count * points * 3;
-        const unsigned char *data = b + 8 + 4 * (size_t)count;
-        float *got = malloc(n * sizeof *got);
-        for (size_t k = 0; k < n; ++k) got[k] = from_bits(be32(data + 4 * k));
-        CHECK_EQ(mismatches(frames, got, n), 0);
-        free(got);
-    }
+    CHECK_EQ(be32(b), count);
+    CHECK_EQ(be32(b + 4), points);
+    for (uint32_t k = 0; k < count; ++k)
+        CHECK_EQ(be32(b + 8 + 4 * k), bits(start + (float)k * rate));
+    check_floats(b + 8 + 4 * (size_t)count, be32, frames, (size_t)count * points * 3);
     free(b);
 }
 
@@ -178,7 +172,7 @@ static void write_cache(rbc_cache_format format, const char *path, const float *
     for (uint32_t f = 0; f < count; ++f)
         CHECK_EQ(rbc_cache_write_frame(c, frames + 3 * (size_t)points * f), RBC_OK);
     /* Nothing visible before finish. */
-    CHECK(!file_exists(format == RBC_CACHE_OBJ_SEQUENCE ? objseq_frame(path, 0) : path));
+    CHECK(!exists(format == RBC_CACHE_OBJ_SEQUENCE ? objseq_frame(path, 0) : path));
     CHECK_EQ(rbc_cache_finish(c), RBC_OK);
     CHECK_EQ(count_tmp_files(), 0);
 }
@@ -199,7 +193,7 @@ static void check_all_formats(const char *stem, const float *frames, uint32_t po
     for (uint32_t f = 0; f < count; ++f)
         check_obj(objseq_frame(seq, f), frames + 3 * (size_t)points * f, points, quads,
                   quad_count);
-    CHECK(!file_exists(objseq_frame(seq, count))); /* exactly `count` files */
+    CHECK(!exists(objseq_frame(seq, count))); /* exactly `count` files */
 }
 
 /* Awkward floats, 3 frames of 4 points, one quad. */
@@ -228,34 +222,14 @@ static void test_known_positions(void) {
 /* The solver's positions: a 5 x 4 grid falling 6 frames with two pins. */
 static void test_solver_positions(void) {
     enum { NX = 5, NY = 4, N = NX * NY, FRAMES = 6 };
-    float rest[3 * N];
-    uint32_t quads[4 * (NX - 1) * (NY - 1)], nq = 0;
-    for (uint32_t j = 0; j < NY; ++j)
-        for (uint32_t i = 0; i < NX; ++i) {
-            uint32_t v = j * NX + i;
-            rest[3 * v] = 0.1f * (float)i;
-            rest[3 * v + 1] = 1.0f;
-            rest[3 * v + 2] = 0.1f * (float)j;
-            if (i + 1 < NX && j + 1 < NY) {
-                quads[4 * nq] = v;
-                quads[4 * nq + 1] = v + 1;
-                quads[4 * nq + 2] = v + 1 + NX;
-                quads[4 * nq + 3] = v + NX;
-                nq++;
-            }
-        }
+    test_grid g = test_grid_make(NX, NY, 0.1f, 0.0f, 1.0f, 0.0f);
+    const float *rest = g.positions;
+    const uint32_t *quads = g.quads, nq = g.quad_count;
     rbc_world_def wd = rbc_world_def_default();
     wd.thread_count = 1;
-    rbc_world_id w = 0;
-    CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
-    rbc_cloth_def cd = rbc_cloth_def_default();
+    rbc_world_id w = test_world(&wd);
     const uint32_t pins[] = {0, NX - 1};
-    cd.vertex_count = N;
-    cd.positions = rest;
-    cd.quad_count = nq;
-    cd.quads = quads;
-    cd.pin_count = 2;
-    cd.pins = pins;
+    rbc_cloth_def cd = test_grid_def(&g, pins, 2);
     rbc_cloth_id c = 0;
     CHECK_EQ(rbc_cloth_create(w, &cd, &c), RBC_OK);
     float frames[FRAMES * 3 * N];
@@ -274,6 +248,7 @@ static void test_solver_positions(void) {
     const char *obj = path_in("solver_rest.obj");
     CHECK_EQ(rbc_write_obj(obj, rest, N, quads, nq), RBC_OK);
     check_obj(obj, rest, N, quads, nq);
+    test_grid_free(&g);
 }
 
 /* Bad input: its code, a message, nothing on disk. */
@@ -312,7 +287,7 @@ static void test_bad_input(void) {
     d.quads = NULL;
     CHECK_EQ(rbc_cache_create(&d, &c), RBC_ERR_INVALID_ARGUMENT);
     CHECK_EQ(count_tmp_files(), 0);
-    CHECK(!file_exists(path_in("bad.pc2")) && !file_exists(path_in("badseq_0001.obj")));
+    CHECK(!exists(path_in("bad.pc2")) && !exists(path_in("badseq_0001.obj")));
 
     /* A 1.0-sized def (no quads) still works and writes a PC2. */
     rbc_cache_def old = rbc_cache_def_default();
@@ -338,7 +313,7 @@ static void test_bad_input(void) {
         CHECK(count_tmp_files() > 0);
         CHECK_EQ(rbc_cache_destroy(c), RBC_OK);
         CHECK_EQ(count_tmp_files(), 0);
-        CHECK(!file_exists(path_in("abandoned")) && !file_exists(path_in("abandoned_0001.obj")));
+        CHECK(!exists(path_in("abandoned")) && !exists(path_in("abandoned_0001.obj")));
         CHECK_EQ(rbc_cache_write_frame(c, xyz), RBC_ERR_STALE_HANDLE);
     }
 

@@ -47,6 +47,23 @@ static inline void write_text_sub(const char *path, const char *text, const char
     write_text(path, buf);
 }
 
+/* A case of `rbcloth batch` in folder dir: its manifest dir/MANIFEST, written from json
+ * (each %s: the mesh folder `meshes`), its --out folder dir/OUT and its log dir/LOG. */
+struct batch_case {
+    char manifest[1100], out[1100], log[1100];
+};
+
+static inline struct batch_case batch_case_in(const char *dir, const char *meshes,
+                                              const char *manifest, const char *out,
+                                              const char *log, const char *json) {
+    struct batch_case c;
+    snprintf(c.manifest, sizeof c.manifest, "%s/%s", dir, manifest);
+    snprintf(c.out, sizeof c.out, "%s/%s", dir, out);
+    snprintf(c.log, sizeof c.log, "%s/%s", dir, log);
+    write_text_sub(c.manifest, json, meshes);
+    return c;
+}
+
 /* Whether the file at path holds needle; if not and `say`, the file is printed to
  * stderr, so that a failed check shows what the program said instead. */
 static inline int file_contains(const char *path, const char *needle, int say) {

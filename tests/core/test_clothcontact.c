@@ -91,23 +91,44 @@ static void sheet_free(sheet *s) {
 }
 
 static rbc_contact_body body_of(sheet *s, float thickness, float mu, int self, int others) {
-    rbc_contact_body b;
-    memset(&b, 0, sizeof b);
-    b.n = s->n;
+    rbc_contact_body b = {.n = s->n, .mass = s->mass, .pinned = s->pinned, .tri_count = s->nt,
+                          .tris = s->tris, .thickness = thickness, .friction = mu, .self = self,
+                          .others = others};
     for (int k = 0; k < 3; ++k) {
         b.p[k] = s->p[k];
         b.x[k] = s->x[k];
         b.rest[k] = s->rest[k];
     }
-    b.mass = s->mass;
-    b.pinned = s->pinned;
-    b.tri_count = s->nt;
-    b.tris = s->tris;
-    b.thickness = thickness;
-    b.friction = mu;
-    b.self = self;
-    b.others = others;
     return b;
+}
+
+/* One particle as a body: x, p its 3 coordinates at the start and predicted; with the
+ * other bodies, not itself, no friction. mass, pinned: NULL as in rbc_contact_body. */
+static rbc_contact_body particle_body(float *x, float *p, const float *mass, const uint8_t *pinned,
+                                      float thickness) {
+    rbc_contact_body b = {.n = 1, .mass = mass, .pinned = pinned, .thickness = thickness,
+                          .others = 1};
+    for (int k = 0; k < 3; ++k) b.x[k] = &x[k], b.p[k] = &p[k];
+    return b;
+}
+
+/* One triangle as a body: its corners' coordinates x[axis][corner] at the start and p
+ * predicted, tri their order; otherwise as particle_body. */
+static rbc_contact_body triangle_body(float x[3][3], float p[3][3], const float *mass,
+                                      const uint8_t *pinned, const uint32_t *tri,
+                                      float thickness) {
+    rbc_contact_body b = {.n = 3, .mass = mass, .pinned = pinned, .tri_count = 1, .tris = tri,
+                          .thickness = thickness, .others = 1};
+    for (int k = 0; k < 3; ++k) b.x[k] = x[k], b.p[k] = p[k];
+    return b;
+}
+
+/* A contact object on the default allocator (it keeps a copy). */
+static rbc_clothcontact *new_contact(void) {
+    rbc_allocator al = rbc_allocator_default();
+    rbc_clothcontact *cc = NULL;
+    CHECK_EQ(rbc_clothcontact_create(&al, &cc), RBC_OK);
+    return cc;
 }
 
 /* One substep as the solver would run it. Returns the violation left after the
@@ -222,9 +243,7 @@ static void against(const sheet *s, uint32_t i, const sheet *o, const uint8_t *u
 
 static void test_fast_particle(void) {
     const float th = 0.004f;
-    rbc_allocator al = rbc_allocator_default();
-    rbc_clothcontact *cc = NULL;
-    CHECK_EQ(rbc_clothcontact_create(&al, &cc), RBC_OK);
+    rbc_clothcontact *cc = new_contact();
     /* Triangle abc in y = 0, normal (b - a) x (c - a) = (0.1, 0, 0) x (0, 0, 0.1) =
      * (0, -0.01, 0): the particle above it is on side -1. */
     float tx[3][3] = {{0.0f, 0.1f, 0.0f}, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, 0.1f}};
@@ -245,19 +264,8 @@ static void test_fast_particle(void) {
         px[0] = pp[0] = hx, px[2] = pp[2] = hz;
         px[1] = 2.0f * th;
         pp[1] = px[1] - 10.0f * th; /* through it by 8 thicknesses */
-        rbc_contact_body b[2];
-        memset(b, 0, sizeof b);
-        b[0].n = 1;
-        b[1].n = 3;
-        for (int k = 0; k < 3; ++k) {
-            b[0].p[k] = &pp[k], b[0].x[k] = &px[k];
-            b[1].p[k] = tp[k], b[1].x[k] = tx[k];
-        }
-        b[0].mass = &pm, b[0].pinned = &ppin;
-        b[1].mass = tm, b[1].pinned = tpin;
-        b[1].tri_count = 1, b[1].tris = tri;
-        b[0].thickness = b[1].thickness = th;
-        b[0].others = b[1].others = 1;
+        rbc_contact_body b[2] = {particle_body(px, pp, &pm, &ppin, th),
+                                 triangle_body(tx, tp, tm, tpin, tri, th)};
         CHECK_EQ(rbc_clothcontact_detect(cc, b, 2, 0.001f), RBC_OK);
         CHECK_EQ(rbc_clothcontact_count(cc), 1);
         const rbc_contact *c = rbc_clothcontact_list(cc);
@@ -297,16 +305,8 @@ static void test_fast_particle(void) {
      * margin): no contact. */
     px[0] = pp[0] = 0.2f;
     px[1] = 2.0f * th, pp[1] = -8.0f * th;
-    rbc_contact_body b[2];
-    memset(b, 0, sizeof b);
-    b[0].n = 1, b[1].n = 3;
-    for (int k = 0; k < 3; ++k) {
-        b[0].p[k] = &pp[k], b[0].x[k] = &px[k];
-        b[1].p[k] = tx[k], b[1].x[k] = tx[k];
-    }
-    b[1].tri_count = 1, b[1].tris = tri;
-    b[0].thickness = b[1].thickness = th;
-    b[0].others = b[1].others = 1;
+    rbc_contact_body b[2] = {particle_body(px, pp, NULL, NULL, th),
+                             triangle_body(tx, tx, NULL, NULL, tri, th)};
     CHECK_EQ(rbc_clothcontact_detect(cc, b, 2, 0.001f), RBC_OK);
     CHECK_EQ(rbc_clothcontact_count(cc), 0);
     /* Without others on one side: no contact either. */
@@ -323,9 +323,7 @@ static void test_fast_particle(void) {
  * the same. Vertex-triangle both ways round, and vertex-vertex in both body orders. */
 static void test_far_motion(void) {
     const float th = 0.004f;
-    rbc_allocator al = rbc_allocator_default();
-    rbc_clothcontact *cc = NULL;
-    CHECK_EQ(rbc_clothcontact_create(&al, &cc), RBC_OK);
+    rbc_clothcontact *cc = new_contact();
     /* A 20x20 grid, L = 1 cm (cells of 1.4 cm), and a particle that crosses it at
      * the centroid of triangle 100 after moving 0.33 m along every axis (24^3 cells). */
     sheet g = sheet_grid(20, 20, 0.01f, 0.0f, 0.0f, 0.0f);
@@ -335,14 +333,7 @@ static void test_far_motion(void) {
     float px[3] = {cx - 0.3f, 0.3f, cz - 0.3f}, pp[3] = {cx + 0.03f, -0.03f, cz + 0.03f};
     float pm = 1e-4f;
     uint8_t ppin = 0;
-    rbc_contact_body b[2];
-    b[0] = body_of(&g, th, 0.0f, 0, 1);
-    memset(&b[1], 0, sizeof b[1]);
-    b[1].n = 1;
-    for (int k = 0; k < 3; ++k) b[1].p[k] = &pp[k], b[1].x[k] = &px[k];
-    b[1].mass = &pm, b[1].pinned = &ppin;
-    b[1].thickness = th;
-    b[1].others = 1;
+    rbc_contact_body b[2] = {body_of(&g, th, 0.0f, 0, 1), particle_body(px, pp, &pm, &ppin, th)};
     CHECK_EQ(rbc_clothcontact_detect(cc, b, 2, 0.001f), RBC_OK);
     int found = 0;
     const rbc_contact *l = rbc_clothcontact_list(cc);
@@ -375,19 +366,9 @@ static void test_far_motion(void) {
     float qx[3] = {q0, 0.0f, q0}, qp[3];
     memcpy(qp, qx, sizeof qp);
     sheet far = sheet_grid(20, 20, 0.01f, 0.0f, 5.0f, 0.0f);
-    rbc_contact_body t[3];
-    memset(t, 0, sizeof t);
-    t[2] = body_of(&far, th, 0.0f, 0, 1);
-    t[0].n = 3, t[0].tri_count = 1, t[0].tris = tri;
-    t[1].n = 1;
-    for (int k = 0; k < 3; ++k) {
-        t[0].p[k] = tp[k], t[0].x[k] = tx[k];
-        t[1].p[k] = &qp[k], t[1].x[k] = &qx[k];
-    }
-    t[0].mass = tm, t[0].pinned = tpin;
-    t[1].mass = &pm, t[1].pinned = &ppin;
-    t[0].thickness = t[1].thickness = th;
-    t[0].others = t[1].others = 1;
+    rbc_contact_body t[3] = {triangle_body(tx, tp, tm, tpin, tri, th),
+                             particle_body(qx, qp, &pm, &ppin, th),
+                             body_of(&far, th, 0.0f, 0, 1)};
     CHECK_EQ(rbc_clothcontact_detect(cc, t, 3, 0.001f), RBC_OK);
     CHECK_EQ(rbc_clothcontact_count(cc), 1);
     CHECK(rbc_clothcontact_list(cc)[0].side == -1.0f);
@@ -406,16 +387,8 @@ static void test_far_motion(void) {
         float bx[3] = {0.0f, 0.0f, 0.0f}, bp[3] = {0.0f, 0.0f, 0.0f};
         float ma = 1e-4f, mb = 1e-4f;
         rbc_contact_body v[2];
-        memset(v, 0, sizeof v);
-        rbc_contact_body *fast = &v[order], *rest = &v[1 - order];
-        fast->n = rest->n = 1;
-        for (int k = 0; k < 3; ++k) {
-            fast->p[k] = &ap[k], fast->x[k] = &ax[k];
-            rest->p[k] = &bp[k], rest->x[k] = &bx[k];
-        }
-        fast->mass = &ma, rest->mass = &mb;
-        fast->thickness = rest->thickness = th;
-        fast->others = rest->others = 1;
+        v[order] = particle_body(ax, ap, &ma, NULL, th);     /* the fast one */
+        v[1 - order] = particle_body(bx, bp, &mb, NULL, th); /* the one at rest */
         CHECK_EQ(rbc_clothcontact_detect(cc, v, 2, 0.001f), RBC_OK);
         CHECK_EQ(rbc_clothcontact_count(cc), 1);
         rbc_clothcontact_project(cc, v, 2);
@@ -463,9 +436,7 @@ static double press(uint32_t nl, uint32_t nx, int steps, int passes, const char 
     rbc_contact_body b[4];
     make_stack(s, nl, nx, L, gap, D);
     for (uint32_t k = 0; k < nl; ++k) b[k] = body_of(&s[k], th, 0.0f, 1, 1);
-    rbc_allocator al = rbc_allocator_default();
-    rbc_clothcontact *cc = NULL;
-    CHECK_EQ(rbc_clothcontact_create(&al, &cc), RBC_OK);
+    rbc_clothcontact *cc = new_contact();
     double min_gap = INFINITY, min_dist = INFINITY, worst_slack = -INFINITY;
     float worst_left = 0.0f;
     uint32_t max_contacts = 0, unmatched = 0, swapped = 0;
@@ -512,9 +483,7 @@ static double press(uint32_t nl, uint32_t nx, int steps, int passes, const char 
 static void test_fold(void) {
     const uint32_t nx = 20;
     const float L = 0.01f, th = 0.004f, gap = 0.01f, D = 0.001f, margin = 0.001f;
-    rbc_allocator al = rbc_allocator_default();
-    rbc_clothcontact *cc = NULL;
-    CHECK_EQ(rbc_clothcontact_create(&al, &cc), RBC_OK);
+    rbc_clothcontact *cc = new_contact();
     sheet s = sheet_grid(nx, nx, L, 0.0f, 0.0f, 0.0f);
     rbc_contact_body b = body_of(&s, th, 0.0f, 1, 0);
     /* Flat at rest (x = p = rest): the nearest non-incident triangle is 7.1 mm away
@@ -583,9 +552,7 @@ static void test_fold(void) {
 
 static void test_friction(void) {
     const float th = 0.004f;
-    rbc_allocator al = rbc_allocator_default();
-    rbc_clothcontact *cc = NULL;
-    CHECK_EQ(rbc_clothcontact_create(&al, &cc), RBC_OK);
+    rbc_clothcontact *cc = new_contact();
     /* A big triangle in y = 0, normal +y: (0,0,1) x (1,0,0) = (0, 1, 0). */
     float tx[3][3] = {{0.0f, 0.0f, 1.0f}, {0.0f, 0.0f, 0.0f}, {0.0f, 1.0f, 0.0f}};
     float tp[3][3], tm[3] = {1e-4f, 1e-4f, 1e-4f};
@@ -602,18 +569,8 @@ static void test_friction(void) {
         uint8_t ppin = 0;
         pp[0] = px[0] + slide, pp[1] = px[1] - sink, pp[2] = px[2];
         const float pred_x = pp[0];
-        rbc_contact_body b[2];
-        memset(b, 0, sizeof b);
-        b[0].n = 1, b[1].n = 3;
-        for (int k = 0; k < 3; ++k) {
-            b[0].p[k] = &pp[k], b[0].x[k] = &px[k];
-            b[1].p[k] = tp[k], b[1].x[k] = tx[k];
-        }
-        b[0].mass = &pm, b[0].pinned = &ppin;
-        b[1].mass = tm, b[1].pinned = tpin;
-        b[1].tri_count = 1, b[1].tris = tri;
-        b[0].thickness = b[1].thickness = th;
-        b[0].others = b[1].others = 1;
+        rbc_contact_body b[2] = {particle_body(px, pp, &pm, &ppin, th),
+                                 triangle_body(tx, tp, tm, tpin, tri, th)};
         b[0].friction = mus[m];
         b[1].friction = 0.5f; /* the larger of the two is used */
         if (m == 1) b[1].friction = 0.0f;
@@ -678,9 +635,7 @@ static void test_pins(void) {
             memcpy(start[m][k], s[m].x[k], sizeof(float) * s[m].n);
         }
     rbc_contact_body b[2] = {body_of(&s[0], th, 0.5f, 1, 1), body_of(&s[1], th, 0.5f, 1, 1)};
-    rbc_allocator al = rbc_allocator_default();
-    rbc_clothcontact *cc = NULL;
-    CHECK_EQ(rbc_clothcontact_create(&al, &cc), RBC_OK);
+    rbc_clothcontact *cc = new_contact();
     uint32_t moved = 0, nonfinite = 0, contacts = 0;
     for (int st = 0; st < 30; ++st) {
         CHECK_EQ(substep(cc, s, b, 2, 0.002f, 4, 1, NULL), RBC_OK);
@@ -879,9 +834,7 @@ static void time_layers(float th, float margin) {
     rbc_contact_body b[4];
     make_stack(s, 4, 64, 0.01f, 0.006f, 0.001f);
     for (int k = 0; k < 4; ++k) b[k] = body_of(&s[k], th, 0.3f, 1, 1);
-    rbc_allocator al = rbc_allocator_default();
-    rbc_clothcontact *cc = NULL;
-    CHECK_EQ(rbc_clothcontact_create(&al, &cc), RBC_OK);
+    rbc_clothcontact *cc = new_contact();
     for (int st = 0; st < 4; ++st) CHECK_EQ(substep(cc, s, b, 4, margin, 4, 1, NULL), RBC_OK);
     enum { REPS = 3 };
     /* Wall time and this thread's CPU time (the machine may be shared: CPU time leaves
@@ -954,9 +907,7 @@ static float one_pass(const float vx[3], const float vp[3], const float tx[3][3]
 }
 
 static void test_sliver_and_deep(void) {
-    rbc_allocator al = rbc_allocator_default();
-    rbc_clothcontact *cc = NULL;
-    CHECK_EQ(rbc_clothcontact_create(&al, &cc), RBC_OK);
+    rbc_clothcontact *cc = new_contact();
     /* A sliver (a quad sheared flat: corners nearly in a line) whose third corner
      * crosses the line by 1 mm, which turns its normal from -y to +y; the vertex,
      * 1.5 mm above the middle of its first edge, does not move. It was on the -y side
@@ -1023,9 +974,7 @@ static void test_sliver_and_deep(void) {
  * stopped it at x in its first round (in the funnel, vertices stood still for 20
  * frames while the springs around them stretched to 2.4 times their length). */
 static void test_failsafe_zone(void) {
-    rbc_allocator al = rbc_allocator_default();
-    rbc_clothcontact *cc = NULL;
-    CHECK_EQ(rbc_clothcontact_create(&al, &cc), RBC_OK);
+    rbc_clothcontact *cc = new_contact();
     const float L = 0.01f;
     sheet s[2] = {sheet_grid(10, 10, L, 0.0f, 0.0f, 0.0f),
                   sheet_grid(10, 10, L, 0.003f, 0.01f, 0.002f)};
@@ -1103,9 +1052,7 @@ static void test_failsafe_zone(void) {
  * which the valley's has self contact (1): contacts. Two bodies without self contact
  * (2) get none (flat layers do not pay for them): the crease ends crossed. */
 static void test_interior_ee(int mode) {
-    rbc_allocator al = rbc_allocator_default();
-    rbc_clothcontact *cc = NULL;
-    CHECK_EQ(rbc_clothcontact_create(&al, &cc), RBC_OK);
+    rbc_clothcontact *cc = new_contact();
     const float H = 0.005f, th = 0.0005f;
     /* Piece 0, the valley: rows z = -H, 0, H, columns x = -H, H; piece 1, the ridge:
      * rows x = -H, 0, H, columns z = -H, H. */

@@ -116,18 +116,23 @@ static uint32_t check_built(const char *name, const test_mesh *m, const rbc_topo
     return t->ncolors;
 }
 
+/* Builds t from in: whether it was built; a refusal fails the check with its message,
+ * under name. */
+static int build_ok(const char *name, const rbc_mesh_input *in, const rbc_allocator *a,
+                    rbc_topology *t) {
+    char err[256] = "";
+    int32_t rc = rbc_topology_build(in, a, t, err, sizeof err);
+    CHECK_EQ(rc, RBC_OK);
+    if (rc != RBC_OK) fprintf(stderr, "%s: %s\n", name, err);
+    return rc == RBC_OK;
+}
+
 static uint32_t check_topology(const char *name, const test_mesh *m, float shear, float bend,
                                uint32_t expect_springs, uint32_t expect_colors) {
     rbc_allocator a = rbc_allocator_default();
     rbc_mesh_input in = input_of(m, shear, bend);
     rbc_topology t;
-    char err[256] = "";
-    int32_t rc = rbc_topology_build(&in, &a, &t, err, sizeof err);
-    CHECK_EQ(rc, RBC_OK);
-    if (rc != RBC_OK) {
-        fprintf(stderr, "%s: %s\n", name, err);
-        return 0;
-    }
+    if (!build_ok(name, &in, &a, &t)) return 0;
     uint32_t k = check_built(name, m, &t, expect_springs, expect_colors);
     rbc_topology_free(&t, &a);
     return k;
@@ -148,11 +153,7 @@ static void check_grid(uint32_t nx, uint32_t ny, float shear, float bend, uint32
     rbc_allocator a = rbc_allocator_default();
     rbc_mesh_input in = input_of(&g, shear, bend);
     rbc_topology t;
-    char err[256] = "";
-    int32_t rc = rbc_topology_build(&in, &a, &t, err, sizeof err);
-    CHECK_EQ(rc, RBC_OK);
-    if (rc != RBC_OK) {
-        fprintf(stderr, "%s: %s\n", name, err);
+    if (!build_ok(name, &in, &a, &t)) {
         mesh_free(&g);
         return;
     }
@@ -236,14 +237,8 @@ static void check_too_many_colors(void) {
         for (uint32_t v = 0; v < nv; ++v) pos[3 * v] = (float)v;
         for (uint32_t i = 0; i < nv; ++i)
             for (uint32_t j = i + 1; j < nv; ++j) sp[2 * ns] = i, sp[2 * ns + 1] = j, ns++;
-        rbc_mesh_input in;
-        memset(&in, 0, sizeof in);
-        in.vertex_count = nv;
-        in.positions = pos;
-        in.spring_count = ns;
-        in.springs = sp;
-        in.vertex_mass = 1e-4f;
-        in.stiffness = K_STRUCT;
+        const rbc_mesh_input in = {.vertex_count = nv, .positions = pos, .spring_count = ns,
+                                   .springs = sp, .vertex_mass = 1e-4f, .stiffness = K_STRUCT};
         rbc_topology t;
         char err[256] = "";
         int32_t rc = rbc_topology_build(&in, &a, &t, err, sizeof err);

@@ -96,6 +96,73 @@ static double max_diff(const rbc_cloth_state *a, const rbc_cloth_state *b) {
     return d;
 }
 
+/* Two solvers alike, each with the same cloth: c[0] keeps its fast path (lattice or
+ * ELL), c[1] is made to take the CSR rows by the caller. */
+typedef struct twins {
+    rbc_allocator al;
+    rbc_solver s[2];
+    rbc_cloth_state *c[2];
+} twins;
+
+static void twins_init(twins *t, uint32_t threads) {
+    t->al = rbc_allocator_default();
+    for (int k = 0; k < 2; ++k) CHECK_EQ(rbc_solver_init(&t->s[k], &t->al, threads), RBC_OK);
+}
+
+/* Both solvers: kind, and no energy guard (the paths are compared, not the guard). */
+static void twins_settings(twins *t, rbc_solver_kind kind) {
+    rbc_solver_settings st = t->s[0].settings;
+    st.kind = kind;
+    st.energy_guard = RBC_ENERGY_GUARD_OFF;
+    for (int k = 0; k < 2; ++k) CHECK_EQ(rbc_solver_set_settings(&t->s[k], &st), RBC_OK);
+}
+
+static void twins_cloths(twins *t, const test_mesh *m, const uint32_t *pins, uint32_t npins) {
+    for (int k = 0; k < 2; ++k) t->c[k] = make(&t->s[k], m, pins, npins, 0.0f);
+}
+
+/* Steps both `frames` times at 2 ms: the largest max_diff of the two cloths after a
+ * frame. */
+static double twins_worst(twins *t, int frames) {
+    char err[256];
+    double worst = 0.0;
+    for (int f = 0; f < frames; ++f) {
+        CHECK_EQ(rbc_solver_step(&t->s[0], 0.002f, err, sizeof err), RBC_OK);
+        CHECK_EQ(rbc_solver_step(&t->s[1], 0.002f, err, sizeof err), RBC_OK);
+        worst = fmax(worst, max_diff(t->c[0], t->c[1]));
+    }
+    return worst;
+}
+
+static void twins_fini(twins *t) {
+    rbc_solver_fini(&t->s[0]);
+    rbc_solver_fini(&t->s[1]);
+}
+
+/* The scene of test_steps_grid and test_lattice_solver in tw (of `threads` threads):
+ * an nx x ny grid 1 m wide (*m), two corners and an interior particle pinned (an edge
+ * one when a side is 2; pins), the solvers set to kind after the cloths are made. */
+static void twins_pinned_grid(twins *tw, uint32_t threads, rbc_solver_kind kind, uint32_t nx,
+                              uint32_t ny, test_mesh *m, uint32_t pins[3]) {
+    twins_init(tw, threads);
+    *m = mesh_grid(nx, ny, 1.0f / (float)(nx - 1));
+    pins[0] = 0;
+    pins[1] = nx - 1;
+    pins[2] = nx * (ny / 2) + nx / 2;
+    twins_cloths(tw, m, pins, 3);
+    twins_settings(tw, kind);
+}
+
+/* The pins of c have not moved from their rest positions. */
+static void check_pins_at_rest(const rbc_cloth_state *c, const uint32_t *pins, int npins) {
+    const rbc_topology *t = &c->topo;
+    for (int p = 0; p < npins; ++p) {
+        uint32_t i = t->to_internal[pins[p]];
+        CHECK(c->x[0][i] == t->rest_x[i] && c->x[1][i] == t->rest_y[i] &&
+              c->x[2][i] == t->rest_z[i]);
+    }
+}
+
 static void test_rhs(void) {
     rbc_allocator al = rbc_allocator_default();
     rbc_solver s;
@@ -149,29 +216,14 @@ static void test_rhs(void) {
  * takes its whole-row vector loop, its split path (pins, the first and last rows) and
  * short rows. */
 static void test_steps_grid(rbc_solver_kind kind, uint32_t threads, uint32_t nx, uint32_t ny) {
-    rbc_allocator al = rbc_allocator_default();
-    rbc_solver s, s2;
-    CHECK_EQ(rbc_solver_init(&s, &al, threads), RBC_OK);
-    CHECK_EQ(rbc_solver_init(&s2, &al, threads), RBC_OK);
-    rbc_solver_settings st = s.settings;
-    st.kind = kind;
-    st.energy_guard = RBC_ENERGY_GUARD_OFF;
-    test_mesh m = mesh_grid(nx, ny, 1.0f / (float)(nx - 1));
-    uint32_t pins[3] = {0, nx - 1, nx * (ny / 2) + nx / 2};
-    rbc_cloth_state *fast = make(&s, &m, pins, 3, 0.0f);
-    rbc_cloth_state *csr = make(&s2, &m, pins, 3, 0.0f);
-    CHECK_EQ(rbc_solver_set_settings(&s, &st), RBC_OK);
-    CHECK_EQ(rbc_solver_set_settings(&s2, &st), RBC_OK);
-    CHECK(fast->grid != NULL);
-    rbc_grid_free(csr->grid, &al);
-    csr->grid = NULL;
-    char err[256];
-    double worst = 0.0;
-    for (int f = 0; f < 5; ++f) {
-        CHECK_EQ(rbc_solver_step(&s, 0.002f, err, sizeof err), RBC_OK);
-        CHECK_EQ(rbc_solver_step(&s2, 0.002f, err, sizeof err), RBC_OK);
-        worst = fmax(worst, max_diff(fast, csr));
-    }
+    twins tw;
+    test_mesh m;
+    uint32_t pins[3];
+    twins_pinned_grid(&tw, threads, kind, nx, ny, &m, pins);
+    CHECK(tw.c[0]->grid != NULL);
+    rbc_grid_free(tw.c[1]->grid, &tw.al);
+    tw.c[1]->grid = NULL;
+    double worst = twins_worst(&tw, 5);
     /* Each Gauss-Seidel update differs by the rounding of a 5-term sum (at most 5
      * roundings of |p| ~ 1 m: 3e-7 m) and of b; updates contract earlier differences
      * (rho < 1), so 5 frames of 11 iterations of 2 colors add at most
@@ -179,15 +231,9 @@ static void test_steps_grid(rbc_solver_kind kind, uint32_t threads, uint32_t nx,
     printf("%s, %u thread(s), %ux%u: fast path vs CSR path, worst |dp| over 5 frames %.3g m\n",
            kind == RBC_SOLVER_RBGS ? "rbgs" : "rbgs_sor", threads, nx, ny, worst);
     CHECK(worst <= 5.0 * 11 * 2 * 5 * ldexp(1.0, -24));
-    const rbc_topology *t = &fast->topo;
-    for (int p = 0; p < 3; ++p) {
-        uint32_t i = t->to_internal[pins[p]];
-        CHECK(fast->x[0][i] == t->rest_x[i] && fast->x[1][i] == t->rest_y[i] &&
-              fast->x[2][i] == t->rest_z[i]);
-    }
+    check_pins_at_rest(tw.c[0], pins, 3);
     mesh_free(&m);
-    rbc_solver_fini(&s);
-    rbc_solver_fini(&s2);
+    twins_fini(&tw);
 }
 
 static void test_steps(rbc_solver_kind kind, uint32_t threads) {
@@ -200,37 +246,25 @@ static void test_steps(rbc_solver_kind kind, uint32_t threads) {
  * updates summed in another order (b first, then the slots in the same order), so
  * the same bound as the lattice path; and bitwise equal for 1 and 2 threads. */
 static void test_ell(void) {
-    rbc_allocator al = rbc_allocator_default();
     test_mesh m = mesh_split_triangles(24);
     float *res[2];
     for (uint32_t nt = 1; nt <= 2; ++nt) {
-        rbc_solver s, s2;
-        CHECK_EQ(rbc_solver_init(&s, &al, nt), RBC_OK);
-        CHECK_EQ(rbc_solver_init(&s2, &al, nt), RBC_OK);
-        rbc_solver_settings st = s.settings;
-        st.energy_guard = RBC_ENERGY_GUARD_OFF;
-        CHECK_EQ(rbc_solver_set_settings(&s, &st), RBC_OK);
-        CHECK_EQ(rbc_solver_set_settings(&s2, &st), RBC_OK);
+        twins tw;
+        twins_init(&tw, nt);
+        twins_settings(&tw, RBC_SOLVER_RBGS); /* the default */
         uint32_t pins[2] = {0, 1};
-        rbc_cloth_state *fast = make(&s, &m, pins, 2, 0.0f);
-        rbc_cloth_state *csr = make(&s2, &m, pins, 2, 0.0f);
+        twins_cloths(&tw, &m, pins, 2);
+        rbc_cloth_state *fast = tw.c[0];
         CHECK(fast->grid == NULL && fast->ell != NULL);
-        rbc_ell_free(csr->ell, &al);
-        csr->ell = NULL;
-        char err[256];
-        double worst = 0.0;
-        for (int f = 0; f < 5; ++f) {
-            CHECK_EQ(rbc_solver_step(&s, 0.002f, err, sizeof err), RBC_OK);
-            CHECK_EQ(rbc_solver_step(&s2, 0.002f, err, sizeof err), RBC_OK);
-            worst = fmax(worst, max_diff(fast, csr));
-        }
+        rbc_ell_free(tw.c[1]->ell, &tw.al);
+        tw.c[1]->ell = NULL;
+        double worst = twins_worst(&tw, 5);
         printf("ell, %u thread(s): ELL vs CSR, worst |dp| over 5 frames %.3g m\n", nt, worst);
         CHECK(worst <= 5.0 * 11 * 2 * 8 * ldexp(1.0, -24)); /* up to 8 terms per sum */
         res[nt - 1] = malloc(sizeof(float) * 3 * fast->topo.n);
         rbc_cloth_state_read(fast, res[nt - 1]);
         if (nt == 2) CHECK(memcmp(res[0], res[1], sizeof(float) * 3 * fast->topo.n) == 0);
-        rbc_solver_fini(&s);
-        rbc_solver_fini(&s2);
+        twins_fini(&tw);
     }
     free(res[0]);
     free(res[1]);
@@ -256,19 +290,14 @@ static uint32_t color_of(const rbc_topology *t, uint32_t i) {
 }
 
 static void test_scattered_order(void) {
-    rbc_allocator al = rbc_allocator_default();
     test_mesh g = mesh_split_triangles(64);
     test_mesh m = mesh_shuffled(&g, 11, 0);
-    rbc_solver s, s2;
-    CHECK_EQ(rbc_solver_init(&s, &al, 1), RBC_OK);
-    CHECK_EQ(rbc_solver_init(&s2, &al, 1), RBC_OK);
-    rbc_solver_settings st = s.settings;
-    st.energy_guard = RBC_ENERGY_GUARD_OFF;
-    CHECK_EQ(rbc_solver_set_settings(&s, &st), RBC_OK);
-    CHECK_EQ(rbc_solver_set_settings(&s2, &st), RBC_OK);
+    twins tw;
+    twins_init(&tw, 1);
+    twins_settings(&tw, RBC_SOLVER_RBGS); /* the default */
     uint32_t pins[2] = {0, 1};
-    rbc_cloth_state *c = make(&s, &m, pins, 2, 0.0f);
-    rbc_cloth_state *csr = make(&s2, &m, pins, 2, 0.0f);
+    twins_cloths(&tw, &m, pins, 2);
+    rbc_cloth_state *c = tw.c[0];
     const rbc_topology *t = &c->topo;
     CHECK(c->grid == NULL && c->ell != NULL);
     double host = 0.0, mem = 0.0;
@@ -313,16 +342,11 @@ static void test_scattered_order(void) {
         }
     printf("scattered mesh: %zu ELL slots for %u spring ends\n", c->ell->slots, 2 * t->ns);
     CHECK_EQ(c->ell->slots, slots);
-    rbc_ell_free(csr->ell, &al);
-    csr->ell = NULL;
-    char err[256];
-    for (int f = 0; f < 5; ++f) {
-        CHECK_EQ(rbc_solver_step(&s, 0.002f, err, sizeof err), RBC_OK);
-        CHECK_EQ(rbc_solver_step(&s2, 0.002f, err, sizeof err), RBC_OK);
-    }
-    CHECK(max_diff(c, csr) == 0.0);
-    rbc_solver_fini(&s);
-    rbc_solver_fini(&s2);
+    rbc_ell_free(tw.c[1]->ell, &tw.al);
+    tw.c[1]->ell = NULL;
+    twins_worst(&tw, 5);
+    CHECK(max_diff(c, tw.c[1]) == 0.0); /* after the last frame */
+    twins_fini(&tw);
     mesh_free(&g);
     mesh_free(&m);
 }
@@ -425,23 +449,14 @@ static void vary_stiffness(rbc_cloth_state *c, const rbc_allocator *al) {
  * to record it). */
 static int test_lattice_solver(rbc_solver_kind kind, uint32_t nx, uint32_t ny, int vary,
                                uint32_t threads, float **ref) {
-    rbc_allocator al = rbc_allocator_default();
-    rbc_solver s, s2;
-    CHECK_EQ(rbc_solver_init(&s, &al, threads), RBC_OK);
-    CHECK_EQ(rbc_solver_init(&s2, &al, threads), RBC_OK);
-    rbc_solver_settings st = s.settings;
-    st.kind = kind;
-    st.energy_guard = RBC_ENERGY_GUARD_OFF;
-    test_mesh m = mesh_grid(nx, ny, 1.0f / (float)(nx - 1));
-    /* Two corners and an interior particle (an edge one when a side is 2). */
-    uint32_t pins[3] = {0, nx - 1, nx * (ny / 2) + nx / 2};
-    rbc_cloth_state *fast = make(&s, &m, pins, 3, 0.0f);
-    rbc_cloth_state *csr = make(&s2, &m, pins, 3, 0.0f);
-    CHECK_EQ(rbc_solver_set_settings(&s, &st), RBC_OK);
-    CHECK_EQ(rbc_solver_set_settings(&s2, &st), RBC_OK);
+    twins tw;
+    test_mesh m;
+    uint32_t pins[3];
+    twins_pinned_grid(&tw, threads, kind, nx, ny, &m, pins);
+    rbc_cloth_state *fast = tw.c[0], *csr = tw.c[1];
     if (vary) {
-        vary_stiffness(fast, &al);
-        vary_stiffness(csr, &al);
+        vary_stiffness(fast, &tw.al);
+        vary_stiffness(csr, &tw.al);
     }
     CHECK(fast->grid != NULL && csr->grid != NULL);
     if (!fast->grid || !csr->grid) return 0;
@@ -451,8 +466,8 @@ static int test_lattice_solver(rbc_solver_kind kind, uint32_t nx, uint32_t ny, i
     char err[256];
     int same = 1;
     for (int f = 0; f < 5; ++f) {
-        CHECK_EQ(rbc_solver_step(&s, 0.002f, err, sizeof err), RBC_OK);
-        CHECK_EQ(rbc_solver_step(&s2, 0.002f, err, sizeof err), RBC_OK);
+        CHECK_EQ(rbc_solver_step(&tw.s[0], 0.002f, err, sizeof err), RBC_OK);
+        CHECK_EQ(rbc_solver_step(&tw.s[1], 0.002f, err, sizeof err), RBC_OK);
         for (int ax = 0; ax < 3; ++ax)
             same &= memcmp(fast->x[ax], csr->x[ax], sizeof(float) * fast->topo.n) == 0;
     }
@@ -469,16 +484,9 @@ static int test_lattice_solver(rbc_solver_kind kind, uint32_t nx, uint32_t ny, i
     } else {
         *ref = res;
     }
-    /* The pins did not move. */
-    const rbc_topology *t = &fast->topo;
-    for (int p = 0; p < 3; ++p) {
-        uint32_t i = t->to_internal[pins[p]];
-        CHECK(fast->x[0][i] == t->rest_x[i] && fast->x[1][i] == t->rest_y[i] &&
-              fast->x[2][i] == t->rest_z[i]);
-    }
+    check_pins_at_rest(fast, pins, 3);
     mesh_free(&m);
-    rbc_solver_fini(&s);
-    rbc_solver_fini(&s2);
+    twins_fini(&tw);
     return same;
 }
 
@@ -570,38 +578,26 @@ static void test_negative_zero(void) {
  * stiffness (the broadcast would add the missing spring to the sweep's sum) and no
  * CSR-order path. RBGS on it agrees with the CSR path to test_steps' bound. */
 static void test_notch(void) {
-    rbc_allocator al = rbc_allocator_default();
-    rbc_solver s, s2;
-    CHECK_EQ(rbc_solver_init(&s, &al, 1), RBC_OK);
-    CHECK_EQ(rbc_solver_init(&s2, &al, 1), RBC_OK);
-    rbc_solver_settings st = s.settings;
-    st.energy_guard = RBC_ENERGY_GUARD_OFF;
-    CHECK_EQ(rbc_solver_set_settings(&s, &st), RBC_OK);
-    CHECK_EQ(rbc_solver_set_settings(&s2, &st), RBC_OK);
+    twins tw;
+    twins_init(&tw, 1);
+    twins_settings(&tw, RBC_SOLVER_RBGS); /* the default */
     test_mesh m = mesh_grid(30, 20, 1.0f / 29.0f);
     memcpy(m.quads + 4 * 3, m.quads + 4 * (m.nq - 1), 4 * sizeof(uint32_t)); /* quad (3, 0) */
     m.nq--;
     uint32_t pins[2] = {0, 29};
-    rbc_cloth_state *fast = make(&s, &m, pins, 2, 0.0f);
-    rbc_cloth_state *csr = make(&s2, &m, pins, 2, 0.0f);
+    twins_cloths(&tw, &m, pins, 2);
+    const rbc_cloth_state *fast = tw.c[0];
     CHECK(fast->grid != NULL);
     if (!fast->grid) return;
     CHECK(fast->grid->k_uniform == 0.0f && fast->grid->csr_order == 0);
-    rbc_grid_free(csr->grid, &al);
-    csr->grid = NULL;
-    char err[256];
-    double worst = 0.0;
-    for (int f = 0; f < 5; ++f) {
-        CHECK_EQ(rbc_solver_step(&s, 0.002f, err, sizeof err), RBC_OK);
-        CHECK_EQ(rbc_solver_step(&s2, 0.002f, err, sizeof err), RBC_OK);
-        worst = fmax(worst, max_diff(fast, csr));
-    }
+    rbc_grid_free(tw.c[1]->grid, &tw.al);
+    tw.c[1]->grid = NULL;
+    double worst = twins_worst(&tw, 5);
     printf("notched lattice, rbgs: fast path vs CSR path, worst |dp| over 5 frames %.3g m\n",
            worst);
     CHECK(worst <= 5.0 * 11 * 2 * 5 * ldexp(1.0, -24));
     mesh_free(&m);
-    rbc_solver_fini(&s);
-    rbc_solver_fini(&s2);
+    twins_fini(&tw);
 }
 
 int main(void) {

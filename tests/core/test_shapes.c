@@ -88,6 +88,14 @@ static rbc_shape_geom geom(rbc_shape kind, float r, float hx, float hy, float hz
 static const double BH[3] = {0.75, 0.375, 0.5}; /* box half extents (exact floats, and
                                                    exact on a 4 x 4 face lattice) */
 
+/* The shapes of the closed forms, and their geoms in that order. */
+static const rbc_shape KINDS[3] = {RBC_SHAPE_SPHERE, RBC_SHAPE_CAPSULE, RBC_SHAPE_BOX};
+static void analytic_geoms(rbc_shape_geom gs[3]) {
+    gs[0] = geom(RBC_SHAPE_SPHERE, (float)SR, 0, 0, 0);
+    gs[1] = geom(RBC_SHAPE_CAPSULE, (float)CR, 0, (float)CH, 0);
+    gs[2] = geom(RBC_SHAPE_BOX, 0, (float)BH[0], (float)BH[1], (float)BH[2]);
+}
+
 static double ref_distance(rbc_shape kind, const float qf[3], double n[3]) {
     double q[3] = {qf[0], qf[1], qf[2]};
     if (kind == RBC_SHAPE_SPHERE || kind == RBC_SHAPE_CAPSULE) {
@@ -154,17 +162,15 @@ static void sample_point(rbc_shape kind, float q[3]) {
 }
 
 static void test_analytic_distance(void) {
-    const rbc_shape kinds[3] = {RBC_SHAPE_SPHERE, RBC_SHAPE_CAPSULE, RBC_SHAPE_BOX};
-    rbc_shape_geom gs[3] = {geom(RBC_SHAPE_SPHERE, (float)SR, 0, 0, 0),
-                            geom(RBC_SHAPE_CAPSULE, (float)CR, 0, (float)CH, 0),
-                            geom(RBC_SHAPE_BOX, 0, (float)BH[0], (float)BH[1], (float)BH[2])};
+    rbc_shape_geom gs[3];
+    analytic_geoms(gs);
     for (int s = 0; s < 3; ++s) {
         double worst_phi = 0, worst_n = 0, worst_unit = 0;
         int bad_ret = 0, inside = 0;
         for (int it = 0; it < 20000; ++it) {
             float q[3], n[3], phi = NAN;
-            sample_point(kinds[s], q);
-            double nr[3], pr = ref_distance(kinds[s], q, nr);
+            sample_point(KINDS[s], q);
+            double nr[3], pr = ref_distance(KINDS[s], q, nr);
             int ret = rbc_shape_distance(&gs[s], q, INFINITY, &phi, n);
             bad_ret += ret != 1;
             inside += pr < 0;
@@ -174,7 +180,7 @@ static void test_analytic_distance(void) {
             worst_phi = fmax(worst_phi, fabs(phi - pr) / (U * fabs(pr) + 0x1p-45 * qn));
             /* Box points inside with two penetrations within rounding: either face. */
             int tie = 0;
-            if (kinds[s] == RBC_SHAPE_BOX && pr < 0) {
+            if (KINDS[s] == RBC_SHAPE_BOX && pr < 0) {
                 double pen[3];
                 for (int i = 0; i < 3; ++i) pen[i] = BH[i] - fabs((double)q[i]);
                 for (int i = 0; i < 3; ++i)
@@ -246,19 +252,17 @@ static void test_analytic_distance(void) {
  * h); inside a box, 0 while the stencil stays off the planes where two penetrations
  * tie. */
 static void test_gradient(void) {
-    const rbc_shape kinds[3] = {RBC_SHAPE_SPHERE, RBC_SHAPE_CAPSULE, RBC_SHAPE_BOX};
-    rbc_shape_geom gs[3] = {geom(RBC_SHAPE_SPHERE, (float)SR, 0, 0, 0),
-                            geom(RBC_SHAPE_CAPSULE, (float)CR, 0, (float)CH, 0),
-                            geom(RBC_SHAPE_BOX, 0, (float)BH[0], (float)BH[1], (float)BH[2])};
+    rbc_shape_geom gs[3];
+    analytic_geoms(gs);
     for (int s = 0; s < 3; ++s) {
         double worst_fd = 0, worst_ray = 0;
         int used = 0, along = 0;
         for (int it = 0; it < 4000; ++it) {
             float q[3], n[3], phi;
-            sample_point(kinds[s], q);
+            sample_point(KINDS[s], q);
             rbc_shape_distance(&gs[s], q, INFINITY, &phi, n);
             double L, axis_dist;
-            if (kinds[s] == RBC_SHAPE_BOX) {
+            if (KINDS[s] == RBC_SHAPE_BOX) {
                 if (phi >= 0) {
                     axis_dist = phi;
                 } else {
@@ -271,7 +275,7 @@ static void test_gradient(void) {
                     if (b - a < 0.02) continue; /* near a tie plane */
                 }
             } else {
-                double c = kinds[s] == RBC_SHAPE_CAPSULE ? fmin(fmax(q[1], -CH), CH) : 0;
+                double c = KINDS[s] == RBC_SHAPE_CAPSULE ? fmin(fmax(q[1], -CH), CH) : 0;
                 double d[3] = {q[0], q[1] - c, q[2]};
                 axis_dist = phi >= 0 ? phi : norm3(d);
             }
@@ -345,17 +349,15 @@ static void surface_point(rbc_shape kind, double p[3], double n[3]) {
 }
 
 static void test_analytic_raycast(void) {
-    const rbc_shape kinds[3] = {RBC_SHAPE_SPHERE, RBC_SHAPE_CAPSULE, RBC_SHAPE_BOX};
-    rbc_shape_geom gs[3] = {geom(RBC_SHAPE_SPHERE, (float)SR, 0, 0, 0),
-                            geom(RBC_SHAPE_CAPSULE, (float)CR, 0, (float)CH, 0),
-                            geom(RBC_SHAPE_BOX, 0, (float)BH[0], (float)BH[1], (float)BH[2])};
+    rbc_shape_geom gs[3];
+    analytic_geoms(gs);
     const double radius[3] = {SR, CR, INFINITY};
     for (int s = 0; s < 3; ++s) {
         double worst_t = 0, worst_n = 0;
         int missed = 0, false_hits = 0;
         for (int it = 0; it < 5000; ++it) {
             double p[3], ns[3], d[3];
-            surface_point(kinds[s], p, ns);
+            surface_point(KINDS[s], p, ns);
             do rand_dir(d);
             while (dot3(d, ns) > -0.3);
             double cos_t = -dot3(d, ns), len = rrange(0.1, 2.0), te = rrange(0.02, 0.98);
@@ -402,7 +404,7 @@ static void test_analytic_raycast(void) {
             /* Starting inside (depth >= 1e-3), going anywhere: no entry. */
             double depth = rrange(1e-3, 0.2);
             for (int i = 0; i < 3; ++i) ad[i] = p[i] - depth * ns[i], bd[i] = ad[i] + len * d[i];
-            if (kinds[s] == RBC_SHAPE_BOX) { /* keep inside: not deeper than the box */
+            if (KINDS[s] == RBC_SHAPE_BOX) { /* keep inside: not deeper than the box */
                 for (int i = 0; i < 3; ++i) ad[i] = fmax(fmin(ad[i], BH[i] - 1e-3), -BH[i] + 1e-3);
             }
             if (urand() < 0.5)
@@ -649,24 +651,49 @@ static double mesh_tol(double kappa, double M, const float q[3], double phi) {
     return 0x1p-47 * kappa * (M + normf(q)) + U * fabs(phi);
 }
 
+/* A tmesh as a triangle-mesh shape for the distance tests: the mesh, its geom and
+ * info, and its rounding factor (mesh_kappa). */
+typedef struct mesh_shape {
+    tmesh t;
+    struct rbc_trimesh *m;
+    rbc_shape_geom g;
+    rbc_trimesh_info info;
+    double kappa;
+} mesh_shape;
+
+/* Makes t (now owned by *s) a shape, closed or not as expected (checked); whether it
+ * could be made (t is freed if not). */
+static int mesh_shape_make(mesh_shape *s, tmesh t, int closed) {
+    s->t = t;
+    s->kappa = mesh_kappa(&s->t);
+    s->m = make(&s->t);
+    if (!s->m) {
+        tmesh_free(&s->t);
+        return 0;
+    }
+    rbc_trimesh_info_get(s->m, &s->info);
+    CHECK_EQ(s->info.closed, closed);
+    s->g = geom(RBC_SHAPE_TRIANGLE_MESH, 0, 0, 0, 0);
+    s->g.mesh = s->m;
+    return 1;
+}
+
+static void mesh_shape_free(mesh_shape *s) {
+    destroy(s->m);
+    tmesh_free(&s->t);
+}
+
 static void test_box_mesh(void) {
     rbc_shape_geom box = geom(RBC_SHAPE_BOX, 0, (float)BH[0], (float)BH[1], (float)BH[2]);
     for (int flip = 0; flip < 2; ++flip) {
-        tmesh t = box_mesh(BH, 4, flip);
-        double kap = mesh_kappa(&t);
-        struct rbc_trimesh *m = make(&t);
-        if (!m) return;
-        rbc_trimesh_info info;
-        rbc_trimesh_info_get(m, &info);
-        CHECK_EQ(info.closed, 1);
-        CHECK_EQ(info.triangles, 6 * 2 * 16);
-        CHECK_EQ(info.degenerate, 0);
-        CHECK_EQ(info.vertices, t.nv);
-        CHECK(info.lo[0] == -0.75f && info.hi[1] == 0.375f && info.lo[2] == -0.5f);
-        rbc_shape_geom g = geom(RBC_SHAPE_TRIANGLE_MESH, 0, 0, 0, 0);
-        g.mesh = m;
+        mesh_shape ms;
+        if (!mesh_shape_make(&ms, box_mesh(BH, 4, flip), 1)) return;
+        CHECK_EQ(ms.info.triangles, 6 * 2 * 16);
+        CHECK_EQ(ms.info.degenerate, 0);
+        CHECK_EQ(ms.info.vertices, ms.t.nv);
+        CHECK(ms.info.lo[0] == -0.75f && ms.info.hi[1] == 0.375f && ms.info.lo[2] == -0.5f);
         float lo[3], hi[3];
-        rbc_shape_bounds(&g, lo, hi);
+        rbc_shape_bounds(&ms.g, lo, hi);
         CHECK(lo[1] == -0.375f && hi[0] == 0.75f);
         double worst_phi = 0, worst_n = 0, worst_along = 0;
         int sign_bad = 0, inside = 0;
@@ -674,8 +701,8 @@ static void test_box_mesh(void) {
             float q[3], n[3], na[3], phi, pa;
             sample_point(RBC_SHAPE_BOX, q);
             rbc_shape_distance(&box, q, INFINITY, &pa, na);
-            CHECK_EQ(rbc_shape_distance(&g, q, INFINITY, &phi, n), 1);
-            double tol = mesh_tol(kap, 0.75, q, pa) + U * fabs(pa); /* + the box's rounding */
+            CHECK_EQ(rbc_shape_distance(&ms.g, q, INFINITY, &phi, n), 1);
+            double tol = mesh_tol(ms.kappa, 0.75, q, pa) + U * fabs(pa); /* + the box's rounding */
             worst_phi = fmax(worst_phi, fabs(phi - pa) / tol);
             sign_bad += fabs(pa) > tol && (phi < 0) != (pa < 0);
             inside += pa < 0;
@@ -706,10 +733,10 @@ static void test_box_mesh(void) {
                     dlt += ((double)q2[i] - q[i]) * n[i];
                     mag += fabs((double)q2[i] - q[i]);
                 }
-                rbc_shape_distance(&g, q2, INFINITY, &phi2, n2);
+                rbc_shape_distance(&ms.g, q2, INFINITY, &phi2, n2);
                 /* each phi's rounding, and n's (u per component) in dlt */
-                double tol2 =
-                    mesh_tol(kap, 0.75, q, phi) + mesh_tol(kap, 0.75, q2, phi2) + 2 * U * mag;
+                double tol2 = mesh_tol(ms.kappa, 0.75, q, phi) +
+                              mesh_tol(ms.kappa, 0.75, q2, phi2) + 2 * U * mag;
                 worst_along = fmax(worst_along, fabs(phi2 - (phi + dlt)) / tol2);
             }
         }
@@ -730,7 +757,7 @@ static void test_box_mesh(void) {
             sample_point(RBC_SHAPE_BOX, a);
             sample_point(RBC_SHAPE_BOX, b);
             int ha = rbc_shape_raycast(&box, a, b, &ta, na);
-            int hm = rbc_shape_raycast(&g, a, b, &tm, nm);
+            int hm = rbc_shape_raycast(&ms.g, a, b, &tm, nm);
             double dd[3] = {(double)b[0] - a[0], (double)b[1] - a[1], (double)b[2] - a[2]};
             /* grazing (|cos| < 0.05) segments may round either way */
             if (ha && fabs(dd[0] * na[0] + dd[1] * na[1] + dd[2] * na[2]) < 0.05 * norm3(dd))
@@ -748,8 +775,7 @@ static void test_box_mesh(void) {
                "8 ulps\n", flip ? " (inside out)" : "", disagree, worst_t);
         CHECK_EQ(disagree, 0);
         CHECK(worst_t <= 1.0);
-        destroy(m);
-        tmesh_free(&t);
+        mesh_shape_free(&ms);
     }
 }
 
@@ -758,30 +784,23 @@ static void test_box_mesh(void) {
  * sd_sphere(R) + (R - r_min) (support functions differ by at most that). */
 static void test_sphere_mesh(void) {
     const double R = 1.0;
-    tmesh t = uv_sphere(R, 64, 33);
-    double kap = mesh_kappa(&t);
-    struct rbc_trimesh *m = make(&t);
-    if (!m) return;
-    rbc_trimesh_info info;
-    rbc_trimesh_info_get(m, &info);
-    CHECK_EQ(info.closed, 1);
-    CHECK_EQ(info.triangles, t.nt);
+    mesh_shape ms;
+    if (!mesh_shape_make(&ms, uv_sphere(R, 64, 33), 1)) return;
+    CHECK_EQ(ms.info.triangles, ms.t.nt);
     double o[3] = {0, 0, 0}, rmin = INFINITY, rmax = 0;
-    for (uint32_t i = 0; i < t.nt; ++i)
-        rmin = fmin(rmin, sqrt(tri_d2_ref(o, t.pos, t.tri + 3 * i)));
-    for (uint32_t v = 0; v < t.nv; ++v) rmax = fmax(rmax, normf(t.pos + 3 * v));
+    for (uint32_t i = 0; i < ms.t.nt; ++i)
+        rmin = fmin(rmin, sqrt(tri_d2_ref(o, ms.t.pos, ms.t.tri + 3 * i)));
+    for (uint32_t v = 0; v < ms.t.nv; ++v) rmax = fmax(rmax, normf(ms.t.pos + 3 * v));
     double H = R - rmin;
-    printf("UV sphere (%u triangles): tessellation error H = R - r_min = %.4g\n", t.nt, H);
-    rbc_shape_geom g = geom(RBC_SHAPE_TRIANGLE_MESH, 0, 0, 0, 0);
-    g.mesh = m;
+    printf("UV sphere (%u triangles): tessellation error H = R - r_min = %.4g\n", ms.t.nt, H);
     double lo_gap = INFINITY, hi_gap = INFINITY;
     int sign_bad = 0, inside = 0, out_of_band = 0;
     for (int it = 0; it < 20000; ++it) {
         double d[3], rr = urand() < 0.5 ? rrange(0, 1.6) : R * (1 + rrange(-0.05, 0.05));
         rand_dir(d);
         float q[3] = {(float)(rr * d[0]), (float)(rr * d[1]), (float)(rr * d[2])}, n[3], phi;
-        CHECK_EQ(rbc_shape_distance(&g, q, INFINITY, &phi, n), 1);
-        double qn = normf(q), ps = qn - R, tol = mesh_tol(kap, R, q, phi);
+        CHECK_EQ(rbc_shape_distance(&ms.g, q, INFINITY, &phi, n), 1);
+        double qn = normf(q), ps = qn - R, tol = mesh_tol(ms.kappa, R, q, phi);
         /* qn - R_max - tol <= phi <= qn - R + H + tol; the gaps to each side, in H */
         out_of_band += phi < qn - rmax - tol || phi > ps + H + tol;
         lo_gap = fmin(lo_gap, (phi - (qn - rmax)) / H);
@@ -796,20 +815,12 @@ static void test_sphere_mesh(void) {
     CHECK_EQ(out_of_band, 0);
     CHECK_EQ(sign_bad, 0);
     CHECK(inside > 4000);
-    destroy(m);
-    tmesh_free(&t);
+    mesh_shape_free(&ms);
 }
 
 static void test_open_mesh(void) {
-    tmesh t = grid_mesh(16, 1.0);
-    double kap = mesh_kappa(&t);
-    struct rbc_trimesh *m = make(&t);
-    if (!m) return;
-    rbc_trimesh_info info;
-    rbc_trimesh_info_get(m, &info);
-    CHECK_EQ(info.closed, 0);
-    rbc_shape_geom g = geom(RBC_SHAPE_TRIANGLE_MESH, 0, 0, 0, 0);
-    g.mesh = m;
+    mesh_shape ms;
+    if (!mesh_shape_make(&ms, grid_mesh(16, 1.0), 0)) return;
     double worst_phi = 0, worst_n = 0;
     for (int it = 0; it < 20000; ++it) {
         float q[3] = {(float)rrange(-1.5, 1.5),
@@ -820,8 +831,8 @@ static void test_open_mesh(void) {
         double o[3] = {fmax(fabs(q[0]) - 1.0, 0.0), q[1], fmax(fabs(q[2]) - 1.0, 0.0)};
         o[0] = copysign(o[0], q[0]), o[2] = copysign(o[2], q[2]);
         double d = norm3(o);
-        CHECK_EQ(rbc_shape_distance(&g, q, INFINITY, &phi, n), 1);
-        double tol = mesh_tol(kap, 1.0, q, d);
+        CHECK_EQ(rbc_shape_distance(&ms.g, q, INFINITY, &phi, n), 1);
+        double tol = mesh_tol(ms.kappa, 1.0, q, d);
         worst_phi = fmax(worst_phi, fabs(phi - d) / tol);
         if (d > 1e-4)
             for (int i = 0; i < 3; ++i)
@@ -833,10 +844,10 @@ static void test_open_mesh(void) {
     CHECK(worst_n <= 1.0);
     /* Unsigned: nothing is within a negative max_dist; a point below gets n = -y. */
     float below[3] = {0.1f, -0.25f, 0.2f}, n[3], phi;
-    CHECK_EQ(rbc_shape_distance(&g, below, -0.01f, &phi, n), 0);
-    CHECK_EQ(rbc_shape_distance(&g, below, 0.3f, &phi, n), 1);
+    CHECK_EQ(rbc_shape_distance(&ms.g, below, -0.01f, &phi, n), 0);
+    CHECK_EQ(rbc_shape_distance(&ms.g, below, 0.3f, &phi, n), 1);
     CHECK(phi == 0.25f && n[1] == -1.0f);
-    CHECK_EQ(rbc_shape_distance(&g, below, 0.2f, &phi, n), 0);
+    CHECK_EQ(rbc_shape_distance(&ms.g, below, 0.2f, &phi, n), 0);
     /* Raycasts from both sides: t = a_y / (a_y - b_y) (the plane y = 0 in double from
      * the floats, rounded), n facing a. */
     int bad = 0;
@@ -848,7 +859,7 @@ static void test_open_mesh(void) {
         if (!from_above) a[1] = -a[1], b[1] = -b[1];
         float th, nn[3];
         double te = (double)a[1] / ((double)a[1] - b[1]);
-        if (!rbc_shape_raycast(&g, a, b, &th, nn)) {
+        if (!rbc_shape_raycast(&ms.g, a, b, &th, nn)) {
             ++bad;
             continue;
         }
@@ -856,15 +867,14 @@ static void test_open_mesh(void) {
         bad += nn[0] != 0 || nn[1] != (from_above ? 1.0f : -1.0f) || nn[2] != 0;
         /* Crossing y = 0 outside the square, or not at all: no hit. */
         float c[3] = {a[0] + 3, a[1], a[2]}, d2[3] = {b[0] + 3, b[1], b[2]};
-        bad += rbc_shape_raycast(&g, c, d2, &th, nn);
+        bad += rbc_shape_raycast(&ms.g, c, d2, &th, nn);
         float e[3] = {b[0], a[1] * 0.5f, b[2]};
-        bad += rbc_shape_raycast(&g, a, e, &th, nn);
+        bad += rbc_shape_raycast(&ms.g, a, e, &th, nn);
     }
     printf("open grid raycasts: worst t error %.3g of 2 ulps, %d wrong\n", worst_t, bad);
     CHECK_EQ(bad, 0);
     CHECK(worst_t <= 1.0);
-    destroy(m);
-    tmesh_free(&t);
+    mesh_shape_free(&ms);
 }
 
 /* BVH against the loop over every triangle: bitwise the same phi, n, t and returns

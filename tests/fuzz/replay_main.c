@@ -53,8 +53,14 @@ static int run_file(const char *path) {
     return 0;
 }
 
-static int cmp_names(const void *a, const void *b) {
-    return strcmp(*(char *const *)a, *(char *const *)b);
+/* The inputs of a folder: no hidden files, no README. */
+static int is_input(const struct dirent *e) {
+    return e->d_name[0] != '.' && strncmp(e->d_name, "README", 6) != 0;
+}
+
+/* By name, byte for byte (alphasort would follow the locale). */
+static int cmp_names(const struct dirent **a, const struct dirent **b) {
+    return strcmp((*a)->d_name, (*b)->d_name);
 }
 
 static int run_path(const char *path) {
@@ -64,32 +70,18 @@ static int run_path(const char *path) {
         return -1;
     }
     if (!S_ISDIR(st.st_mode)) return run_file(path);
-    DIR *d = opendir(path);
-    if (!d) {
+    struct dirent **names = NULL;
+    int n = scandir(path, &names, is_input, cmp_names);
+    if (n < 0) {
         fprintf(stderr, "replay: cannot read folder %s: %s\n", path, strerror(errno));
         return -1;
     }
-    char **names = NULL;
-    size_t n = 0, cap = 0;
-    struct dirent *e;
-    while ((e = readdir(d))) {
-        if (e->d_name[0] == '.' || strncmp(e->d_name, "README", 6) == 0) continue;
-        if (n == cap) {
-            cap = cap ? 2 * cap : 64;
-            char **grown = realloc(names, cap * sizeof *names);
-            if (!grown) break;
-            names = grown;
-        }
-        names[n++] = strdup(e->d_name);
-    }
-    closedir(d);
-    if (n) qsort(names, n, sizeof *names, cmp_names);
     int rc = 0;
-    for (size_t i = 0; i < n; i++) {
-        size_t len = strlen(path) + strlen(names[i]) + 2;
+    for (int i = 0; i < n; i++) {
+        size_t len = strlen(path) + strlen(names[i]->d_name) + 2;
         char *full = malloc(len);
         if (full) {
-            snprintf(full, len, "%s/%s", path, names[i]);
+            snprintf(full, len, "%s/%s", path, names[i]->d_name);
             struct stat fs;
             if (stat(full, &fs) == 0 && S_ISREG(fs.st_mode) && run_file(full) != 0) rc = -1;
             free(full);

@@ -7,6 +7,7 @@
  * file and what is wrong, and no mesh. */
 #define _XOPEN_SOURCE 700 /* mkdtemp, M_PI */
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -51,6 +52,73 @@ static rbc_mesh_info info_of(rbc_mesh_id m) {
     return info;
 }
 
+/* Mesh m's report, with the counts `expect` names checked exactly: "name value" pairs
+ * separated by commas ("vertex_count 12, quad_count 6"); a failure names the field and
+ * the caller's line. */
+#define CHECK_INFO(m, expect) check_info((m), (expect), __LINE__)
+#define INFO_FIELD(f) {#f, offsetof(rbc_mesh_info, f)}
+static const struct {
+    const char *name;
+    size_t offset; /* of a uint32_t */
+} INFO_FIELDS[] = {
+    INFO_FIELD(vertex_count), INFO_FIELD(quad_count), INFO_FIELD(spring_count),
+    INFO_FIELD(pin_count), INFO_FIELD(source_mesh_count), INFO_FIELD(source_vertex_count),
+    INFO_FIELD(source_face_count), INFO_FIELD(file_quads), INFO_FIELD(file_triangles),
+    INFO_FIELD(paired_triangles), INFO_FIELD(leftover_triangles), INFO_FIELD(ngons_split),
+    INFO_FIELD(quads_from_ngons), INFO_FIELD(triangles_from_ngons),
+    INFO_FIELD(points_lines_skipped), INFO_FIELD(degenerate_faces), INFO_FIELD(welded_vertices),
+    INFO_FIELD(unused_vertices), INFO_FIELD(color_count), INFO_FIELD(bipartite),
+    INFO_FIELD(pins_from_colors), INFO_FIELD(pins_from_rules), INFO_FIELD(pins_from_group),
+};
+
+static rbc_mesh_info check_info(rbc_mesh_id m, const char *expect, int line) {
+    rbc_mesh_info info = info_of(m);
+    for (const char *p = expect; *p;) {
+        char name[64];
+        unsigned long want = 0;
+        int used = 0;
+        if (sscanf(p, " %63[a-z_] %lu%n", name, &want, &used) != 2) {
+            CHECK(!"CHECK_INFO: \"name value\" pairs");
+            fprintf(stderr, "  line %d: cannot read \"%s\"\n", line, p);
+            break;
+        }
+        p += used;
+        p += *p == ',';
+        size_t k = 0, n = sizeof INFO_FIELDS / sizeof INFO_FIELDS[0];
+        while (k < n && strcmp(INFO_FIELDS[k].name, name) != 0) ++k;
+        if (k == n) {
+            CHECK(!"CHECK_INFO: counts of rbc_mesh_info");
+            fprintf(stderr, "  line %d: rbc_mesh_info has no count %s\n", line, name);
+            continue;
+        }
+        uint32_t got;
+        memcpy(&got, (const char *)&info + INFO_FIELDS[k].offset, sizeof got);
+        CHECK_EQ(got, want);
+        if (got != want) fprintf(stderr, "  line %d: info.%s\n", line, name);
+    }
+    return info;
+}
+
+/* Imports path with def (NULL: the defaults): it succeeds, its report has the counts
+ * `expect` names (as CHECK_INFO), and the mesh is destroyed. */
+#define CHECK_IMPORT(path, def, expect) check_import((path), (def), (expect), __LINE__)
+static void check_import(const char *path, const rbc_mesh_import_def *def, const char *expect,
+                         int line) {
+    rbc_mesh_id m = 0;
+    CHECK_EQ(rbc_mesh_import(path, def, &m), RBC_OK);
+    if (!m) fprintf(stderr, "  line %d: %s: %s\n", line, path, rbc_last_error());
+    check_info(m, expect, line);
+    CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
+}
+
+/* grid_obj(4, 3, 0.1, triangles) written to the file `name`: its path. */
+static const char *write_grid(const char *name, int triangles) {
+    char *text = grid_obj(4, 3, 0.1, triangles);
+    const char *path = write_file(name, text);
+    free(text);
+    return path;
+}
+
 /* Every quad of the mesh is a square of side h (its four edges). */
 static int quads_are_squares(rbc_mesh_id m, double h) {
     size_t np = 0, nq = 0;
@@ -89,26 +157,14 @@ static void expect_refused(const char *path, const rbc_mesh_import_def *def, rbc
 }
 
 static void test_quad_grid(void) {
-    char *text = grid_obj(4, 3, 0.1, 0);
-    const char *path = write_file("quads.obj", text);
-    free(text);
+    const char *path = write_grid("quads.obj", 0);
     rbc_mesh_id m = 0;
     CHECK_EQ(rbc_mesh_import(path, NULL, &m), RBC_OK);
-    rbc_mesh_info i = info_of(m);
-    CHECK_EQ(i.vertex_count, 12);
-    CHECK_EQ(i.quad_count, 6);
-    CHECK_EQ(i.spring_count, 0);
-    CHECK_EQ(i.file_quads, 6);
-    CHECK_EQ(i.file_triangles, 0);
-    CHECK_EQ(i.paired_triangles, 0);
-    CHECK_EQ(i.leftover_triangles, 0);
-    CHECK_EQ(i.ngons_split, 0);
-    CHECK_EQ(i.degenerate_faces, 0);
-    CHECK_EQ(i.source_mesh_count, 1);
-    CHECK_EQ(i.source_face_count, 6);
-    CHECK_EQ(i.pin_count, 0);
-    CHECK_EQ(i.bipartite, 1);
-    CHECK_EQ(i.color_count, 2);
+    rbc_mesh_info i = CHECK_INFO(m, "vertex_count 12, quad_count 6, spring_count 0, "
+                                    "file_quads 6, file_triangles 0, paired_triangles 0, "
+                                    "leftover_triangles 0, ngons_split 0, degenerate_faces 0, "
+                                    "source_mesh_count 1, source_face_count 6, pin_count 0, "
+                                    "bipartite 1, color_count 2");
     CHECK_NEAR(i.bounds_max[0], 0.3, 1e-7);
     CHECK_NEAR(i.bounds_max[1], 0.2, 1e-7);
     CHECK(quads_are_squares(m, 0.1));
@@ -134,10 +190,7 @@ static void test_quad_grid(void) {
     d.pin_top_axis = 1;
     rbc_mesh_id mp = 0;
     CHECK_EQ(rbc_mesh_import(path, &d, &mp), RBC_OK);
-    rbc_mesh_info ip = info_of(mp);
-    CHECK_EQ(ip.pin_count, 4);
-    CHECK_EQ(ip.pins_from_rules, 4);
-    CHECK_EQ(ip.pins_from_colors, 0);
+    rbc_mesh_info ip = CHECK_INFO(mp, "pin_count 4, pins_from_rules 4, pins_from_colors 0");
     uint32_t pins[4];
     CHECK_EQ(rbc_mesh_get_pins(mp, pins, 4, &n), RBC_OK);
     float p[36];
@@ -184,73 +237,44 @@ static void test_quad_grid(void) {
 }
 
 static void test_triangle_grid(void) {
-    char *text = grid_obj(4, 3, 0.1, 1);
-    const char *path = write_file("triangles.obj", text);
-    free(text);
+    const char *path = write_grid("triangles.obj", 1);
     /* Paired back into the 6 squares (score 0 beats the 45-degree parallelograms). */
     rbc_mesh_id m = 0;
     CHECK_EQ(rbc_mesh_import(path, NULL, &m), RBC_OK);
-    rbc_mesh_info i = info_of(m);
-    CHECK_EQ(i.vertex_count, 12);
-    CHECK_EQ(i.file_triangles, 12);
-    CHECK_EQ(i.paired_triangles, 12);
-    CHECK_EQ(i.leftover_triangles, 0);
-    CHECK_EQ(i.quad_count, 6);
-    CHECK_EQ(i.spring_count, 0);
-    CHECK_EQ(i.bipartite, 1);
-    CHECK_EQ(i.color_count, 2);
+    CHECK_INFO(m, "vertex_count 12, file_triangles 12, paired_triangles 12, "
+                  "leftover_triangles 0, quad_count 6, spring_count 0, bipartite 1, "
+                  "color_count 2");
     CHECK(quads_are_squares(m, 0.1));
     CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
 
     /* No pairing: every edge a spring (9 horizontal, 8 vertical, 6 diagonals). */
     rbc_mesh_import_def d = rbc_mesh_import_def_default();
     d.pair_triangles = 0;
-    CHECK_EQ(rbc_mesh_import(path, &d, &m), RBC_OK);
-    i = info_of(m);
-    CHECK_EQ(i.quad_count, 0);
-    CHECK_EQ(i.leftover_triangles, 12);
-    CHECK_EQ(i.spring_count, 23);
-    CHECK_EQ(i.bipartite, 0);
-    CHECK_EQ(i.color_count, 3);
-    CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
+    CHECK_IMPORT(path, &d, "quad_count 0, leftover_triangles 12, spring_count 23, bipartite 0, "
+                           "color_count 3");
 
     /* A strip of three triangles: one pair, one leftover whose two free edges are
      * springs (the third is the quad's edge). Bounds too tight: no pair at all. */
     const char *strip = write_file("strip.obj",
                                    "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv 2 0 0\n"
                                    "f 1 2 3\nf 1 3 4\nf 2 5 3\n");
-    CHECK_EQ(rbc_mesh_import(strip, NULL, &m), RBC_OK);
-    i = info_of(m);
-    CHECK_EQ(i.quad_count, 1);
-    CHECK_EQ(i.paired_triangles, 2);
-    CHECK_EQ(i.leftover_triangles, 1);
-    CHECK_EQ(i.spring_count, 2);
-    CHECK_EQ(i.bipartite, 0);
-    CHECK_EQ(i.color_count, 3);
-    CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
+    CHECK_IMPORT(strip, NULL, "quad_count 1, paired_triangles 2, leftover_triangles 1, "
+                              "spring_count 2, bipartite 0, color_count 3");
     /* The angle bound: within 1 degree of square, 1-2 still pairs. The fold bound: two
      * triangles folded 90 degrees about their shared edge pair only when allowed. */
     d = rbc_mesh_import_def_default();
     d.pair_max_angle_deviation_deg = 1.0f; /* squares only: 1-2 is one */
-    CHECK_EQ(rbc_mesh_import(strip, &d, &m), RBC_OK);
-    CHECK_EQ(info_of(m).paired_triangles, 2);
-    CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
+    CHECK_IMPORT(strip, &d, "paired_triangles 2");
     /* A unit square folded 60 degrees about its diagonal (1)-(3): corner angles 90
      * and 75.5 (deviation 14.5), fold 60. */
     const char *folded = write_file("folded.obj",
                                     "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0.25 0.75 0.612372436\n"
                                     "f 1 2 3\nf 1 3 4\n");
-    CHECK_EQ(rbc_mesh_import(folded, NULL, &m), RBC_OK);
-    i = info_of(m);
-    CHECK_EQ(i.paired_triangles, 0); /* 60-degree fold > 30 */
-    CHECK_EQ(i.leftover_triangles, 2);
-    CHECK_EQ(i.spring_count, 5);
-    CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
+    CHECK_IMPORT(folded, NULL, "paired_triangles 0, " /* 60-degree fold > 30 */
+                               "leftover_triangles 2, spring_count 5");
     d = rbc_mesh_import_def_default();
     d.pair_max_fold_deg = 61.0f;
-    CHECK_EQ(rbc_mesh_import(folded, &d, &m), RBC_OK);
-    CHECK_EQ(info_of(m).paired_triangles, 2);
-    CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
+    CHECK_IMPORT(folded, &d, "paired_triangles 2");
 }
 
 static void test_ngons(void) {
@@ -261,16 +285,10 @@ static void test_ngons(void) {
     p += sprintf(p, "v 2 0 0\nv 2.5 1 0\nv 2 1.5 0\n"); /* 7 8 9 */
     p += sprintf(p, "f 1 2 3 4 5 6\nf 1 7 8 9 2\n");
     const char *path = write_file("ngons.obj", text);
-    rbc_mesh_id m = 0;
-    CHECK_EQ(rbc_mesh_import(path, NULL, &m), RBC_OK);
-    rbc_mesh_info i = info_of(m);
-    CHECK_EQ(i.ngons_split, 2);
-    CHECK_EQ(i.quads_from_ngons, 3);      /* 2 from the hexagon, 1 from the pentagon */
-    CHECK_EQ(i.triangles_from_ngons, 1);  /* the pentagon's last piece */
-    CHECK_EQ(i.quad_count, 3);
-    CHECK_EQ(i.leftover_triangles, 1);
-    CHECK_EQ(i.vertex_count, 9);
-    CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
+    CHECK_IMPORT(path, NULL, "ngons_split 2, "
+                             "quads_from_ngons 3, " /* 2 from the hexagon, 1 from the pentagon */
+                             "triangles_from_ngons 1, " /* the pentagon's last piece */
+                             "quad_count 3, leftover_triangles 1, vertex_count 9");
     rbc_mesh_import_def d = rbc_mesh_import_def_default();
     d.ngons = RBC_NGON_REFUSE;
     expect_refused(path, &d, RBC_ERR_BAD_MESH, "face 0 has 6 corners");
@@ -284,41 +302,28 @@ static void test_weld_select_scale(void) {
                                   "o B\nv 1 0 0\nv 2 0 0\nv 2 1 0\nv 1 1 0\nf 5 6 7 8\n"
                                   "o C\nv 2.0001 0 0\nv 3 0 0\nv 3 1 0\nv 2.0001 1 0\nf 9 10 11 12\n");
     rbc_mesh_id m = 0;
-    CHECK_EQ(rbc_mesh_import(path, NULL, &m), RBC_OK);
-    rbc_mesh_info i = info_of(m);
-    CHECK_EQ(i.source_mesh_count, 3);
-    CHECK_EQ(i.source_vertex_count, 12);
-    CHECK_EQ(i.welded_vertices, 2);
-    CHECK_EQ(i.vertex_count, 10);
-    CHECK_EQ(i.quad_count, 3);
-    CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
+    CHECK_IMPORT(path, NULL, "source_mesh_count 3, source_vertex_count 12, welded_vertices 2, "
+                             "vertex_count 10, quad_count 3");
 
     rbc_mesh_import_def d = rbc_mesh_import_def_default();
     d.weld_distance = 1e-3f;
-    CHECK_EQ(rbc_mesh_import(path, &d, &m), RBC_OK);
-    CHECK_EQ(info_of(m).welded_vertices, 4);
-    CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
+    CHECK_IMPORT(path, &d, "welded_vertices 4");
     d = rbc_mesh_import_def_default();
     d.weld = 0;
-    CHECK_EQ(rbc_mesh_import(path, &d, &m), RBC_OK);
-    CHECK_EQ(info_of(m).vertex_count, 12);
-    CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
+    CHECK_IMPORT(path, &d, "vertex_count 12");
 
     d = rbc_mesh_import_def_default();
     d.mesh_name = "B";
     d.scale = 0.01f;
     CHECK_EQ(rbc_mesh_import(path, &d, &m), RBC_OK);
-    i = info_of(m);
-    CHECK_EQ(i.source_mesh_count, 1);
-    CHECK_EQ(i.quad_count, 1);
+    rbc_mesh_info i = CHECK_INFO(m, "source_mesh_count 1, quad_count 1");
     CHECK_NEAR(i.bounds_min[0], 0.01, 1e-9);
     CHECK_NEAR(i.bounds_max[0], 0.02, 1e-9);
     CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
     d = rbc_mesh_import_def_default();
     d.mesh_index = 2;
     CHECK_EQ(rbc_mesh_import(path, &d, &m), RBC_OK);
-    i = info_of(m);
-    CHECK_EQ(i.source_mesh_count, 1);
+    i = CHECK_INFO(m, "source_mesh_count 1");
     CHECK_NEAR(i.bounds_max[0], 3.0, 1e-7);
     CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
     d.mesh_index = 3;
@@ -332,12 +337,8 @@ static void test_weld_select_scale(void) {
     d = rbc_mesh_import_def_default();
     d.pin_group = "B";
     CHECK_EQ(rbc_mesh_import(path, &d, &m), RBC_OK);
-    i = info_of(m);
-    CHECK_EQ(i.vertex_count, 10);
-    CHECK_EQ(i.pin_count, 4);
-    CHECK_EQ(i.pins_from_group, 4);
-    CHECK_EQ(i.pins_from_colors, 0);
-    CHECK_EQ(i.pins_from_rules, 0);
+    CHECK_INFO(m, "vertex_count 10, pin_count 4, pins_from_group 4, pins_from_colors 0, "
+                  "pins_from_rules 0");
     uint32_t pins[10];
     size_t pc = 0, pn = 0;
     float pos[30];
@@ -388,9 +389,7 @@ static void test_node_transforms(void) {
         fprintf(stderr, "  nodes.dae: %s\n", rbc_last_error());
         return;
     }
-    rbc_mesh_info i = info_of(m);
-    CHECK_EQ(i.vertex_count, 4);
-    CHECK_EQ(i.quad_count, 1);
+    rbc_mesh_info i = CHECK_INFO(m, "vertex_count 4, quad_count 1");
     /* Exact in floats: 2 * {0, 1} + 10. */
     CHECK_NEAR(i.bounds_min[0], 10.0, 1e-6);
     CHECK_NEAR(i.bounds_max[0], 12.0, 1e-6);
@@ -434,12 +433,7 @@ static void test_ply_pins(void) {
     const char *path = write_file("pins.ply", text);
     rbc_mesh_id m = 0;
     CHECK_EQ(rbc_mesh_import(path, NULL, &m), RBC_OK);
-    rbc_mesh_info i = info_of(m);
-    CHECK_EQ(i.vertex_count, 16);
-    CHECK_EQ(i.file_quads, 9);
-    CHECK_EQ(i.quad_count, 9);
-    CHECK_EQ(i.pins_from_colors, 4);
-    CHECK_EQ(i.pin_count, 4);
+    CHECK_INFO(m, "vertex_count 16, file_quads 9, quad_count 9, pins_from_colors 4, pin_count 4");
     uint32_t pins[16];
     float pos[48];
     size_t n = 0;
@@ -458,18 +452,11 @@ static void test_ply_pins(void) {
     d.pin_point[0] = 3.0f;
     d.pin_point[1] = 3.0f;
     d.pin_point_distance = 1.01f;
-    CHECK_EQ(rbc_mesh_import(path, &d, &m), RBC_OK);
-    i = info_of(m);
-    CHECK_EQ(i.pins_from_colors, 0);
-    CHECK_EQ(i.pins_from_rules, 7);
-    CHECK_EQ(i.pin_count, 7);
-    CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
+    CHECK_IMPORT(path, &d, "pins_from_colors 0, pins_from_rules 7, pin_count 7");
     /* Both: colors (top row, 4) and the plane (bottom row, 4). */
     d.pin_color_threshold = 0.5f;
     d.pin_point_distance = -1.0f;
-    CHECK_EQ(rbc_mesh_import(path, &d, &m), RBC_OK);
-    CHECK_EQ(info_of(m).pin_count, 8);
-    CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
+    CHECK_IMPORT(path, &d, "pin_count 8");
 }
 
 static void test_bad_input(void) {

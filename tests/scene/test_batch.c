@@ -39,6 +39,13 @@ static pid_t start_batch(const char *manifest, const char *out, const char *log)
     return proc_start(g_cli, NULL, log, args);
 }
 
+/* A case's manifest g_out/NAME.json (json, whose each %s is the mesh folder), its
+ * --out folder g_out/NAME and its log g_out/NAME.log. */
+static struct batch_case setup_case(const char *name, const char *json) {
+    return batch_case_in(g_out, g_meshes, fmt("%s%s", name, ".json"), name,
+                         fmt("%s%s", name, ".log"), json);
+}
+
 static uint32_t le32(const unsigned char *p) {
     return (uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 | (uint32_t)p[3] << 24;
 }
@@ -140,97 +147,57 @@ static void check_report_json(const char *out, const char *const *names,
 }
 
 static void test_failures_and_resume(void) {
-    char out[1024], manifest[1100], log[1100];
-    snprintf(out, sizeof out, "%s/mixed", g_out);
-    snprintf(manifest, sizeof manifest, "%s/mixed.json", g_out);
-    snprintf(log, sizeof log, "%s/mixed.log", g_out);
-    write_text_sub(manifest,
-                   "{\"defaults\": {\"frames\": 12,"
-                   " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
-                   " \"jobs\": [\n"
-                   "  {\"name\": \"grid\", \"mesh\": \"%s/grid_20x20.obj\","
-                   " \"pins\": {\"top_axis\": \"z\"}},\n"
-                   "  {\"name\": \"missing\", \"mesh\": \"%s/no_such_mesh.obj\"},\n"
-                   "  {\"name\": \"patch\", \"mesh\": \"%s/tri_patch.obj\","
-                   " \"solver\": \"multicolor_gs\", \"pins\": {\"top_axis\": \"y\"},"
-                   " \"frames\": 7},\n"
-                   "  {\"name\": \"scene\", \"scene\": \"default\", \"frames\": 3,"
-                   " \"outputs\": [\"pc2\", \"mdd\"]}\n"
-                   " ]}\n",
-                   g_meshes);
-    CHECK_EQ(proc_wait(start_batch(manifest, out, log)), 1);
-    CHECK(log_contains(log, "missing: failed: import: RBC_ERR_IO"));
-    CHECK(log_contains(log, "no_such_mesh.obj"));
-    check_caches(out, "grid", 441, 12, 1, 1);
-    check_caches(out, "patch", 121, 7, 1, 1);
-    check_caches(out, "scene", 10000, 3, 1, 0);
-    CHECK(exists(fmt("%s/%s", out, "grid/grid.obj")));
-    CHECK_EQ(count_tmp(out), 0);
+    struct batch_case c = setup_case(
+        "mixed",
+        "{\"defaults\": {\"frames\": 12,"
+        " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
+        " \"jobs\": [\n"
+        "  {\"name\": \"grid\", \"mesh\": \"%s/grid_20x20.obj\","
+        " \"pins\": {\"top_axis\": \"z\"}},\n"
+        "  {\"name\": \"missing\", \"mesh\": \"%s/no_such_mesh.obj\"},\n"
+        "  {\"name\": \"patch\", \"mesh\": \"%s/tri_patch.obj\","
+        " \"solver\": \"multicolor_gs\", \"pins\": {\"top_axis\": \"y\"},"
+        " \"frames\": 7},\n"
+        "  {\"name\": \"scene\", \"scene\": \"default\", \"frames\": 3,"
+        " \"outputs\": [\"pc2\", \"mdd\"]}\n"
+        " ]}\n");
+    CHECK_EQ(proc_wait(start_batch(c.manifest, c.out, c.log)), 1);
+    CHECK(log_contains(c.log, "missing: failed: import: RBC_ERR_IO"));
+    CHECK(log_contains(c.log, "no_such_mesh.obj"));
+    check_caches(c.out, "grid", 441, 12, 1, 1);
+    check_caches(c.out, "patch", 121, 7, 1, 1);
+    check_caches(c.out, "scene", 10000, 3, 1, 0);
+    CHECK(exists(fmt("%s/%s", c.out, "grid/grid.obj")));
+    CHECK_EQ(count_tmp(c.out), 0);
     static const char *const names[] = {"grid", "missing", "patch", "scene"};
     static const char *const first[] = {"ok", "failed", "ok", "ok"};
-    check_report_json(out, names, first, 4);
+    check_report_json(c.out, names, first, 4);
 
     /* Rerun: finished jobs skipped, the missing mesh still fails. */
-    CHECK_EQ(proc_wait(start_batch(manifest, out, log)), 1);
-    CHECK(log_contains(log, "skipped grid"));
-    CHECK(log_contains(log, "0 ok, 3 skipped, 1 failed"));
+    CHECK_EQ(proc_wait(start_batch(c.manifest, c.out, c.log)), 1);
+    CHECK(log_contains(c.log, "skipped grid"));
+    CHECK(log_contains(c.log, "0 ok, 3 skipped, 1 failed"));
     static const char *const second[] = {"skipped", "failed", "skipped", "skipped"};
-    check_report_json(out, names, second, 4);
-}
-
-static void test_interrupt(void) {
-    char out[1024], manifest[1100], log[1100];
-    snprintf(out, sizeof out, "%s/interrupted", g_out);
-    snprintf(manifest, sizeof manifest, "%s/interrupted.json", g_out);
-    snprintf(log, sizeof log, "%s/interrupted.log", g_out);
-    write_text_sub(manifest,
-                   "{\"jobs\": [\n"
-                   "  {\"name\": \"long\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000,"
-                   " \"pins\": {\"top_axis\": \"z\"},"
-                   " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
-                   "  {\"name\": \"short\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 10,"
-                   " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
-                   "  {\"name\": \"later\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 1000000}\n"
-                   " ]}\n",
-                   g_meshes);
-    pid_t pid = start_batch(manifest, out, log);
-    /* Wait until the short job has finished ("later" then runs), at most 10 s. */
-    int seen = wait_for_files(fmt("%s/%s", out, "short/short.result.json"), NULL, 500, 0.02);
-    CHECK(seen);
-    nap(0.2); /* let the long jobs write tmp files */
-    kill(pid, SIGINT);
-    CHECK_EQ(proc_wait(pid), 1);
-    CHECK(log_contains(log, "long: interrupted"));
-    check_caches(out, "short", 45, 10, 1, 1);
-    CHECK(!exists(fmt("%s/%s", out, "long/long.pc2")));
-    CHECK(!exists(fmt("%s/%s", out, "long/frames/long_0001.obj")));
-    CHECK_EQ(count_tmp(out), 0);
-    static const char *const names[] = {"long", "short", "later"};
-    static const char *const statuses[] = {"interrupted", "ok", "interrupted"};
-    check_report_json(out, names, statuses, 3);
+    check_report_json(c.out, names, second, 4);
 }
 
 /* A worker killed with SIGKILL in the middle of its frames (a job the OOM killer or a
  * user ends): the batch reports it crashed, removes its temporary files, runs the
  * rest, and exits 1. The worker is found as the batch's child process. */
 static void test_killed_job(void) {
-    char out[1024], manifest[1100], log[1100];
-    snprintf(out, sizeof out, "%s/killed", g_out);
-    snprintf(manifest, sizeof manifest, "%s/killed.json", g_out);
-    snprintf(log, sizeof log, "%s/killed.log", g_out);
-    write_text_sub(manifest,
-                   "{\"jobs\": [\n"
-                   "  {\"name\": \"victim\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000,"
-                   " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
-                   "  {\"name\": \"after\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 10,"
-                   " \"outputs\": [\"pc2\"]}\n"
-                   " ]}\n",
-                   g_meshes);
-    pid_t pid = start_batch(manifest, out, log); /* the victim is forked first */
+    struct batch_case c = setup_case(
+        "killed",
+        "{\"jobs\": [\n"
+        "  {\"name\": \"victim\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000,"
+        " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
+        "  {\"name\": \"after\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 10,"
+        " \"outputs\": [\"pc2\"]}\n"
+        " ]}\n");
+    pid_t pid = start_batch(c.manifest, c.out, c.log); /* the victim is forked first */
     long worker = 0;
     for (int k = 0; k < 500 && worker <= 0; ++k) { /* at most 10 s */
         nap(0.02);
-        if (!exists(fmt("%s/%s", out, "victim"))) continue; /* the victim has started */
+        if (!exists(fmt("%s/%s", c.out, "victim"))) continue; /* the victim has started */
         worker = proc_first_child(pid);
     }
     CHECK(worker > 0);
@@ -241,10 +208,38 @@ static void test_killed_job(void) {
         kill(pid, SIGINT); /* never leave the batch running */
     }
     CHECK_EQ(proc_wait(pid), 1);
-    CHECK(log_contains(log, "victim: crashed: signal 9"));
-    CHECK(exists(fmt("%s/%s", out, "after/after.pc2")));
-    CHECK(!exists(fmt("%s/%s", out, "victim/victim.pc2")));
-    CHECK_EQ(count_tmp(out), 0);
+    CHECK(log_contains(c.log, "victim: crashed: signal 9"));
+    CHECK(exists(fmt("%s/%s", c.out, "after/after.pc2")));
+    CHECK(!exists(fmt("%s/%s", c.out, "victim/victim.pc2")));
+    CHECK_EQ(count_tmp(c.out), 0);
+}
+
+static void test_interrupt(void) {
+    struct batch_case c = setup_case(
+        "interrupted",
+        "{\"jobs\": [\n"
+        "  {\"name\": \"long\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000,"
+        " \"pins\": {\"top_axis\": \"z\"},"
+        " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
+        "  {\"name\": \"short\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 10,"
+        " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
+        "  {\"name\": \"later\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 1000000}\n"
+        " ]}\n");
+    pid_t pid = start_batch(c.manifest, c.out, c.log);
+    /* Wait until the short job has finished ("later" then runs), at most 10 s. */
+    int seen = wait_for_files(fmt("%s/%s", c.out, "short/short.result.json"), NULL, 500, 0.02);
+    CHECK(seen);
+    nap(0.2); /* let the long jobs write tmp files */
+    kill(pid, SIGINT);
+    CHECK_EQ(proc_wait(pid), 1);
+    CHECK(log_contains(c.log, "long: interrupted"));
+    check_caches(c.out, "short", 45, 10, 1, 1);
+    CHECK(!exists(fmt("%s/%s", c.out, "long/long.pc2")));
+    CHECK(!exists(fmt("%s/%s", c.out, "long/frames/long_0001.obj")));
+    CHECK_EQ(count_tmp(c.out), 0);
+    static const char *const names[] = {"long", "short", "later"};
+    static const char *const statuses[] = {"interrupted", "ok", "interrupted"};
+    check_report_json(c.out, names, statuses, 3);
 }
 
 /* Run RBCLOTH with the given arguments (NULL-terminated), stdout+stderr to log. */
@@ -310,42 +305,38 @@ static void test_folder(void) {
 }
 
 static void test_only_and_report(void) {
-    char out[1024], manifest[1100], log[1100];
-    snprintf(out, sizeof out, "%s/only", g_out);
-    snprintf(manifest, sizeof manifest, "%s/only.json", g_out);
-    snprintf(log, sizeof log, "%s/only.log", g_out);
-    write_text_sub(manifest,
-                   "{\"defaults\": {\"frames\": 5},\n"
-                   " \"jobs\": [\n"
-                   "  {\"name\": \"strip\", \"mesh\": \"%s/strip_8x4.obj\"},\n"
-                   "  {\"name\": \"missing\", \"mesh\": \"%s/no_such_mesh.obj\"},\n"
-                   "  {\"name\": \"patch\", \"mesh\": \"%s/tri_patch.obj\"}\n"
-                   " ]}\n",
-                   g_meshes);
-    const char *task0[] = {"batch", manifest, "--only", "0", "--out", out, "--quiet", NULL};
-    CHECK_EQ(run_cli(log, task0), 0);
-    CHECK(exists(fmt("%s/%s", out, "strip/strip.result.json")));
-    CHECK(!exists(fmt("%s/%s", out, "patch")));
-    CHECK(!exists(fmt("%s/%s", out, "batch_report.json")));
-    const char *task1[] = {"batch", manifest, "--only", "1", "--out", out, "--quiet", NULL};
-    CHECK_EQ(run_cli(log, task1), 1);
-    CHECK(log_contains(log, "missing: failed"));
-    const char *task9[] = {"batch", manifest, "--only", "3", "--out", out, NULL};
-    CHECK_EQ(run_cli(log, task9), 1);
-    CHECK(log_contains(log, "has 3 jobs"));
-    const char *merge[] = {"batch", manifest, "--report-only", "--out", out, NULL};
-    CHECK_EQ(run_cli(log, merge), 1);
+    struct batch_case c = setup_case(
+        "only",
+        "{\"defaults\": {\"frames\": 5},\n"
+        " \"jobs\": [\n"
+        "  {\"name\": \"strip\", \"mesh\": \"%s/strip_8x4.obj\"},\n"
+        "  {\"name\": \"missing\", \"mesh\": \"%s/no_such_mesh.obj\"},\n"
+        "  {\"name\": \"patch\", \"mesh\": \"%s/tri_patch.obj\"}\n"
+        " ]}\n");
+    const char *task0[] = {"batch", c.manifest, "--only", "0", "--out", c.out, "--quiet", NULL};
+    CHECK_EQ(run_cli(c.log, task0), 0);
+    CHECK(exists(fmt("%s/%s", c.out, "strip/strip.result.json")));
+    CHECK(!exists(fmt("%s/%s", c.out, "patch")));
+    CHECK(!exists(fmt("%s/%s", c.out, "batch_report.json")));
+    const char *task1[] = {"batch", c.manifest, "--only", "1", "--out", c.out, "--quiet", NULL};
+    CHECK_EQ(run_cli(c.log, task1), 1);
+    CHECK(log_contains(c.log, "missing: failed"));
+    const char *task9[] = {"batch", c.manifest, "--only", "3", "--out", c.out, NULL};
+    CHECK_EQ(run_cli(c.log, task9), 1);
+    CHECK(log_contains(c.log, "has 3 jobs"));
+    const char *merge[] = {"batch", c.manifest, "--report-only", "--out", c.out, NULL};
+    CHECK_EQ(run_cli(c.log, merge), 1);
     static const char *const names[] = {"strip", "missing", "patch"};
     static const char *const statuses[] = {"ok", "failed", "not run"};
-    check_report_json(out, names, statuses, 3);
-    CHECK(log_contains(fmt("%s/%s", out, "batch_report.json"), "RBC_ERR_IO"));
-    CHECK(!exists(fmt("%s/%s", out, "patch")));
+    check_report_json(c.out, names, statuses, 3);
+    CHECK(log_contains(fmt("%s/%s", c.out, "batch_report.json"), "RBC_ERR_IO"));
+    CHECK(!exists(fmt("%s/%s", c.out, "patch")));
     /* The last task, then the merge again: everything but the missing mesh is ok. */
-    const char *task2[] = {"batch", manifest, "--only", "2", "--out", out, "--quiet", NULL};
-    CHECK_EQ(run_cli(log, task2), 0);
-    CHECK_EQ(run_cli(log, merge), 1);
+    const char *task2[] = {"batch", c.manifest, "--only", "2", "--out", c.out, "--quiet", NULL};
+    CHECK_EQ(run_cli(c.log, task2), 0);
+    CHECK_EQ(run_cli(c.log, merge), 1);
     static const char *const after[] = {"ok", "failed", "ok"};
-    check_report_json(out, names, after, 3);
+    check_report_json(c.out, names, after, 3);
 }
 
 int main(int argc, char **argv) {

@@ -64,16 +64,9 @@ static pid_t start_until(const char *log, const char *const *args, const char *a
 
 /* A case's manifest g_out/MANIFEST (json, whose each %s is the mesh folder), its
  * --out folder g_out/OUT and its log g_out/LOG. */
-struct batch_case {
-    char manifest[1100], out[1100], log[1100];
-};
-
-static void setup_case(struct batch_case *c, const char *manifest, const char *out,
-                       const char *log, const char *json) {
-    snprintf(c->manifest, sizeof c->manifest, "%s/%s", g_out, manifest);
-    snprintf(c->out, sizeof c->out, "%s/%s", g_out, out);
-    snprintf(c->log, sizeof c->log, "%s/%s", g_out, log);
-    write_text_sub(c->manifest, json, g_meshes);
+static struct batch_case setup_case(const char *manifest, const char *out, const char *log,
+                                    const char *json) {
+    return batch_case_in(g_out, g_meshes, manifest, out, log, json);
 }
 
 /* Compare every file under ref/rel with the same file under got/rel, and the other
@@ -143,8 +136,7 @@ static const char four_jobs[] =
     " ]}\n";
 
 static void test_parent_kill(void) {
-    struct batch_case c;
-    setup_case(&c, "four.json", "killed", "killed.log", four_jobs);
+    struct batch_case c = setup_case("four.json", "killed", "killed.log", four_jobs);
     char ref[1100];
     snprintf(ref, sizeof ref, "%s/reference", g_out);
     const char *ref_args[] = {"batch", c.manifest, "-j", "2", "--out", ref, "--quiet", NULL};
@@ -183,12 +175,12 @@ static void test_parent_kill(void) {
 }
 
 static void test_lock(void) {
-    struct batch_case c;
-    setup_case(&c, "long.json", "locked", "first.log",
-               "{\"jobs\": [\n"
-               "  {\"name\": \"long\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000},\n"
-               "  {\"name\": \"short\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 5}\n"
-               " ]}\n");
+    struct batch_case c = setup_case(
+        "long.json", "locked", "first.log",
+        "{\"jobs\": [\n"
+        "  {\"name\": \"long\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000},\n"
+        "  {\"name\": \"short\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 5}\n"
+        " ]}\n");
     const char *out = c.out;
     const char *args[] = {"batch", c.manifest, "-j", "1", "--out", out, "--quiet", NULL};
     pid_t pid = start_until(c.log, args, fmt("%s/%s", out, "long/long.pc2.tmp"), NULL, 0);
@@ -275,59 +267,57 @@ static void test_abs_out(void) {
 }
 
 static void test_job_timeout(void) {
-    struct batch_case c;
-    setup_case(&c, "slow.json", "timeout", "timeout.log",
-               "{\"jobs\": [\n"
-               "  {\"name\": \"slow\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000,"
-               " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
-               "  {\"name\": \"fast\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 10},\n"
-               "  {\"name\": \"own\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 1000000,"
-               " \"timeout\": 0.5}\n"
-               " ]}\n");
-    const char *out = c.out, *log = c.log;
-    const char *args[] = {"batch", c.manifest, "-j", "1", "--job-timeout", "1", "--out", out,
+    struct batch_case c = setup_case(
+        "slow.json", "timeout", "timeout.log",
+        "{\"jobs\": [\n"
+        "  {\"name\": \"slow\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000,"
+        " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
+        "  {\"name\": \"fast\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 10},\n"
+        "  {\"name\": \"own\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 1000000,"
+        " \"timeout\": 0.5}\n"
+        " ]}\n");
+    const char *args[] = {"batch", c.manifest, "-j", "1", "--job-timeout", "1", "--out", c.out,
                           "--quiet", NULL};
     double t0 = now_seconds();
-    CHECK_EQ(run_cli(NULL, log, args, 60), 1);
+    CHECK_EQ(run_cli(NULL, c.log, args, 60), 1);
     const double wall = now_seconds() - t0;
     CHECK(wall < 1.5 + 6.0); /* 1 s, 0.5 s and the short job, with a margin */
-    CHECK(log_contains(log, "slow: failed: timed out after 1 s"));
-    CHECK(log_contains(log, "own: failed: timed out after 0.5 s"));
-    CHECK(log_contains(log, "ok      fast"));
-    CHECK(exists(fmt("%s/%s", out, "fast/fast.result.json")));
-    CHECK(!exists(fmt("%s/%s", out, "slow/slow.result.json")));
-    CHECK(log_contains(fmt("%s/%s", out, "slow/slow.status.json"), "timed out after 1 s"));
-    CHECK(log_contains(fmt("%s/%s", out, "batch_report.json"), "timed out after 0.5 s"));
-    CHECK_EQ(count_tmp(out), 0);
+    CHECK(log_contains(c.log, "slow: failed: timed out after 1 s"));
+    CHECK(log_contains(c.log, "own: failed: timed out after 0.5 s"));
+    CHECK(log_contains(c.log, "ok      fast"));
+    CHECK(exists(fmt("%s/%s", c.out, "fast/fast.result.json")));
+    CHECK(!exists(fmt("%s/%s", c.out, "slow/slow.result.json")));
+    CHECK(log_contains(fmt("%s/%s", c.out, "slow/slow.status.json"), "timed out after 1 s"));
+    CHECK(log_contains(fmt("%s/%s", c.out, "batch_report.json"), "timed out after 0.5 s"));
+    CHECK_EQ(count_tmp(c.out), 0);
     /* The key is known (a typo gets it), and the option needs seconds. */
     write_text(fmt("%s/%s", g_out, "typo.json"), "{\"jobs\": [{\"name\": \"x\", \"scene\": "
                                                  "\"default\", \"timout\": 3}]}\n");
-    const char *typo[] = {"batch", fmt("%s/%s", g_out, "typo.json"), "--out", out, NULL};
-    CHECK_EQ(run_cli(NULL, log, typo, 30), 1);
-    CHECK(log_contains(log, "jobs[0].timout: unknown key; did you mean \"timeout\"?"));
+    const char *typo[] = {"batch", fmt("%s/%s", g_out, "typo.json"), "--out", c.out, NULL};
+    CHECK_EQ(run_cli(NULL, c.log, typo, 30), 1);
+    CHECK(log_contains(c.log, "jobs[0].timout: unknown key; did you mean \"timeout\"?"));
     const char *bad[] = {"batch", c.manifest, "--job-timeout", "-1", NULL};
-    CHECK_EQ(run_cli(NULL, log, bad, 30), 2);
-    CHECK(log_contains(log, "--job-timeout needs a number of seconds"));
+    CHECK_EQ(run_cli(NULL, c.log, bad, 30), 2);
+    CHECK(log_contains(c.log, "--job-timeout needs a number of seconds"));
 }
 
 static void test_sigterm(void) {
     /* "stuck": one frame of 1024 substeps x 4096 iterations on 10,000 vertices takes
      * minutes, so its worker never reaches its check of the signal, like a job
      * inside an importer. "long": many short frames; it stops at the next one. */
-    struct batch_case c;
-    setup_case(&c, "stuck.json", "sigterm", "sigterm.log",
-               "{\"jobs\": [\n"
-               "  {\"name\": \"stuck\", \"scene\": \"default\", \"frames\": 3, \"substeps\": 1024,"
-               " \"iterations\": 4096, \"outputs\": [\"pc2\", \"mdd\"]},\n"
-               "  {\"name\": \"long\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000,"
-               " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
-               "  {\"name\": \"later\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 5}\n"
-               " ]}\n");
-    const char *out = c.out, *log = c.log;
-    const char *args[] = {"batch", c.manifest, "-j", "2", "--term-grace", "1", "--out", out,
+    struct batch_case c = setup_case(
+        "stuck.json", "sigterm", "sigterm.log",
+        "{\"jobs\": [\n"
+        "  {\"name\": \"stuck\", \"scene\": \"default\", \"frames\": 3, \"substeps\": 1024,"
+        " \"iterations\": 4096, \"outputs\": [\"pc2\", \"mdd\"]},\n"
+        "  {\"name\": \"long\", \"mesh\": \"%s/grid_20x20.obj\", \"frames\": 1000000,"
+        " \"outputs\": [\"pc2\", \"mdd\", \"objseq\"]},\n"
+        "  {\"name\": \"later\", \"mesh\": \"%s/strip_8x4.obj\", \"frames\": 5}\n"
+        " ]}\n");
+    const char *args[] = {"batch", c.manifest, "-j", "2", "--term-grace", "1", "--out", c.out,
                           "--quiet", NULL};
-    pid_t pid = start_until(log, args, fmt("%s/%s", out, "stuck/stuck.pc2.tmp"),
-                            fmt("%s/%s", out, "long/long.pc2.tmp"), 0.3);
+    pid_t pid = start_until(c.log, args, fmt("%s/%s", c.out, "stuck/stuck.pc2.tmp"),
+                            fmt("%s/%s", c.out, "long/long.pc2.tmp"), 0.3);
     long workers[8];
     int n = proc_children(pid, workers, 8);
     CHECK_EQ(n, 2);
@@ -338,12 +328,12 @@ static void test_sigterm(void) {
     if (took >= 1.0 + 3.0) fprintf(stderr, "the batch took %.2f s to stop\n", took);
     CHECK(took < 1.0 + 3.0); /* the grace period, then the reports */
     for (int k = 0; k < n; ++k) CHECK(!proc_alive(workers[k]));
-    CHECK(log_contains(log, "stuck: interrupted: stopped by a signal: killed, still running 1 s "
-                            "after SIGTERM"));
-    CHECK(log_contains(log, "long: interrupted: stopped by a signal"));
-    CHECK(log_contains(log, "later: not run"));
-    CHECK_EQ(count_tmp(out), 0);
-    CHECK(!exists(fmt("%s/%s", out, "stuck/stuck.pc2")));
+    CHECK(log_contains(c.log, "stuck: interrupted: stopped by a signal: killed, still running "
+                              "1 s after SIGTERM"));
+    CHECK(log_contains(c.log, "long: interrupted: stopped by a signal"));
+    CHECK(log_contains(c.log, "later: not run"));
+    CHECK_EQ(count_tmp(c.out), 0);
+    CHECK(!exists(fmt("%s/%s", c.out, "stuck/stuck.pc2")));
 }
 
 static void test_run_sigint(void) {

@@ -65,6 +65,16 @@ static int is_zeroed(const void *p, size_t size) {
 
 /* ------------------------------------------------------------------------- */
 
+/* Parses the len bytes of json as `source` into s: 0, or -1 when they are refused (a
+ * failed check; the message printed). */
+static int parse_ok(const char *json, size_t len, const char *source, rbc_scene *s) {
+    char err[RBC_SCENE_ERROR_MAX];
+    int rc = rbc_scene_parse(json, len, source, s, err, sizeof err);
+    CHECK_EQ(rc, 0);
+    if (rc) fprintf(stderr, "%s\n", err);
+    return rc;
+}
+
 static void test_grid(void) {
     /* 3 x 2 in the xy plane at (1, 2, 3), spacing 0.5. */
     rbc_grid_def g = {3, 2, 0.5, {1.0, 2.0, 3.0}, RBC_GRID_PLANE_XY};
@@ -238,13 +248,8 @@ static void test_inline_mesh(void) {
         " \"colliders\": [{\"shape\": \"plane\", \"position\": [0,-1,0],\n"
         "                  \"rotation\": [0, 0, 0.7071, 0.7071]}]}";
     rbc_scene s;
-    char err[RBC_SCENE_ERROR_MAX];
-    int rc = rbc_scene_parse(json, sizeof json - 1, "strip.json", &s, err, sizeof err);
-    CHECK_EQ(rc, 0);
-    if (rc) {
-        fprintf(stderr, "%s\n", err);
+    if (parse_ok(json, sizeof json - 1, "strip.json", &s))
         return;
-    }
     const rbc_scene_cloth *c = &s.cloths[0];
     CHECK(strcmp(c->name, "cloth0") == 0); /* default name */
     CHECK_EQ(c->from_grid, 0);
@@ -272,6 +277,27 @@ typedef struct bad_case {
     const char *json;
     const char *expect; /* substring of the message */
 } bad_case;
+
+/* c's json is refused as bad.json: rc -1, the scene left zeroed, and a message (into
+ * err) that contains c->expect, else the failure is printed as case i of `table`.
+ * Whether the message did. */
+static int refused_with(const bad_case *c, const char *table, size_t i, char *err, size_t size) {
+    rbc_scene s;
+    memset(&s, 0xAB, sizeof s);
+    err[0] = '\0';
+    int rc = rbc_scene_parse(c->json, strlen(c->json), "bad.json", &s, err, size);
+    CHECK_EQ(rc, -1);
+    CHECK(is_zeroed(&s, sizeof s));
+    const int named = strstr(err, c->expect) != NULL;
+    if (!named) {
+        CHECK(!"message names the key and the problem");
+        fprintf(stderr, "  %s case %zu: expected \"%s\"\n  got \"%s\"\n", table, i, c->expect,
+                err);
+    }
+    if (rc == 0)
+        rbc_scene_free(&s);
+    return named;
+}
 
 #define BASE_HEAD "{\"name\":\"t\",\"frames\":1,\"dt\":0.01,"
 #define GRID_CLOTH "{\"grid\":{\"nx\":3,\"ny\":3,\"spacing\":0.1}}"
@@ -366,22 +392,9 @@ static void test_malformed(void) {
         {"", "bad.json:1:1: invalid JSON: unexpected end of input"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
-        rbc_scene s;
-        memset(&s, 0xAB, sizeof s);
-        char err[RBC_SCENE_ERROR_MAX] = "";
-        int rc = rbc_scene_parse(cases[i].json, strlen(cases[i].json), "bad.json", &s, err,
-                                 sizeof err);
-        CHECK_EQ(rc, -1);
-        CHECK(is_zeroed(&s, sizeof s));
-        if (!strstr(err, cases[i].expect)) {
-            CHECK(!"message names the key and the problem");
-            fprintf(stderr, "  case %zu: expected \"%s\"\n           got      \"%s\"\n", i,
-                    cases[i].expect, err);
-        } else {
+        char err[RBC_SCENE_ERROR_MAX];
+        if (refused_with(&cases[i], "1.0", i, err, sizeof err))
             CHECK(strncmp(err, "bad.json", 8) == 0);
-        }
-        if (rc == 0)
-            rbc_scene_free(&s);
     }
 }
 
@@ -593,20 +606,8 @@ static void test_malformed_v1_3(void) {
          "bad.json: world.wind.speed: unknown key (expected one of: velocity, drag, lift)"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
-        rbc_scene s;
-        memset(&s, 0xAB, sizeof s);
-        char err[RBC_SCENE_ERROR_MAX] = "";
-        int rc = rbc_scene_parse(cases[i].json, strlen(cases[i].json), "bad.json", &s, err,
-                                 sizeof err);
-        CHECK_EQ(rc, -1);
-        CHECK(is_zeroed(&s, sizeof s));
-        if (!strstr(err, cases[i].expect)) {
-            CHECK(!"message names the key and the problem");
-            fprintf(stderr, "  1.3 case %zu: expected \"%s\"\n               got      \"%s\"\n", i,
-                    cases[i].expect, err);
-        }
-        if (rc == 0)
-            rbc_scene_free(&s);
+        char err[RBC_SCENE_ERROR_MAX];
+        refused_with(&cases[i], "1.3", i, err, sizeof err);
     }
 }
 
@@ -631,12 +632,8 @@ static void test_v1_3_keys(void) {
         "  {\"shape\":\"sphere\",\"radius\":0.5,\"angular_velocity\":[1,0,0]}]}";
     rbc_scene s;
     char err[RBC_SCENE_ERROR_MAX];
-    int rc = rbc_scene_parse(json, sizeof json - 1, "all.json", &s, err, sizeof err);
-    CHECK_EQ(rc, 0);
-    if (rc) {
-        fprintf(stderr, "%s\n", err);
+    if (parse_ok(json, sizeof json - 1, "all.json", &s))
         return;
-    }
     CHECK(strcmp(s.source, "all.json") == 0);
     CHECK_EQ(s.world.has_wind, 1);
     CHECK(s.world.wind_velocity[0] == 1.0f && s.world.wind_velocity[2] == -2.0f);
@@ -698,7 +695,7 @@ static void test_v1_3_keys(void) {
     snprintf(text, sizeof text,
              BASE_HEAD C3 "\"colliders\":[{\"shape\":\"mesh\",\"file\":\"../meshes/tri_patch.obj\","
                           "\"scale\":0.5}]}");
-    rc = rbc_scene_parse(text, strlen(text), path, &s, err, sizeof err);
+    int rc = rbc_scene_parse(text, strlen(text), path, &s, err, sizeof err);
     CHECK_EQ(rc, 0);
     if (rc == 0) {
         char expect[1024];
@@ -994,7 +991,9 @@ static rbc_result RBC_CALL fake_mesh_get_triangles(rbc_mesh_id mesh, uint32_t *t
     return RBC_OK;
 }
 
-static void test_instantiate(void) {
+/* The function table of the fakes above as a library of ABI 1.minor fills it: creation
+ * (1.0), and from 1.3 motion, drags, wind and mesh files; NULL for the rest. */
+static rbc_api_v1 fake_api(int minor) {
     rbc_api_v1 api;
     memset(&api, 0, sizeof api);
     api.struct_size = sizeof api;
@@ -1008,6 +1007,21 @@ static void test_instantiate(void) {
     api.world_destroy = fake_world_destroy;
     api.cloth_create = fake_cloth_create;
     api.collider_create = fake_collider_create;
+    if (minor >= 3) {
+        api.collider_set_transform = fake_set_transform;
+        api.cloth_set_pin = fake_set_pin;
+        api.world_set_wind = fake_set_wind;
+        api.mesh_import_def_init = fake_mesh_import_def_init;
+        api.mesh_import = fake_mesh_import;
+        api.mesh_destroy = fake_mesh_destroy;
+        api.mesh_get_positions = fake_mesh_get_positions;
+        api.mesh_get_triangles = fake_mesh_get_triangles;
+    }
+    return api;
+}
+
+static void test_instantiate(void) {
+    rbc_api_v1 api = fake_api(0);
 
     static const char json[] =
         "{\"name\":\"two\",\"frames\":1,\"dt\":0.01,\n"
@@ -1098,27 +1112,7 @@ static void test_instantiate(void) {
 /* ABI 1.3 through the scripted table: the new def fields, wind, mesh files, moving
  * colliders and drags per frame, and what an older library gets. */
 static void test_instantiate_v1_3(void) {
-    rbc_api_v1 api;
-    memset(&api, 0, sizeof api);
-    api.struct_size = sizeof api;
-    api.abi_version = RBC_ABI_VERSION;
-    api.last_error = fake_last_error;
-    api.result_string = fake_result_string;
-    api.world_def_init = fake_world_def_init;
-    api.cloth_def_init = fake_cloth_def_init;
-    api.collider_def_init = fake_collider_def_init;
-    api.world_create = fake_world_create;
-    api.world_destroy = fake_world_destroy;
-    api.cloth_create = fake_cloth_create;
-    api.collider_create = fake_collider_create;
-    api.collider_set_transform = fake_set_transform;
-    api.cloth_set_pin = fake_set_pin;
-    api.world_set_wind = fake_set_wind;
-    api.mesh_import_def_init = fake_mesh_import_def_init;
-    api.mesh_import = fake_mesh_import;
-    api.mesh_destroy = fake_mesh_destroy;
-    api.mesh_get_positions = fake_mesh_get_positions;
-    api.mesh_get_triangles = fake_mesh_get_triangles;
+    rbc_api_v1 api = fake_api(3);
 
     static const char json[] =
         "{\"name\":\"new\",\"frames\":8,\"dt\":0.5,\n"
@@ -1133,14 +1127,10 @@ static void test_instantiate_v1_3(void) {
         "   \"keyframes\":[{\"time\":1,\"position\":[0,1,0]},{\"time\":2,\"position\":[2,1,0]}]},\n"
         "  {\"shape\":\"mesh\",\"vertices\":[[0,0,0],[1,0,0],[0,0,1]],\"triangles\":[[0,2,1]]}]}";
     rbc_scene s;
-    char err[RBC_SCENE_ERROR_MAX];
-    int rc = rbc_scene_parse(json, sizeof json - 1, "new.json", &s, err, sizeof err);
-    CHECK_EQ(rc, 0);
-    if (rc) {
-        fprintf(stderr, "%s\n", err);
+    if (parse_ok(json, sizeof json - 1, "new.json", &s))
         return;
-    }
     memset(&fake, 0, sizeof fake);
+    char err[RBC_SCENE_ERROR_MAX];
     rbc_scene_instance inst;
     rbc_result r = rbc_scene_instantiate(&api, &s, NULL, NULL, &inst, err, sizeof err);
     CHECK_EQ(r, RBC_OK);

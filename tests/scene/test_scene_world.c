@@ -32,6 +32,27 @@ static int load(const char *dir, const char *file, rbc_scene *scene) {
     return 0;
 }
 
+/* Creates scene s in the plugin with one thread: 0, or -1 when it is refused (checked;
+ * the message printed, s freed). */
+static int create(rbc_scene *s, rbc_scene_instance *inst) {
+    char err[RBC_SCENE_ERROR_MAX];
+    s->world.thread_count = 1;
+    rbc_result r = rbc_scene_instantiate(api, s, NULL, NULL, inst, err, sizeof err);
+    CHECK_EQ(r, RBC_OK);
+    if (r != RBC_OK) {
+        fprintf(stderr, "%s\n", err);
+        rbc_scene_free(s);
+        return -1;
+    }
+    return 0;
+}
+
+/* The instance, then its scene. */
+static void release(rbc_scene *s, rbc_scene_instance *inst) {
+    rbc_scene_instance_destroy(api, inst);
+    rbc_scene_free(s);
+}
+
 /* The loader writes the presets out (it needs no library to parse a scene); they
  * must be the library's, field for field, and the world the default scene makes
  * must run the default solve. */
@@ -56,8 +77,7 @@ static void test_presets(void) {
     CHECK_EQ(api->world_get_solver(inst.world, &used), RBC_OK);
     CHECK_EQ(api->solver_def_preset(&cloth, sizeof cloth, RBC_PRESET_CLOTH), RBC_OK);
     CHECK(memcmp(&used, &cloth, sizeof used) == 0);
-    rbc_scene_instance_destroy(api, &inst);
-    rbc_scene_free(&s);
+    release(&s, &inst);
 }
 
 /* The paper's hanging cloth: 10,000 particles, 19,800 springs, 2 colors; created
@@ -66,15 +86,9 @@ static void test_hanging_cloth(void) {
     rbc_scene s;
     char err[RBC_SCENE_ERROR_MAX];
     CHECK_EQ(rbc_scene_load_default(&s, err, sizeof err), 0);
-    s.world.thread_count = 1;
     rbc_scene_instance inst;
-    rbc_result r = rbc_scene_instantiate(api, &s, NULL, NULL, &inst, err, sizeof err);
-    CHECK_EQ(r, RBC_OK);
-    if (r != RBC_OK) {
-        fprintf(stderr, "%s\n", err);
-        rbc_scene_free(&s);
+    if (create(&s, &inst))
         return;
-    }
     rbc_world_stats st = stats_of(inst.world);
     CHECK_EQ(st.cloth_count, 1);
     CHECK_EQ(st.collider_count, 0);
@@ -101,51 +115,34 @@ static void test_hanging_cloth(void) {
     CHECK(memcmp(xyz + 3 * 99, s.cloths[0].positions + 3 * 99, 3 * sizeof(float)) == 0);
     CHECK(xyz[3 * 9950 + 1] < 0.0f);
     free(xyz);
-
-    rbc_scene_instance_destroy(api, &inst);
-    rbc_scene_free(&s);
+    release(&s, &inst);
 }
 
 static void test_cloth_on_sphere(const char *dir) {
     rbc_scene s;
-    char err[RBC_SCENE_ERROR_MAX];
-    if (load(dir, "cloth_on_sphere.json", &s))
-        return;
-    s.world.thread_count = 1;
     rbc_scene_instance inst;
-    rbc_result r = rbc_scene_instantiate(api, &s, NULL, NULL, &inst, err, sizeof err);
-    CHECK_EQ(r, RBC_OK);
-    if (r == RBC_OK) {
-        rbc_world_stats st = stats_of(inst.world);
-        CHECK_EQ(st.collider_count, 2);
-        CHECK_EQ(st.particle_count, 3600);
-        CHECK_EQ(st.spring_count, 2 * 60 * 59);
-        for (int frame = 0; frame < 10; ++frame)
-            CHECK_EQ(api->world_step(inst.world, s.dt), RBC_OK);
-        rbc_scene_instance_destroy(api, &inst);
-    } else {
-        fprintf(stderr, "%s\n", err);
-    }
-    rbc_scene_free(&s);
+    if (load(dir, "cloth_on_sphere.json", &s) || create(&s, &inst))
+        return;
+    rbc_world_stats st = stats_of(inst.world);
+    CHECK_EQ(st.collider_count, 2);
+    CHECK_EQ(st.particle_count, 3600);
+    CHECK_EQ(st.spring_count, 2 * 60 * 59);
+    for (int frame = 0; frame < 10; ++frame)
+        CHECK_EQ(api->world_step(inst.world, s.dt), RBC_OK);
+    release(&s, &inst);
 }
 
-/* Parse an inline scene and create it with one thread. */
-static int create_inline(const char *json, rbc_scene *s, rbc_scene_instance *inst) {
+/* Parse an inline scene (its files relative to the folder of source) and create it
+ * with one thread. */
+static int create_inline(const char *json, const char *source, rbc_scene *s,
+                         rbc_scene_instance *inst) {
     char err[RBC_SCENE_ERROR_MAX];
-    if (rbc_scene_parse(json, strlen(json), "inline.json", s, err, sizeof err)) {
+    if (rbc_scene_parse(json, strlen(json), source, s, err, sizeof err)) {
         fprintf(stderr, "%s\n", err);
         CHECK(!"inline scene parses");
         return -1;
     }
-    s->world.thread_count = 1;
-    rbc_result r = rbc_scene_instantiate(api, s, NULL, NULL, inst, err, sizeof err);
-    CHECK_EQ(r, RBC_OK);
-    if (r != RBC_OK) {
-        fprintf(stderr, "%s\n", err);
-        rbc_scene_free(s);
-        return -1;
-    }
-    return 0;
+    return create(s, inst);
 }
 
 /* One frame as rbcloth run does it: poses and pins of the frame's end, then the step. */
@@ -164,13 +161,13 @@ static rbc_result frame_step(const rbc_scene *s, const rbc_scene_instance *inst,
  * the cloth's middle rides on it, within the step's travel (2 cm) and the contact
  * tolerance below its top and not far above it. ABI 1.0 only. */
 static void test_moving_collider(void) {
+    rbc_scene s;
+    rbc_scene_instance inst;
     static const char json[] =
         "{\"name\":\"lift\",\"frames\":50,\"dt\":0.02,\"world\":{\"gravity\":[0,0,0],\"substeps\":4},\n"
         " \"cloths\":[{\"grid\":{\"nx\":11,\"ny\":11,\"spacing\":0.05,\"origin\":[-0.25,0,-0.25]}}],\n"
         " \"colliders\":[{\"shape\":\"sphere\",\"radius\":0.2,\"position\":[0,-0.5,0],\"velocity\":[0,1,0]}]}";
-    rbc_scene s;
-    rbc_scene_instance inst;
-    if (create_inline(json, &s, &inst))
+    if (create_inline(json, "inline.json", &s, &inst))
         return;
     float xyz[3 * 121];
     const uint32_t middle = 5 + 11 * 5;
@@ -191,23 +188,22 @@ static void test_moving_collider(void) {
             CHECK(y >= top - 0.02 && y <= top + 0.05);
         }
     }
-    rbc_scene_instance_destroy(api, &inst);
-    rbc_scene_free(&s);
+    release(&s, &inst);
 }
 
 /* A drag: the vertex is exactly on the interpolated target after each step while
  * pinned (the pin reaches its target at the step's end), and falls once released.
  * ABI 1.0 only (rbc_cloth_set_pin). */
 static void test_drag(void) {
+    rbc_scene s;
+    rbc_scene_instance inst;
     static const char json[] =
         "{\"name\":\"drag\",\"frames\":20,\"dt\":0.1,\"world\":{\"substeps\":2},\n"
         " \"cloths\":[{\"grid\":{\"nx\":5,\"ny\":5,\"spacing\":0.1},\"damping\":1,\n"
         "   \"drags\":[{\"vertex\":12,\"keyframes\":[{\"time\":0.3,\"target\":[0.2,0,0.2]},\n"
         "                                     {\"time\":1.0,\"target\":[0.2,0.7,0.2]}],\n"
         "              \"release\":1.5}]}]}";
-    rbc_scene s;
-    rbc_scene_instance inst;
-    if (create_inline(json, &s, &inst))
+    if (create_inline(json, "inline.json", &s, &inst))
         return;
     float xyz[3 * 25], target[3], held = 0.0f;
     for (uint32_t frame = 0; frame < s.frames; ++frame) {
@@ -229,8 +225,7 @@ static void test_drag(void) {
         }
     }
     CHECK(held == 0.7f);
-    rbc_scene_instance_destroy(api, &inst);
-    rbc_scene_free(&s);
+    release(&s, &inst);
 }
 
 /* A mesh collider read from a file (rbc_mesh_import, rbc_mesh_get_triangles; ABI
@@ -239,7 +234,7 @@ static void test_drag(void) {
  * after the shift). A small cloth dropped 10 cm onto it rests on it after 0.5 s
  * instead of falling 1.2 m. */
 static void test_mesh_file_collider(const char *dir) {
-    char json[1024], source[1024], err[RBC_SCENE_ERROR_MAX];
+    char json[1024], source[1024];
     snprintf(json, sizeof json,
              "{\"name\":\"patch\",\"frames\":30,\"dt\":0.016,\"world\":{\"substeps\":8},\n"
              " \"cloths\":[{\"grid\":{\"nx\":5,\"ny\":5,\"spacing\":0.05,\"origin\":[0.15,0.1,-0.1]},"
@@ -248,28 +243,17 @@ static void test_mesh_file_collider(const char *dir) {
              "   \"position\":[0,0,1.25],\"rotation\":[-0.7071067811865476,0,0,0.7071067811865476]}]}");
     snprintf(source, sizeof source, "%s/inline.json", dir);
     rbc_scene s;
-    if (rbc_scene_parse(json, strlen(json), source, &s, err, sizeof err)) {
-        fprintf(stderr, "%s\n", err);
-        CHECK(!"mesh file scene parses");
-        return;
-    }
-    s.world.thread_count = 1;
     rbc_scene_instance inst;
-    rbc_result r = rbc_scene_instantiate(api, &s, NULL, NULL, &inst, err, sizeof err);
-    CHECK_EQ(r, RBC_OK);
-    if (r != RBC_OK) {
-        fprintf(stderr, "%s\n", err);
-        rbc_scene_free(&s);
+    if (create_inline(json, source, &s, &inst))
         return;
-    }
+    rbc_result r = RBC_OK;
     for (uint32_t frame = 0; frame < s.frames && r == RBC_OK; ++frame)
         CHECK_EQ(r = frame_step(&s, &inst, frame), RBC_OK);
     float xyz[75];
     CHECK_EQ(api->cloth_read_positions(inst.world, inst.cloths[0], xyz, 75, NULL), RBC_OK);
     /* The middle vertex lies on the patch: above y = 0 by about the thickness. */
     CHECK(xyz[3 * 12 + 1] > -0.005f && xyz[3 * 12 + 1] < 0.02f);
-    rbc_scene_instance_destroy(api, &inst);
-    rbc_scene_free(&s);
+    release(&s, &inst);
 }
 
 /* A world the plugin refuses: the message is the library's and names what was being
