@@ -9,7 +9,7 @@
 #include "energy.h"
 #include "ell.h"
 #include "global.h"
-#include "grid.h"
+#include "lattice.h"
 #include "report.h"
 #include "strain.h"
 
@@ -103,7 +103,7 @@ void rbc_cloth_state_destroy(const rbc_allocator *al, rbc_cloth_state *c) {
     STATE_ARRAYS(FREE_ONE)
 #undef FREE_ONE
     free_pins(al, c);
-    rbc_grid_free(c->grid, al);
+    rbc_lattice_free(c->lattice, al);
     rbc_ell_free(c->ell, al);
     rbc_mem_free(al, c->pin_springs, sizeof(uint32_t) * c->pin_spring_cap);
     rbc_cloth_state_host_buffers(al, c, 0);
@@ -206,8 +206,8 @@ int32_t rbc_cloth_state_create(const rbc_allocator *al, rbc_solver_kind kind, in
         c->pin_target[3 * m + 2] = c->x[2][i];
     }
     if (!rbc_energy_rebuild_pin_springs(c, al) ||
-        rbc_grid_detect(&c->topo, al, &c->grid) < 0 ||
-        (!c->grid && rbc_ell_build(&c->topo, al, &c->ell) < 0)) {
+        rbc_lattice_detect(&c->topo, al, &c->lattice) < 0 ||
+        (!c->lattice && rbc_ell_build(&c->topo, al, &c->ell) < 0)) {
         rbc_cloth_state_destroy(al, c);
         return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for %zu particles", n);
     }
@@ -347,7 +347,7 @@ size_t rbc_cloth_state_bytes(const rbc_cloth_state *c) {
     if (c->alt[0]) b += n3;
     if (c->prev[0]) b += n3;
     if (c->direct) b += rbc_direct_bytes(c->direct);
-    if (c->grid) b += c->grid->bytes;
+    if (c->lattice) b += c->lattice->bytes;
     if (c->ell) b += c->ell->bytes;
     b += (size_t)c->quad_count0 * 4 * sizeof(uint32_t) + (size_t)c->tri_cap * 3 * sizeof(uint32_t);
     b += (size_t)c->att.cap * 5 * sizeof(uint32_t);

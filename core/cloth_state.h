@@ -15,7 +15,7 @@
 #include "topology.h"
 
 struct rbc_direct;
-struct rbc_grid;
+struct rbc_lattice;
 struct rbc_ell;
 
 /* The energy guard's account of one cloth (energy_guard.h). Committed at the end of
@@ -43,7 +43,7 @@ typedef struct rbc_cloth_attachments {
 typedef struct rbc_cloth_state {
     /* The immutable part: topology and its sweep layouts. */
     rbc_topology topo;
-    struct rbc_grid *grid;      /* the lattice fast path (grid.h), or NULL */
+    struct rbc_lattice *lattice;   /* the lattice fast path (lattice.h), or NULL */
     struct rbc_ell *ell;        /* the ELLPACK sweep (ell.h) when not a lattice, or NULL */
     uint32_t public_id;         /* the host's id, for messages */
     float damping;              /* 1/s */

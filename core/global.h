@@ -4,7 +4,7 @@
  * lexicographic Gauss-Seidel; and the residual and spectral radius that measure and
  * tune them. The step (step.c, sweep.c) calls these between barriers.
  *
- * rbc_global_* pick the layout a cloth has (sweep.c: the lattice of grid.h, the
+ * rbc_global_* pick the layout a cloth has (sweep.c: the lattice of lattice.h, the
  * ELLPACK rows of ell.h, or these CSR rows, rbc_csr_*); every layout gives the CSR
  * rows' result bitwise. */
 #ifndef RBC_CORE_GLOBAL_H
@@ -37,7 +37,7 @@ void rbc_csr_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, floa
 void rbc_global_chebyshev_blend(rbc_cloth_state *c, float omega, uint32_t tid, uint32_t nt);
 /* One Jacobi iteration, this thread's share: dst = Eq. 6 of src for free particles,
  * dst = src for pinned ones; with chebyshev, dst = omega (g - prev) + prev and
- * prev = src. On a lattice the share is rows (rbc_grid_jacobi), else particles: every
+ * prev = src. On a lattice the share is rows (rbc_lattice_jacobi), else particles: every
  * particle is written by exactly one thread either way, and the result does not depend
  * on the split (callers barrier before reading dst). */
 void rbc_global_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst[3],
@@ -45,7 +45,7 @@ void rbc_global_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst
 void rbc_csr_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst[3], int chebyshev,
                     float omega, uint32_t tid, uint32_t nt);
 /* One serial lexicographic Gauss-Seidel iteration in the host's vertex order, one
- * thread (on a lattice rbc_grid_gs_serial, the same result bitwise). */
+ * thread (on a lattice rbc_lattice_gs_serial, the same result bitwise). */
 void rbc_global_gs_serial(rbc_cloth_state *c);
 void rbc_csr_gs_serial(rbc_cloth_state *c);
 /* Squared residual and right-hand side norms of the global system at p, over this

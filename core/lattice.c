@@ -1,5 +1,5 @@
-/* grid.c -- the grid fast path of the Gauss-Seidel sweep; see grid.h. */
-#include "grid.h"
+/* lattice.c -- the lattice fast path of the Gauss-Seidel sweep; see lattice.h. */
+#include "lattice.h"
 
 #include <math.h>
 #include <string.h>
@@ -18,15 +18,15 @@
 #endif
 
 /* First column of color c in row j, and the number of such columns. */
-static uint32_t first_col(const rbc_grid *g, uint32_t c, uint32_t j) {
+static uint32_t first_col(const rbc_lattice *g, uint32_t c, uint32_t j) {
     return (c + j + g->c0) & 1u;
 }
-static uint32_t row_count(const rbc_grid *g, uint32_t c, uint32_t j) {
+static uint32_t row_count(const rbc_lattice *g, uint32_t c, uint32_t j) {
     uint32_t f = first_col(g, c, j);
     return f < g->nx ? (g->nx - f + 1) / 2 : 0;
 }
 
-void rbc_grid_free(rbc_grid *g, const rbc_allocator *a) {
+void rbc_lattice_free(rbc_lattice *g, const rbc_allocator *a) {
     if (!g) return;
     size_t n = (size_t)g->nx * g->ny;
     rbc_mem_free(a, g->row_first[0], sizeof(uint32_t) * (g->ny + 1));
@@ -44,7 +44,7 @@ void rbc_grid_free(rbc_grid *g, const rbc_allocator *a) {
     rbc_mem_free(a, g, sizeof *g);
 }
 
-int rbc_grid_detect(const rbc_topology *t, const rbc_allocator *a, rbc_grid **out) {
+int rbc_lattice_detect(const rbc_topology *t, const rbc_allocator *a, rbc_lattice **out) {
     *out = NULL;
     const uint32_t n = t->n;
     if (t->ncolors != 2 || n < 2) return 0;
@@ -57,7 +57,7 @@ int rbc_grid_detect(const rbc_topology *t, const rbc_allocator *a, rbc_grid **ou
     if (nx == 1) nx = n;
     if (nx < 2 || n % nx) return 0;
     uint32_t ny = n / nx;
-    rbc_grid g;
+    rbc_lattice g;
     memset(&g, 0, sizeof g);
     g.nx = nx;
     g.ny = ny;
@@ -73,7 +73,7 @@ int rbc_grid_detect(const rbc_topology *t, const rbc_allocator *a, rbc_grid **ou
         uint32_t i = t->to_internal[v];
         if (i < t->color_start[c] || i >= t->color_start[c + 1]) return 0;
     }
-    rbc_grid *h = rbc_mem_alloc(a, sizeof *h);
+    rbc_lattice *h = rbc_mem_alloc(a, sizeof *h);
     if (!h) return -1;
     *h = g;
     h->row_first[0] = rbc_mem_alloc(a, sizeof(uint32_t) * (ny + 1));
@@ -90,7 +90,7 @@ int rbc_grid_detect(const rbc_topology *t, const rbc_allocator *a, rbc_grid **ou
     h->nzeros = rbc_mem_alloc(a, sizeof(float) * (nx / 2 + 2));
     if (!h->row_first[0] || !h->row_first[1] || !h->kl || !h->kr || !h->kd || !h->ku ||
         !h->ll || !h->lr || !h->ld || !h->lu || !h->zeros || !h->nzeros) {
-        rbc_grid_free(h, a);
+        rbc_lattice_free(h, a);
         return -1;
     }
     for (uint32_t m = 0; m < nx / 2 + 2; ++m) h->nzeros[m] = -0.0f;
@@ -132,7 +132,7 @@ int rbc_grid_detect(const rbc_topology *t, const rbc_allocator *a, rbc_grid **ou
             goto not_grid;
         }
     }
-    /* Every lattice edge a spring, and the CSR rows in the stencil's order (grid.h,
+    /* Every lattice edge a spring, and the CSR rows in the stencil's order (lattice.h,
      * csr_order): topology.c sorts springs by host (lower, upper) vertex, which gives
      * each row down, left, right, up; checked rather than assumed, because the
      * Jacobi and serial Gauss-Seidel paths promise the CSR rows' result bitwise. */
@@ -159,7 +159,7 @@ int rbc_grid_detect(const rbc_topology *t, const rbc_allocator *a, rbc_grid **ou
     *out = h;
     return 1;
 not_grid:
-    rbc_grid_free(h, a);
+    rbc_lattice_free(h, a);
     return 0;
 }
 
@@ -334,7 +334,7 @@ static inline int row_free(const uint8_t *pin, uint32_t n) {
 }
 
 /* One row of one color: the Gauss-Seidel update of its particles. */
-RBC_ALWAYS_INLINE void grid_row(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, uint32_t j,
+RBC_ALWAYS_INLINE void grid_row(const rbc_lattice *g, rbc_cloth_state *c, uint32_t color, uint32_t j,
                      float omega) {
     const uint32_t nx = g->nx, ny = g->ny, o = 1u - color;
     float *const *P = c->p;
@@ -394,7 +394,7 @@ RBC_ALWAYS_INLINE void grid_row(const rbc_grid *g, rbc_cloth_state *c, uint32_t 
 }
 
 RBC_VECTOR_CLONES
-void rbc_grid_sweep(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, float omega,
+void rbc_lattice_sweep(const rbc_lattice *g, rbc_cloth_state *c, uint32_t color, float omega,
                     uint32_t tid, uint32_t nt) {
     uint32_t j0, j1;
     rbc_split(g->ny, tid, nt, &j0, &j1);
@@ -402,7 +402,7 @@ void rbc_grid_sweep(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, float
 }
 
 RBC_VECTOR_CLONES
-void rbc_grid_wavefront(const rbc_grid *g, rbc_cloth_state *c, uint32_t iterations, float omega,
+void rbc_lattice_wavefront(const rbc_lattice *g, rbc_cloth_state *c, uint32_t iterations, float omega,
                         volatile uint32_t *progress, size_t stride, uint32_t tid, uint32_t nt) {
     const uint32_t ny = g->ny;
     /* Sweep u (iteration u / 2, color u % 2) updates row w - u at step w. Threads
@@ -492,7 +492,7 @@ static void jacobi_axis(uint32_t count, float *restrict o, float *restrict q,
 /* A particle of column 0 (has_l 0) or nx - 1 (has_r 0), scalar: rbc_k_eq6b's sum over
  * its existing neighbours (down, left, right, up at dn, lt, rt, up) of src, written to
  * dst as rbc_global_jacobi writes it. */
-RBC_ALWAYS_INLINE void jacobi_edge(const rbc_grid *g, rbc_cloth_state *c, float *const S[3],
+RBC_ALWAYS_INLINE void jacobi_edge(const rbc_lattice *g, rbc_cloth_state *c, float *const S[3],
                                    float *const D[3], uint32_t i, uint32_t dn, uint32_t lt,
                                    uint32_t rt, uint32_t up, int has_d, const int has_l,
                                    const int has_r, int has_u, int cheb, float omega) {
@@ -521,7 +521,7 @@ RBC_ALWAYS_INLINE void jacobi_edge(const rbc_grid *g, rbc_cloth_state *c, float 
 }
 
 /* One row of one color of a Jacobi iteration. */
-static void jacobi_row(const rbc_grid *g, rbc_cloth_state *c, float *const S[3],
+static void jacobi_row(const rbc_lattice *g, rbc_cloth_state *c, float *const S[3],
                        float *const D[3], uint32_t color, uint32_t j, int cheb, float omega) {
     const uint32_t nx = g->nx, ny = g->ny, o = 1u - color;
     const uint32_t s0 = g->row_first[color][j], cnt = g->row_first[color][j + 1] - s0;
@@ -554,7 +554,7 @@ static void jacobi_row(const rbc_grid *g, rbc_cloth_state *c, float *const S[3],
     }
 }
 
-void rbc_grid_jacobi(const rbc_grid *g, rbc_cloth_state *c, float *const src[3],
+void rbc_lattice_jacobi(const rbc_lattice *g, rbc_cloth_state *c, float *const src[3],
                      float *const dst[3], int chebyshev, float omega, uint32_t tid, uint32_t nt) {
     uint32_t j0, j1;
     rbc_split(g->ny, tid, nt, &j0, &j1);
@@ -609,7 +609,7 @@ typedef struct gs_row {
     float L[3];
 } gs_row;
 
-static gs_row gs_row_at(const rbc_grid *g, uint32_t j) {
+static gs_row gs_row_at(const rbc_lattice *g, uint32_t j) {
     const uint32_t cA = (j + g->c0) & 1u, cB = 1u - cA; /* first_col(g, cA, j) == 0 */
     gs_row r;
     r.has_d = j > 0;
@@ -644,7 +644,7 @@ RBC_ALWAYS_INLINE void gs_col(const gs_arrays *A, uint32_t nx, gs_row *r, uint32
  * chains through their left neighbours run side by side. Step c updates (c, j) and
  * (c - 1, j + 1); steps 2 .. nx - 2 of rows with neighbours above and below take the
  * branch-free path, two steps (an even and an odd column) per turn. */
-RBC_ALWAYS_INLINE void gs_two_rows(const gs_arrays *A, const rbc_grid *g, uint32_t j,
+RBC_ALWAYS_INLINE void gs_two_rows(const gs_arrays *A, const rbc_lattice *g, uint32_t j,
                                    const int uni) {
     const uint32_t nx = g->nx;
     gs_row a = gs_row_at(g, j), b = gs_row_at(g, j + 1);
@@ -669,7 +669,7 @@ RBC_ALWAYS_INLINE void gs_two_rows(const gs_arrays *A, const rbc_grid *g, uint32
 }
 #undef RBC_GS_INNER
 
-RBC_ALWAYS_INLINE void gs_serial(const rbc_grid *g, rbc_cloth_state *c, const int uni) {
+RBC_ALWAYS_INLINE void gs_serial(const rbc_lattice *g, rbc_cloth_state *c, const int uni) {
     const gs_arrays A = {c->p[0], c->p[1], c->p[2], c->bx, c->by, c->bz, c->inv_denom,
                          g->kd, g->kl, g->kr, g->ku, c->pinned, g->k_uniform};
     uint32_t j = 0;
@@ -680,7 +680,7 @@ RBC_ALWAYS_INLINE void gs_serial(const rbc_grid *g, rbc_cloth_state *c, const in
     }
 }
 
-void rbc_grid_gs_serial(const rbc_grid *g, rbc_cloth_state *c) {
+void rbc_lattice_gs_serial(const rbc_lattice *g, rbc_cloth_state *c) {
     if (g->k_uniform != 0.0f) gs_serial(g, c, 1);
     else gs_serial(g, c, 0);
 }
@@ -712,7 +712,7 @@ static void spring_target(const rbc_topology *t, float *const P[3], uint32_t i, 
 }
 
 /* b of one particle, scalar, any position in the lattice. */
-static void rhs_particle(const rbc_grid *g, rbc_cloth_state *c, uint32_t color, uint32_t j,
+static void rhs_particle(const rbc_lattice *g, rbc_cloth_state *c, uint32_t color, uint32_t j,
                          uint32_t m) {
     const rbc_topology *t = &c->topo;
     const uint32_t o = 1u - color, f = first_col(g, color, j), col = f + 2 * m;
@@ -798,7 +798,7 @@ static int rhs_interior(uint32_t count, const float *restrict px, const float *r
     return bad;
 }
 
-void rbc_grid_rhs(const rbc_grid *g, rbc_cloth_state *c, uint32_t tid, uint32_t nt) {
+void rbc_lattice_rhs(const rbc_lattice *g, rbc_cloth_state *c, uint32_t tid, uint32_t nt) {
     const uint32_t nx = g->nx, ny = g->ny;
     uint32_t j0, j1;
     rbc_split(ny, tid, nt, &j0, &j1);
@@ -837,7 +837,7 @@ void rbc_grid_rhs(const rbc_grid *g, rbc_cloth_state *c, uint32_t tid, uint32_t 
 }
 
 /* Zero the stiffness from i toward j (its left/right/down/up neighbour). */
-static void grid_zero(rbc_grid *g, const rbc_topology *t, uint32_t i, uint32_t j) {
+static void grid_zero(rbc_lattice *g, const rbc_topology *t, uint32_t i, uint32_t j) {
     uint32_t hi = t->to_host[i], hj = t->to_host[j];
     uint32_t nx = g->nx;
     if (hj + 1 == hi && hi % nx != 0) g->kl[i] = 0.0f;
@@ -846,7 +846,7 @@ static void grid_zero(rbc_grid *g, const rbc_topology *t, uint32_t i, uint32_t j
     else if (hi + nx == hj) g->ku[i] = 0.0f;
 }
 
-void rbc_grid_break_spring(rbc_grid *g, const rbc_topology *t, uint32_t sp) {
+void rbc_lattice_break_spring(rbc_lattice *g, const rbc_topology *t, uint32_t sp) {
     grid_zero(g, t, t->sa[sp], t->sb[sp]);
     grid_zero(g, t, t->sb[sp], t->sa[sp]);
     g->k_uniform = 0.0f;

@@ -1,4 +1,4 @@
-/* grid.h -- the grid fast path of the Gauss-Seidel sweep.
+/* lattice.h -- the lattice fast path of the Gauss-Seidel sweep.
  *
  * A cloth whose spring graph is an nx x ny lattice in host order (vertex i + nx j
  * joined only to i +- 1 and j +- 1, structural springs only: two colors) has, in the
@@ -10,8 +10,8 @@
  * Missing neighbours at the edges have stiffness 0; rows beyond the edges read a row
  * of zeros. Any other mesh uses the CSR path (global.c).
  */
-#ifndef RBC_CORE_GRID_H
-#define RBC_CORE_GRID_H
+#ifndef RBC_CORE_LATTICE_H
+#define RBC_CORE_LATTICE_H
 #include <stddef.h>
 #include <stdint.h>
 
@@ -20,7 +20,7 @@
 
 struct rbc_cloth_state;
 
-typedef struct rbc_grid {
+typedef struct rbc_lattice {
     uint32_t nx, ny;
     uint32_t c0;                /* color of host vertex 0 (row 0, column 0) */
     uint32_t *row_first[2];     /* [ny + 1]: internal index of the first particle of
@@ -35,30 +35,30 @@ typedef struct rbc_grid {
                                    lattice edge has no spring: the broadcast would add it) */
     uint32_t csr_order;         /* 1: every lattice edge is a spring and every CSR row lists
                                    the neighbours down, left, right, up (j - 1, i - 1, i + 1,
-                                   j + 1) with these stiffnesses, so rbc_grid_jacobi and
-                                   rbc_grid_gs_serial add the same terms in the same order as
+                                   j + 1) with these stiffnesses, so rbc_lattice_jacobi and
+                                   rbc_lattice_gs_serial add the same terms in the same order as
                                    the CSR rows (rbc_k_eq6b) and give their result bitwise */
     size_t bytes;
-} rbc_grid;
+} rbc_lattice;
 
 /* 1 and *out set if t is such a lattice; 0 (not a lattice, *out NULL); -1 out of
  * memory. O(n + springs). */
-int rbc_grid_detect(const rbc_topology *t, const rbc_allocator *a, rbc_grid **out);
-void rbc_grid_free(rbc_grid *g, const rbc_allocator *a);
+int rbc_lattice_detect(const rbc_topology *t, const rbc_allocator *a, rbc_lattice **out);
+void rbc_lattice_free(rbc_lattice *g, const rbc_allocator *a);
 /* Tearing (tear.h): spring sp of t is gone; zero its stiffness toward both ends and
  * turn off the one-stiffness broadcast (a stiffness of 0 reads as no spring). */
-void rbc_grid_break_spring(rbc_grid *g, const rbc_topology *t, uint32_t sp);
+void rbc_lattice_break_spring(rbc_lattice *g, const rbc_topology *t, uint32_t sp);
 
 /* The local step and the right-hand side in one pass, this thread's rows of both
  * colors: b_i = m_i/h^2 y_i + sum_j s_ij d_ij with d_ij = L (p_i - p_j) / |p_i - p_j|
  * (the rest direction when |p_i - p_j| <= 1e-12 m), as rbc_k_local and rbc_k_rhs
  * compute it, from p, without the per-spring d arrays. */
-void rbc_grid_rhs(const rbc_grid *g, struct rbc_cloth_state *c, uint32_t tid, uint32_t nt);
+void rbc_lattice_rhs(const rbc_lattice *g, struct rbc_cloth_state *c, uint32_t tid, uint32_t nt);
 
 /* One color of a Gauss-Seidel iteration (Eq. 6 from b, rbc_global_rhs), this
  * thread's rows: p_i = g_i (omega == 0) or p_i += omega (g_i - p_i). Pinned particles
  * keep their positions. */
-void rbc_grid_sweep(const rbc_grid *g, struct rbc_cloth_state *c, uint32_t color, float omega,
+void rbc_lattice_sweep(const rbc_lattice *g, struct rbc_cloth_state *c, uint32_t color, float omega,
                     uint32_t tid, uint32_t nt);
 
 /* One Jacobi iteration (Eq. 6 of src into dst; rbc_global_jacobi), this thread's rows
@@ -69,7 +69,7 @@ void rbc_grid_sweep(const rbc_grid *g, struct rbc_cloth_state *c, uint32_t color
  * adds s * (-0), which changes no float): the CSR row's order, so the result is
  * bitwise rbc_global_jacobi's (g->csr_order must be 1) whatever nt. Reads src only:
  * the interior of a row vectorizes with no dependency. */
-void rbc_grid_jacobi(const rbc_grid *g, struct rbc_cloth_state *c, float *const src[3],
+void rbc_lattice_jacobi(const rbc_lattice *g, struct rbc_cloth_state *c, float *const src[3],
                      float *const dst[3], int chebyshev, float omega, uint32_t tid, uint32_t nt);
 
 /* One serial lexicographic Gauss-Seidel iteration in the host's vertex order (row by
@@ -79,7 +79,7 @@ void rbc_grid_jacobi(const rbc_grid *g, struct rbc_cloth_state *c, float *const 
  * rows advance together, the upper one a column behind (each update still reads what
  * it reads in host order). Same sums in the same order as the CSR rows: bitwise
  * rbc_global_gs_serial's result (g->csr_order must be 1). */
-void rbc_grid_gs_serial(const rbc_grid *g, struct rbc_cloth_state *c);
+void rbc_lattice_gs_serial(const rbc_lattice *g, struct rbc_cloth_state *c);
 
 /* `iterations` whole red-black iterations, temporally blocked: at step w iteration
  * it updates red row w - 2 it, then black row w - 2 it - 1, so a band of 2 iterations
@@ -89,7 +89,7 @@ void rbc_grid_gs_serial(const rbc_grid *g, struct rbc_cloth_state *c);
  * share); thread t starts step w once thread t - 1 has finished it (progress[stride *
  * t] counts the steps a thread finished; zero them and barrier before). Color 0 must be "red": the
  * lattice's two colors play symmetric roles, so either works. */
-void rbc_grid_wavefront(const rbc_grid *g, struct rbc_cloth_state *c, uint32_t iterations,
+void rbc_lattice_wavefront(const rbc_lattice *g, struct rbc_cloth_state *c, uint32_t iterations,
                         float omega, volatile uint32_t *progress, size_t stride, uint32_t tid,
                         uint32_t nt);
 #endif

@@ -19,7 +19,7 @@
 #include "topology.h"
 
 struct rbc_direct;
-struct rbc_grid;
+struct rbc_lattice;
 struct rbc_ell;
 
 /* The global solver settings (the ABI's rbc_solver_def, validated by the plugin). */

@@ -73,7 +73,7 @@ typedef struct step_ctx {
     int cc_active;        /* some cloth takes part in cloth contact */
     int grow;             /* a contact list must grow: detect again */
     int wavefront;        /* fixed counts run as the lattice wavefront (sweep.c) */
-    /* Steps each thread finished in the lattice wavefront (grid.h), a cache line
+    /* Steps each thread finished in the lattice wavefront (lattice.h), a cache line
      * apart. */
     volatile uint32_t progress[64 * 16];
     /* RBC_ITERATE_TARGET: the linear iterations of the global steps before the

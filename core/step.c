@@ -37,7 +37,7 @@
 #include "energy.h"
 #include "energy_guard.h"
 #include "global.h"
-#include "grid.h"
+#include "lattice.h"
 #include "host_callbacks.h"
 #include "kernels/pd_kernels.h"
 #include "report.h"
@@ -113,9 +113,9 @@ static void stage_wind(step_ctx *ctx, const rbc_step_at *at) {
 }
 
 /* Whether a cloth's local step runs fused with the right-hand side on the lattice
- * (grid.h): not for the direct solver, which reads the per-spring d arrays. */
+ * (lattice.h): not for the direct solver, which reads the per-spring d arrays. */
 static int grid_local(const rbc_solver *s, const rbc_cloth_state *c) {
-    return c->grid && s->settings.kind != RBC_SOLVER_DIRECT;
+    return c->lattice && s->settings.kind != RBC_SOLVER_DIRECT;
 }
 
 static void stage_local(step_ctx *ctx, const rbc_step_at *at) {
@@ -134,7 +134,7 @@ static void stage_local(step_ctx *ctx, const rbc_step_at *at) {
     for (uint32_t q = 0; q < s->cloth_count; ++q) {
         rbc_cloth_state *c = s->cloths[q];
         if (grid_local(s, c))
-            rbc_grid_rhs(c->grid, c, at->tid, at->nt);
+            rbc_lattice_rhs(c->lattice, c, at->tid, at->nt);
         else
             rbc_global_rhs(c, at->tid, at->nt);
     }

@@ -4,8 +4,8 @@
  * The choice, per cloth and per step:
  *   wavefront  fixed counts of plain or over-relaxed red-black sweeps on lattices,
  *              without contacts: temporally blocked, the mesh streamed once for all
- *              iterations (grid.h; bitwise the result of the plain loop)
- *   lattice    a regular grid: the stencil sweeps of grid.h
+ *              iterations (lattice.h; bitwise the result of the plain loop)
+ *   lattice    a regular grid: the stencil sweeps of lattice.h
  *   ELL        other meshes: the ELLPACK rows of ell.h
  *   CSR        the generic rows (global.c): the reference, and what the Chebyshev
  *              stash and meshes without another layout use
@@ -22,7 +22,7 @@
 #include "direct.h"
 #include "ell.h"
 #include "global.h"
-#include "grid.h"
+#include "lattice.h"
 #include "report.h"
 #include "target.h"
 
@@ -33,11 +33,11 @@ typedef enum rbc_layout { RBC_LAYOUT_CSR, RBC_LAYOUT_LATTICE, RBC_LAYOUT_ELL } r
 
 static rbc_layout color_sweep_layout(const rbc_cloth_state *c, rbc_gs_variant v) {
     if (v == RBC_GS_STASH) return RBC_LAYOUT_CSR;
-    return c->grid ? RBC_LAYOUT_LATTICE : c->ell ? RBC_LAYOUT_ELL : RBC_LAYOUT_CSR;
+    return c->lattice ? RBC_LAYOUT_LATTICE : c->ell ? RBC_LAYOUT_ELL : RBC_LAYOUT_CSR;
 }
 
 static rbc_layout row_sweep_layout(const rbc_cloth_state *c) {
-    return c->grid && c->grid->csr_order ? RBC_LAYOUT_LATTICE : RBC_LAYOUT_CSR;
+    return c->lattice && c->lattice->csr_order ? RBC_LAYOUT_LATTICE : RBC_LAYOUT_CSR;
 }
 
 void rbc_global_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, float omega,
@@ -45,7 +45,7 @@ void rbc_global_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, f
     if (color >= c->topo.ncolors) return;
     switch (color_sweep_layout(c, v)) {
     case RBC_LAYOUT_LATTICE:
-        rbc_grid_sweep(c->grid, c, color, v == RBC_GS_SOR ? omega : 0.0f, tid, nt);
+        rbc_lattice_sweep(c->lattice, c, color, v == RBC_GS_SOR ? omega : 0.0f, tid, nt);
         break;
     case RBC_LAYOUT_ELL:
         rbc_ell_sweep(c->ell, c, color, v == RBC_GS_SOR ? omega : 0.0f, tid, nt);
@@ -58,19 +58,19 @@ void rbc_global_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, f
 
 void rbc_global_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst[3],
                        int chebyshev, float omega, uint32_t tid, uint32_t nt) {
-    /* A lattice: the same sums in the same order over rows, vectorized (grid.h);
+    /* A lattice: the same sums in the same order over rows, vectorized (lattice.h);
      * bitwise the CSR rows' result, whatever the split of the rows over threads. */
     if (row_sweep_layout(c) == RBC_LAYOUT_LATTICE)
-        rbc_grid_jacobi(c->grid, c, src, dst, chebyshev, omega, tid, nt);
+        rbc_lattice_jacobi(c->lattice, c, src, dst, chebyshev, omega, tid, nt);
     else
         rbc_csr_jacobi(c, src, dst, chebyshev, omega, tid, nt);
 }
 
 void rbc_global_gs_serial(rbc_cloth_state *c) {
     /* A lattice: the same updates in the same order, the neighbours found by the
-     * stencil instead of index arrays (grid.h); bitwise the CSR rows' result. */
+     * stencil instead of index arrays (lattice.h); bitwise the CSR rows' result. */
     if (row_sweep_layout(c) == RBC_LAYOUT_LATTICE)
-        rbc_grid_gs_serial(c->grid, c);
+        rbc_lattice_gs_serial(c->lattice, c);
     else
         rbc_csr_gs_serial(c);
 }
@@ -102,7 +102,7 @@ int32_t rbc_sweep_prepare(step_ctx *ctx) {
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
         if (c->topo.ncolors > ctx->ncolors) ctx->ncolors = c->topo.ncolors;
-        ctx->wavefront = ctx->wavefront && c->grid != NULL;
+        ctx->wavefront = ctx->wavefront && c->lattice != NULL;
         uint32_t ki = rbc_step_slot(k);
         if (st->kind == RBC_SOLVER_RBGS_SOR) ctx->sor_omega[ki] = rbc_solver_sor_omega(s, c, ctx->h);
         if (st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV || st->kind == RBC_SOLVER_RBGS_CHEBYSHEV) {
@@ -208,7 +208,7 @@ static void wavefront(step_ctx *ctx, uint32_t count, uint32_t tid, uint32_t nt) 
             s->settings.kind == RBC_SOLVER_RBGS_SOR ? ctx->sor_omega[rbc_step_slot(q)] : 0.0f;
         ctx->progress[16 * tid] = 0;
         rbc_pool_barrier(s->pool);
-        rbc_grid_wavefront(c->grid, c, count, omega, ctx->progress, 16, tid, nt);
+        rbc_lattice_wavefront(c->lattice, c, count, omega, ctx->progress, 16, tid, nt);
         rbc_pool_barrier(s->pool);
     }
 }

@@ -4,7 +4,7 @@
 #include <string.h>
 
 #include "ell.h"
-#include "grid.h"
+#include "lattice.h"
 
 /* The one place a spring breaks: each owner of a copy of its stiffness (the
  * topology's spring list and CSR rows, the ELLPACK slots, the lattice's stencil)
@@ -12,7 +12,7 @@
 int rbc_tear_spring(rbc_cloth_state *c, uint32_t sp) {
     if (!rbc_topology_break_spring(&c->topo, sp)) return 0;
     if (c->ell) rbc_ell_break_spring(c->ell, &c->topo, sp);
-    if (c->grid) rbc_grid_break_spring(c->grid, &c->topo, sp);
+    if (c->lattice) rbc_lattice_break_spring(c->lattice, &c->topo, sp);
     c->torn++;
     return 1;
 }

@@ -553,7 +553,7 @@ static int32_t color_springs(const rbc_mesh_input *in, const rbc_allocator *a, r
 }
 
 /* Step 6, color-contiguous order: color 0 first, then 1, ..., each in host order when
- * that order is already local (a grid's rows stay together, and grid.c's lattice path
+ * that order is already local (a grid's rows stay together, and lattice.c's path
  * needs exactly that), else by a Morton (Z-order) code of the rest position, so that a
  * sweep's neighbours sit close in memory whatever order the file had. *scattered: the
  * host order was not local. */

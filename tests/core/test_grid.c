@@ -21,7 +21,7 @@
 #include "check.h"
 #include "ell.h"
 #include "global.h"
-#include "grid.h"
+#include "lattice.h"
 #include "kernels/pd_kernels.h"
 #include "meshes.h"
 #include "solver.h"
@@ -45,16 +45,16 @@ static void test_detection(void) {
     for (size_t k = 0; k < sizeof sizes / sizeof sizes[0]; ++k) {
         test_mesh m = mesh_grid(sizes[k][0], sizes[k][1], 0.01f);
         rbc_cloth_state *c = make(&s, &m, NULL, 0, 0.0f);
-        CHECK(c->grid != NULL);
-        if (c->grid) {
-            CHECK_EQ(c->grid->nx, sizes[k][0]);
-            CHECK_EQ(c->grid->ny, sizes[k][1]);
+        CHECK(c->lattice != NULL);
+        if (c->lattice) {
+            CHECK_EQ(c->lattice->nx, sizes[k][0]);
+            CHECK_EQ(c->lattice->ny, sizes[k][1]);
         }
         mesh_free(&m);
     }
     test_mesh m = mesh_grid(20, 20, 0.01f);
     rbc_cloth_state *c = make(&s, &m, NULL, 0, 500.0f); /* shear: 4 colors */
-    CHECK(c->grid == NULL);
+    CHECK(c->lattice == NULL);
     /* The same grid with its vertices renumbered: no lattice in host order. */
     test_mesh sh = mesh_grid(20, 20, 0.01f);
     uint32_t perm[400];
@@ -63,13 +63,13 @@ static void test_detection(void) {
         for (int ax = 0; ax < 3; ++ax) sh.pos[3 * perm[v] + ax] = m.pos[3 * v + ax];
     for (uint32_t q = 0; q < 4 * sh.nq; ++q) sh.quads[q] = perm[m.quads[q]];
     c = make(&s, &sh, NULL, 0, 0.0f);
-    CHECK(c->grid == NULL);
+    CHECK(c->lattice == NULL);
     test_mesh tor = mesh_torus(12, 10);
     c = make(&s, &tor, NULL, 0, 0.0f);
-    CHECK(c->grid == NULL);
+    CHECK(c->lattice == NULL);
     test_mesh tri = mesh_split_triangles(10);
     c = make(&s, &tri, NULL, 0, 0.0f);
-    CHECK(c->grid == NULL);
+    CHECK(c->lattice == NULL);
     mesh_free(&m);
     mesh_free(&sh);
     mesh_free(&tor);
@@ -169,7 +169,7 @@ static void test_rhs(void) {
     CHECK_EQ(rbc_solver_init(&s, &al, 1), RBC_OK);
     test_mesh m = mesh_grid(33, 17, 1.0f / 32.0f);
     rbc_cloth_state *c = make(&s, &m, NULL, 0, 0.0f);
-    CHECK(c->grid != NULL);
+    CHECK(c->lattice != NULL);
     perturb(c);
     const rbc_topology *t = &c->topo;
     for (uint32_t i = 0; i < t->n; ++i) {
@@ -190,7 +190,7 @@ static void test_rhs(void) {
         ref[ax] = malloc(sizeof(float) * t->n);
         memcpy(ref[ax], ax == 0 ? c->bx : ax == 1 ? c->by : c->bz, sizeof(float) * t->n);
     }
-    rbc_grid_rhs(c->grid, c, 0, 1);
+    rbc_lattice_rhs(c->lattice, c, 0, 1);
     /* Same terms (w y and s d_j, each computed by the same float operations), summed
      * in another order: the sums differ by at most 5 roundings of their largest
      * partial sum, bounded by w |y| + sum s L. */
@@ -220,9 +220,9 @@ static void test_steps_grid(rbc_solver_kind kind, uint32_t threads, uint32_t nx,
     test_mesh m;
     uint32_t pins[3];
     twins_pinned_grid(&tw, threads, kind, nx, ny, &m, pins);
-    CHECK(tw.c[0]->grid != NULL);
-    rbc_grid_free(tw.c[1]->grid, &tw.al);
-    tw.c[1]->grid = NULL;
+    CHECK(tw.c[0]->lattice != NULL);
+    rbc_lattice_free(tw.c[1]->lattice, &tw.al);
+    tw.c[1]->lattice = NULL;
     double worst = twins_worst(&tw, 5);
     /* Each Gauss-Seidel update differs by the rounding of a 5-term sum (at most 5
      * roundings of |p| ~ 1 m: 3e-7 m) and of b; updates contract earlier differences
@@ -255,7 +255,7 @@ static void test_ell(void) {
         uint32_t pins[2] = {0, 1};
         twins_cloths(&tw, &m, pins, 2);
         rbc_cloth_state *fast = tw.c[0];
-        CHECK(fast->grid == NULL && fast->ell != NULL);
+        CHECK(fast->lattice == NULL && fast->ell != NULL);
         rbc_ell_free(tw.c[1]->ell, &tw.al);
         tw.c[1]->ell = NULL;
         double worst = twins_worst(&tw, 5);
@@ -299,7 +299,7 @@ static void test_scattered_order(void) {
     twins_cloths(&tw, &m, pins, 2);
     rbc_cloth_state *c = tw.c[0];
     const rbc_topology *t = &c->topo;
-    CHECK(c->grid == NULL && c->ell != NULL);
+    CHECK(c->lattice == NULL && c->ell != NULL);
     double host = 0.0, mem = 0.0;
     for (uint32_t k = 0; k < t->ns; ++k) {
         uint32_t a = t->to_host[t->sa[k]], b = t->to_host[t->sb[k]];
@@ -363,7 +363,7 @@ static void test_wavefront(void) {
         test_mesh m = mesh_grid(dims[d][0], dims[d][1], 0.02f);
         uint32_t pins[1] = {dims[d][0] - 1};
         rbc_cloth_state *c = make(&s, &m, pins, 1, 0.0f);
-        CHECK(c->grid != NULL);
+        CHECK(c->lattice != NULL);
         perturb(c);
         const rbc_topology *t = &c->topo;
         for (uint32_t i = 0; i < t->n; ++i) {
@@ -371,7 +371,7 @@ static void test_wavefront(void) {
             c->inv_denom[i] = 1.0f / (25.0f + t->ksum[i]);
             for (int ax = 0; ax < 3; ++ax) c->p[ax][i] = c->y[ax][i] = c->x[ax][i];
         }
-        rbc_grid_rhs(c->grid, c, 0, 1);
+        rbc_lattice_rhs(c->lattice, c, 0, 1);
         float *start[3], *plain[3];
         for (int ax = 0; ax < 3; ++ax) {
             start[ax] = malloc(sizeof(float) * t->n);
@@ -382,11 +382,11 @@ static void test_wavefront(void) {
         for (int o = 0; o < 2; ++o) {
             for (int ax = 0; ax < 3; ++ax) memcpy(c->p[ax], start[ax], sizeof(float) * t->n);
             for (int it = 0; it < 11; ++it)
-                for (uint32_t col = 0; col < 2; ++col) rbc_grid_sweep(c->grid, c, col, omegas[o], 0, 1);
+                for (uint32_t col = 0; col < 2; ++col) rbc_lattice_sweep(c->lattice, c, col, omegas[o], 0, 1);
             for (int ax = 0; ax < 3; ++ax) memcpy(plain[ax], c->p[ax], sizeof(float) * t->n);
             for (int ax = 0; ax < 3; ++ax) memcpy(c->p[ax], start[ax], sizeof(float) * t->n);
             uint32_t progress[16] = {0};
-            rbc_grid_wavefront(c->grid, c, 11, omegas[o], progress, 16, 0, 1);
+            rbc_lattice_wavefront(c->lattice, c, 11, omegas[o], progress, 16, 0, 1);
             int same = 1;
             for (int ax = 0; ax < 3; ++ax)
                 same &= memcmp(plain[ax], c->p[ax], sizeof(float) * t->n) == 0;
@@ -412,7 +412,7 @@ static void test_threads(void) {
         test_mesh m = mesh_grid(101, 37, 0.01f); /* odd width: rows of both parities */
         uint32_t pins[2] = {0, 100};
         rbc_cloth_state *c = make(&s, &m, pins, 2, 0.0f);
-        CHECK(c->grid != NULL);
+        CHECK(c->lattice != NULL);
         char err[256];
         for (int f = 0; f < 20; ++f) CHECK_EQ(rbc_solver_step(&s, 0.002f, err, sizeof err), RBC_OK);
         res[nt - 1] = malloc(sizeof(float) * 3 * c->topo.n);
@@ -436,9 +436,9 @@ static void vary_stiffness(rbc_cloth_state *c, const rbc_allocator *al) {
         t->ksum[t->sa[k]] += sk;
         t->ksum[t->sb[k]] += sk;
     }
-    rbc_grid_free(c->grid, al);
-    c->grid = NULL;
-    CHECK_EQ(rbc_grid_detect(t, al, &c->grid), 1);
+    rbc_lattice_free(c->lattice, al);
+    c->lattice = NULL;
+    CHECK_EQ(rbc_lattice_detect(t, al, &c->lattice), 1);
 }
 
 /* Whole steps of Jacobi, Jacobi + Chebyshev or serial Gauss-Seidel: one cloth on the
@@ -458,11 +458,11 @@ static int test_lattice_solver(rbc_solver_kind kind, uint32_t nx, uint32_t ny, i
         vary_stiffness(fast, &tw.al);
         vary_stiffness(csr, &tw.al);
     }
-    CHECK(fast->grid != NULL && csr->grid != NULL);
-    if (!fast->grid || !csr->grid) return 0;
-    CHECK(fast->grid->csr_order == 1);
-    CHECK(vary ? fast->grid->k_uniform == 0.0f : fast->grid->k_uniform == 1000.0f);
-    csr->grid->csr_order = 0;
+    CHECK(fast->lattice != NULL && csr->lattice != NULL);
+    if (!fast->lattice || !csr->lattice) return 0;
+    CHECK(fast->lattice->csr_order == 1);
+    CHECK(vary ? fast->lattice->k_uniform == 0.0f : fast->lattice->k_uniform == 1000.0f);
+    csr->lattice->csr_order = 0;
     char err[256];
     int same = 1;
     for (int f = 0; f < 5; ++f) {
@@ -525,8 +525,8 @@ static void test_negative_zero(void) {
     test_mesh m = mesh_grid(9, 6, 0.1f);
     uint32_t pins[1] = {4};
     rbc_cloth_state *c = make(&s, &m, pins, 1, 0.0f);
-    CHECK(c->grid != NULL && c->grid->csr_order == 1);
-    if (!c->grid) return;
+    CHECK(c->lattice != NULL && c->lattice->csr_order == 1);
+    if (!c->lattice) return;
     const rbc_topology *t = &c->topo;
     const uint32_t n = t->n;
     for (uint32_t i = 0; i < n; ++i) {
@@ -539,7 +539,7 @@ static void test_negative_zero(void) {
      * Jacobi + Chebyshev (prev = p), serial Gauss-Seidel. */
     float *out[2][3][3];
     for (int path = 0; path < 2; ++path) {
-        c->grid->csr_order = (uint32_t)path;
+        c->lattice->csr_order = (uint32_t)path;
         for (int r = 0; r < 3; ++r) {
             for (int ax = 0; ax < 3; ++ax)
                 for (uint32_t i = 0; i < n; ++i) {
@@ -587,11 +587,11 @@ static void test_notch(void) {
     uint32_t pins[2] = {0, 29};
     twins_cloths(&tw, &m, pins, 2);
     const rbc_cloth_state *fast = tw.c[0];
-    CHECK(fast->grid != NULL);
-    if (!fast->grid) return;
-    CHECK(fast->grid->k_uniform == 0.0f && fast->grid->csr_order == 0);
-    rbc_grid_free(tw.c[1]->grid, &tw.al);
-    tw.c[1]->grid = NULL;
+    CHECK(fast->lattice != NULL);
+    if (!fast->lattice) return;
+    CHECK(fast->lattice->k_uniform == 0.0f && fast->lattice->csr_order == 0);
+    rbc_lattice_free(tw.c[1]->lattice, &tw.al);
+    tw.c[1]->lattice = NULL;
     double worst = twins_worst(&tw, 5);
     printf("notched lattice, rbgs: fast path vs CSR path, worst |dp| over 5 frames %.3g m\n",
            worst);
