@@ -485,16 +485,25 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
     return RBC_OK;
 }
 
-RBC_API rbc_result RBC_CALL rbc_world_set_collision_callback(rbc_world_id id, rbc_collision_fn fn_,
-                                                             void *user) {
-    static const char fn[] = "rbc_world_set_collision_callback";
+/* The collision callback (1.0) and the contact callback (1.3): the same lookup and
+ * the same failure (the buffers the core hands the callback); `contact` says which
+ * of the two is set. */
+static rbc_result set_callback(rbc_world_id id, const char *fn, int contact,
+                               rbc_collision_fn collision_fn, rbc_contact_fn contact_fn,
+                               void *user) {
     rbc_world *w;
     rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
     if (rc) return rc;
-    rc = rbc_solver_set_callback(&w->solver, fn_, user);
+    rc = contact ? rbc_solver_set_contact_callback(&w->solver, contact_fn, user)
+                 : rbc_solver_set_callback(&w->solver, collision_fn, user);
     if (rc)
         return rbc_plugin_world_error(w, rc, "%s: out of memory for the callback's buffers", fn);
     return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_world_set_collision_callback(rbc_world_id id, rbc_collision_fn fn_,
+                                                             void *user) {
+    return set_callback(id, "rbc_world_set_collision_callback", 0, fn_, NULL, user);
 }
 
 /* ------------------------------------------------------------------------- */
@@ -558,14 +567,7 @@ RBC_API rbc_result RBC_CALL rbc_world_get_solver(rbc_world_id id, rbc_solver_def
 
 RBC_API rbc_result RBC_CALL rbc_world_set_contact_callback(rbc_world_id id, rbc_contact_fn fn_,
                                                            void *user) {
-    static const char fn[] = "rbc_world_set_contact_callback";
-    rbc_world *w;
-    rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
-    if (rc) return rc;
-    rc = rbc_solver_set_contact_callback(&w->solver, fn_, user);
-    if (rc)
-        return rbc_plugin_world_error(w, rc, "%s: out of memory for the callback's buffers", fn);
-    return RBC_OK;
+    return set_callback(id, "rbc_world_set_contact_callback", 1, NULL, fn_, user);
 }
 
 RBC_API rbc_result RBC_CALL rbc_world_pick(rbc_world_id id, const float origin[3],
