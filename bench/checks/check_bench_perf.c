@@ -22,9 +22,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "check.h"
-#include "csv.h"
-#include "text_file.h"
+#include "checker.h"
 
 enum { MAX_ROWS = 64 };
 
@@ -71,24 +69,16 @@ static const row *find(const row *rows, int n, const char *mesh, const char *sol
 }
 
 int main(int argc, char **argv) {
-    if (argc != 2) {
-        fprintf(stderr, "usage: %s DIR\n", argv[0]);
-        return 2;
-    }
-    char path[4096];
     csv_file csv;
-    if (csv_read_in(argv[1], "perf.csv", &csv) != 0) {
-        CHECK(!"perf.csv exists");
-        return check_report("bench_perf");
-    }
-    CHECK(csv_header_is(&csv, header));
+    int rc = checker_open(argc, argv, "perf.csv", header, "bench_perf", &csv);
+    if (rc >= 0)
+        return rc;
     static row rows[MAX_ROWS];
     int n = 0;
     for (int i = 0; i < csv.row_count; ++i) {
-        char **f = csv.rows[i].field;
-        const int cols = csv.rows[i].count, line = csv.rows[i].line;
-        CHECK_EQ(cols, C_COUNT);
-        if (cols != C_COUNT || n == MAX_ROWS)
+        char **f = checker_fields(&csv, i, C_COUNT);
+        const int line = csv.rows[i].line;
+        if (!f || n == MAX_ROWS)
             continue;
         row *r = &rows[n++];
         snprintf(r->mesh, sizeof r->mesh, "%s", f[C_MESH]);
@@ -193,19 +183,9 @@ int main(int argc, char **argv) {
     }
     CHECK_EQ(n, 2 * (3 + 2 + 1));
 
-    snprintf(path, sizeof path, "%s/perf.md", argv[1]);
-    char *md = text_file_read(path);
-    CHECK(md != NULL);
-    if (md) {
-        const char *sections[] = {"## Scaling", "## Speedup of 2 threads over 1",
-                                  "## Grid against irregular mesh", "## Solvers at equal iterations",
-                                  "## Memory"};
-        for (size_t k = 0; k < sizeof sections / sizeof sections[0]; ++k) {
-            if (!strstr(md, sections[k]))
-                fprintf(stderr, "perf.md has no '%s'\n", sections[k]);
-            CHECK(strstr(md, sections[k]) != NULL);
-        }
-        free(md);
-    }
+    static const char *const sections[] = {"## Scaling", "## Speedup of 2 threads over 1",
+                                           "## Grid against irregular mesh",
+                                           "## Solvers at equal iterations", "## Memory"};
+    free(checker_page(argv[1], "perf.md", sections, sizeof sections / sizeof sections[0]));
     return check_report("bench_perf");
 }

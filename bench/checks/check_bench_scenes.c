@@ -21,9 +21,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "check.h"
-#include "csv.h"
-#include "text_file.h"
+#include "checker.h"
 
 static const char header[] =
     "scene,threads,frames,substeps,particles,springs,colliders,step_ms_median,step_ms_p90,"
@@ -77,24 +75,16 @@ static int same_or_both_nan(double a, double b) {
 }
 
 int main(int argc, char **argv) {
-    if (argc != 2) {
-        fprintf(stderr, "usage: %s DIR\n", argv[0]);
-        return 2;
-    }
-    char path[4096];
     csv_file csv;
-    if (csv_read_in(argv[1], "scenes.csv", &csv) != 0) {
-        CHECK(!"scenes.csv exists");
-        return check_report("bench_scenes");
-    }
-    CHECK(csv_header_is(&csv, header));
+    int rc = checker_open(argc, argv, "scenes.csv", header, "bench_scenes", &csv);
+    if (rc >= 0)
+        return rc;
     int seen[SCENE_COUNT][3] = {{0}};
     int n = 0;
     for (int i = 0; i < csv.row_count; ++i) {
-        char **f = csv.rows[i].field;
-        const int cols = csv.rows[i].count, line = csv.rows[i].line;
-        CHECK_EQ(cols, C_COUNT);
-        if (cols != C_COUNT)
+        char **f = checker_fields(&csv, i, C_COUNT);
+        const int line = csv.rows[i].line;
+        if (!f)
             continue;
         ++n;
         int s = -1;
@@ -168,9 +158,8 @@ int main(int argc, char **argv) {
         }
     CHECK_EQ(n, 2 * SCENE_COUNT);
 
-    snprintf(path, sizeof path, "%s/scenes.md", argv[1]);
-    char *md = text_file_read(path);
-    CHECK(md != NULL);
+    static const char *const paper[] = {"GTX 970"};
+    char *md = checker_page(argv[1], "scenes.md", paper, 1);
     if (md) {
         for (int s = 0; s < SCENE_COUNT; ++s) {
             char cell[64];
@@ -180,7 +169,6 @@ int main(int argc, char **argv) {
                 ++rows;
             CHECK_EQ(rows, 2);
         }
-        CHECK(strstr(md, "GTX 970") != NULL);
         free(md);
     }
     return check_report("bench_scenes");
