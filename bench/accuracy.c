@@ -110,10 +110,7 @@ typedef struct acc_ctx {
     uint32_t stats_mismatches;
 } acc_ctx;
 
-static int out_of_memory(void) {
-    fputs("rbcloth: out of memory in the accuracy bench\n", stderr);
-    return 1;
-}
+static int out_of_memory(void) { return bench_out_of_memory("accuracy"); }
 
 static int build_scenes(acc_ctx *ctx) {
     rbc_scene sc;
@@ -517,14 +514,10 @@ static int run_one(acc_ctx *ctx, uint32_t scene, uint32_t solver, const acc_cont
 
 static int add_row(acc_ctx *ctx, uint32_t scene, uint32_t solver, const acc_control *c,
                    const acc_result *res) {
-    if (ctx->row_count == ctx->row_cap) {
-        size_t cap = ctx->row_cap ? 2 * ctx->row_cap : 64;
-        sweep_row *rows = realloc(ctx->rows, cap * sizeof *rows);
-        if (!rows)
-            return out_of_memory();
-        ctx->rows = rows;
-        ctx->row_cap = cap;
-    }
+    sweep_row *rows = bench_grow(ctx->rows, &ctx->row_cap, ctx->row_count, sizeof *rows, 64);
+    if (!rows)
+        return out_of_memory();
+    ctx->rows = rows;
     sweep_row *row = &ctx->rows[ctx->row_count++];
     row->scene = scene;
     row->solver = solver;
@@ -845,12 +838,8 @@ static int write_plots(acc_ctx *ctx) {
                ctx->dir);
         return 0;
     }
-    for (size_t k = 0; k < sizeof scripts / sizeof scripts[0]; ++k) {
-        int status = bench_run_gnuplot(ctx->dir, scripts[k]);
-        if (status != 0)
-            fprintf(stderr, "rbcloth: bench: gnuplot %s/%s exited with %d\n", ctx->dir, scripts[k],
-                    status);
-    }
+    for (size_t k = 0; k < sizeof scripts / sizeof scripts[0]; ++k)
+        bench_plot_run(ctx->dir, scripts[k]);
     return 0;
 }
 
@@ -943,13 +932,6 @@ static void ctx_free(acc_ctx *ctx) {
             fclose(files[k]);
 }
 
-static FILE *open_csv(acc_ctx *ctx, const char *name, const char *header) {
-    FILE *f = bench_open(ctx->dir, name);
-    if (f)
-        fprintf(f, "%s\n", header);
-    return f;
-}
-
 int cli_bench_accuracy(const cli_plugin *plugin, const cli_bench_options *options) {
     if (bench_require_v1_1(plugin))
         return 1;
@@ -967,11 +949,8 @@ int cli_bench_accuracy(const cli_plugin *plugin, const cli_bench_options *option
         if (gaps[g] < ctx.frames)
             ctx.gap_frames[ctx.gap_count++] = gaps[g];
 
-    char err[512];
-    if (fs_mkdir_p(ctx.dir, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
+    if (fs_mkdir_p_or_say(ctx.dir))
         return 1;
-    }
     double start = bench_now();
     ctx.load_start = bench_load_average();
     int rc = build_scenes(&ctx);
@@ -993,20 +972,22 @@ int cli_bench_accuracy(const cli_plugin *plugin, const cli_bench_options *option
                 for (uint32_t g = 0; g < MAX_GAP_FRAMES; ++g)
                     ctx.gap[sc][k][g] = ctx.gap_linear[sc][k][g] = NAN;
             }
-        ctx.iter_csv = open_csv(&ctx, "accuracy_iterations.csv",
-                                "scene,solver,frame,eq7,linear_residual,pd_objective,step_ms");
-        ctx.budget_csv = open_csv(&ctx, "accuracy_budget.csv",
-                                  "scene,solver,frame,budget_ms,eq7,linear_iterations,"
-                                  "linear_residual,pd_objective,step_ms");
-        ctx.sweep_csv = open_csv(&ctx, "accuracy_sweep.csv",
-                                 "scene,solver,control,budget_ms,substeps,nonlinear_iterations,"
-                                 "linear_iterations,frames,final_eq7,median_step_ms,"
-                                 "median_linear_iterations,unstable_steps,diverged");
-        ctx.gap_csv = open_csv(&ctx, "accuracy_gap.csv",
-                               "scene,solver,mode,frame,linear_iterations,F0,F,F_star,gap,"
-                               "reference,F_library,F_star_library,eq7_host,eq7_library,"
-                               "residual_host,residual_library,F_linear_star,gap_linear,F_tolerance,"
-                               "F_star_tolerance,residual_tolerance");
+        ctx.iter_csv = bench_open_csv(
+            ctx.dir, "accuracy_iterations.csv",
+            "scene,solver,frame,eq7,linear_residual,pd_objective,step_ms");
+        ctx.budget_csv = bench_open_csv(
+            ctx.dir, "accuracy_budget.csv",
+            "scene,solver,frame,budget_ms,eq7,linear_iterations,linear_residual,pd_objective,"
+            "step_ms");
+        ctx.sweep_csv = bench_open_csv(
+            ctx.dir, "accuracy_sweep.csv",
+            "scene,solver,control,budget_ms,substeps,nonlinear_iterations,linear_iterations,"
+            "frames,final_eq7,median_step_ms,median_linear_iterations,unstable_steps,diverged");
+        ctx.gap_csv = bench_open_csv(
+            ctx.dir, "accuracy_gap.csv",
+            "scene,solver,mode,frame,linear_iterations,F0,F,F_star,gap,reference,F_library,"
+            "F_star_library,eq7_host,eq7_library,residual_host,residual_library,F_linear_star,"
+            "gap_linear,F_tolerance,F_star_tolerance,residual_tolerance");
         if (!ctx.iter_csv || !ctx.budget_csv || !ctx.sweep_csv || !ctx.gap_csv)
             rc = 1;
     }
@@ -1030,9 +1011,7 @@ int cli_bench_accuracy(const cli_plugin *plugin, const cli_bench_options *option
         }
     }
     if (!rc)
-        rc = write_pareto(&ctx);
-    if (!rc)
-        rc = write_plots(&ctx);
+        rc = write_pareto(&ctx) || write_plots(&ctx);
     if (!rc) {
         print_summary(&ctx);
         printf("\nWrote accuracy_iterations.csv, accuracy_budget.csv, accuracy_sweep.csv, "

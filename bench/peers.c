@@ -144,10 +144,7 @@ typedef struct peers_ctx {
     uint32_t stats_mismatches;
 } peers_ctx;
 
-static int out_of_memory(void) {
-    fputs("rbcloth: out of memory in the peers bench\n", stderr);
-    return 1;
-}
+static int out_of_memory(void) { return bench_out_of_memory("peers"); }
 
 static const char *solver_name(rbc_solver_kind k) {
     for (uint32_t i = 0; i < BENCH_SOLVER_COUNT; ++i)
@@ -339,14 +336,10 @@ static int add_config(peers_ctx *ctx, const peer_config *c) {
     for (size_t i = 0; i < ctx->row_count; ++i)
         if (same_config(&ctx->rows[i].c, c))
             return 0;
-    if (ctx->row_count == ctx->row_cap) {
-        size_t cap = ctx->row_cap ? 2 * ctx->row_cap : 128;
-        peer_row *rows = realloc(ctx->rows, cap * sizeof *rows);
-        if (!rows)
-            return out_of_memory();
-        ctx->rows = rows;
-        ctx->row_cap = cap;
-    }
+    peer_row *rows = bench_grow(ctx->rows, &ctx->row_cap, ctx->row_count, sizeof *rows, 128);
+    if (!rows)
+        return out_of_memory();
+    ctx->rows = rows;
     peer_row *row = &ctx->rows[ctx->row_count];
     int rc = run_config(ctx, c, row);
     ++ctx->row_count;
@@ -631,12 +624,10 @@ static size_t front_order(const peers_ctx *ctx, size_t *order) {
 }
 
 static int write_positions(peers_ctx *ctx) {
-    char sub[4096], err[512];
+    char sub[4096];
     snprintf(sub, sizeof sub, "%s/peers_positions", ctx->dir);
-    if (fs_mkdir_p(sub, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
+    if (fs_mkdir_p_or_say(sub))
         return 1;
-    }
     for (size_t i = 0; i < ctx->row_count; ++i) {
         const peer_row *r = &ctx->rows[i];
         char name[64];
@@ -658,13 +649,13 @@ static int write_positions(peers_ctx *ctx) {
 }
 
 static int write_csv(peers_ctx *ctx) {
-    FILE *f = bench_open(ctx->dir, "peers.csv");
+    FILE *f = bench_open_csv(
+        ctx->dir, "peers.csv",
+        "id,phase,solver,substeps,nonlinear,linear,omega_set,rho_set,energy_guard,threads,"
+        "frames,ms_per_frame,integrate_ms,local_ms,global_ms,other_ms,eq7,eq7_host,max_strain,"
+        "eq7_tail_min,eq7_tail_max,omega,rho,guard_clamps,unstable,diverged,pareto,meets_target");
     if (!f)
         return 1;
-    fprintf(f, "id,phase,solver,substeps,nonlinear,linear,omega_set,rho_set,energy_guard,threads,"
-               "frames,ms_per_frame,integrate_ms,local_ms,global_ms,other_ms,eq7,eq7_host,"
-               "max_strain,eq7_tail_min,eq7_tail_max,omega,rho,guard_clamps,unstable,diverged,"
-               "pareto,meets_target\n");
     for (size_t i = 0; i < ctx->row_count; ++i) {
         const peer_row *r = &ctx->rows[i];
         int meets = row_valid(r, ctx->frames) && r->eq7_host <= PEERS_TARGET_E &&
@@ -1057,14 +1048,12 @@ int cli_bench_peers(const cli_plugin *plugin, const cli_bench_options *options) 
     /* The peers' figures are one thread: so is this bench unless told otherwise. */
     ctx.threads = options->threads >= 0 ? (uint32_t)options->threads : 1u;
     ctx.frames = options->frames > 0 ? (uint32_t)options->frames : options->quick ? 60u : 500u;
-    char err[RBC_SCENE_ERROR_MAX > 512 ? RBC_SCENE_ERROR_MAX : 512];
-    if (fs_mkdir_p(ctx.dir, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
+    if (fs_mkdir_p_or_say(ctx.dir))
         return 1;
-    }
     double start = bench_now();
     ctx.load_start = bench_load_average();
     rbc_scene sc;
+    char err[RBC_SCENE_ERROR_MAX];
     if (rbc_scene_load_paper(&sc, err, sizeof err)) {
         fprintf(stderr, "rbcloth: %s\n", err);
         return 1;
@@ -1123,12 +1112,8 @@ int cli_bench_peers(const cli_plugin *plugin, const cli_bench_options *options) 
         mark_front(&ctx);
         rc = write_positions(&ctx);
     }
-    if (!rc)
-        rc = write_csv(&ctx);
-    if (!rc)
-        rc = write_md(&ctx);
-    if (!rc)
-        rc = write_plot(&ctx);
+    if (!rc) /* each returns 0, or 1 after a message: the first to fail ends it */
+        rc = write_csv(&ctx) || write_md(&ctx) || write_plot(&ctx);
     if (!rc) {
         const peer_row *best = best_at_target(&ctx);
         char cfg[128];

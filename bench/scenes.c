@@ -109,10 +109,7 @@ typedef struct scenes_ctx {
     double load_start, load_end;
 } scenes_ctx;
 
-static int out_of_memory(void) {
-    fputs("rbcloth: out of memory in the scenes bench\n", stderr);
-    return 1;
-}
+static int out_of_memory(void) { return bench_out_of_memory("scenes"); }
 
 /* ------------------------------------------------------------------------- */
 /* Set-up                                                                    */
@@ -170,32 +167,6 @@ static int find_scenes_dir(scenes_ctx *ctx) {
                     "RBC_SCENES_DIR to samples/scenes of the source tree\n",
             entries[0].file);
     return -1;
-}
-
-/* The CPU's model name ("model name" of /proc/cpuinfo), commas replaced for CSV. */
-static void read_cpu_model(char *buf, size_t size) {
-    snprintf(buf, size, "unknown");
-    FILE *f = fopen("/proc/cpuinfo", "r");
-    if (!f)
-        return;
-    char line[512];
-    while (fgets(line, sizeof line, f)) {
-        const char *colon = strchr(line, ':');
-        if (strncmp(line, "model name", 10) != 0 || !colon)
-            continue;
-        const char *v = colon + 1;
-        while (*v == ' ' || *v == '\t')
-            ++v;
-        snprintf(buf, size, "%s", v);
-        break;
-    }
-    fclose(f);
-    size_t len = strlen(buf);
-    while (len && (buf[len - 1] == '\n' || buf[len - 1] == ' '))
-        buf[--len] = '\0';
-    for (char *p = buf; *p; ++p)
-        if (*p == ',' || *p == '\'' || *p == '"')
-            *p = ';';
 }
 
 /* ------------------------------------------------------------------------- */
@@ -276,29 +247,12 @@ static double max_penetration_mm(const scenes_ctx *ctx, const rbc_scene *s,
 /* ------------------------------------------------------------------------- */
 
 /* Nearest-rank p-quantile of v[0..n) (sorts v). */
-static int cmp_double(const void *a, const void *b) {
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
 static double quantile(double *v, uint32_t n, double p) {
     if (n == 0)
         return NAN;
-    qsort(v, n, sizeof *v, cmp_double);
+    bench_sort(v, n);
     uint32_t rank = (uint32_t)ceil(p * n);
     return v[rank ? rank - 1 : 0];
-}
-
-static int reserve_samples(scenes_ctx *ctx, uint32_t n) {
-    if (n <= ctx->sample_cap)
-        return 0;
-    for (int k = 0; k < 9; ++k) {
-        double *p = realloc(ctx->samples[k], n * sizeof *p);
-        if (!p)
-            return -1;
-        ctx->samples[k] = p;
-    }
-    ctx->sample_cap = n;
-    return 0;
 }
 
 /* Replace commas (CSV) and newlines in a message. */
@@ -354,7 +308,7 @@ static int run_scene(scenes_ctx *ctx, const scene_entry *e, uint32_t threads, sc
         ++ctx->failed_rows;
         return 0;
     }
-    if (reserve_samples(ctx, measured)) {
+    if (bench_reserve_samples(ctx->samples, 9, &ctx->sample_cap, measured)) {
         rbc_scene_instance_destroy(api, &inst);
         rbc_scene_free(&s);
         return out_of_memory();
@@ -472,10 +426,9 @@ static const char *num(double x, char *buf, size_t size) {
 }
 
 static int write_csv(const scenes_ctx *ctx) {
-    FILE *f = bench_open(ctx->dir, "scenes.csv");
+    FILE *f = bench_open_csv(ctx->dir, "scenes.csv", csv_header);
     if (!f)
         return 1;
-    fprintf(f, "%s\n", csv_header);
     for (uint32_t k = 0; k < ctx->row_count; ++k) {
         const scene_row *r = &ctx->rows[k];
         char b[16][32];
@@ -646,15 +599,7 @@ static int write_plot(const scenes_ctx *ctx) {
     fprintf(f, "unset multiplot\n");
     if (bench_close(f, ctx->dir, "scenes.gp"))
         return 1;
-    if (!bench_have_gnuplot()) {
-        printf("Plot skipped: gnuplot is not on PATH. Install it (Debian: apt-get install "
-               "gnuplot-nox) and run `gnuplot scenes.gp` in %s.\n",
-               ctx->dir);
-        return 0;
-    }
-    int status = bench_run_gnuplot(ctx->dir, "scenes.gp");
-    if (status != 0)
-        fprintf(stderr, "rbcloth: bench: gnuplot %s/scenes.gp exited with %d\n", ctx->dir, status);
+    bench_plot(ctx->dir, "scenes.gp");
     return 0;
 }
 
@@ -673,16 +618,11 @@ int cli_bench_scenes(const cli_plugin *plugin, const cli_bench_options *options)
         free(ctx);
         return 1;
     }
-    read_cpu_model(ctx->cpu, sizeof ctx->cpu);
+    bench_cpu_model(ctx->cpu, sizeof ctx->cpu, 0);
     ctx->cores = sysconf(_SC_NPROCESSORS_ONLN);
-    uint32_t many = options->threads >= 0 ? (uint32_t)options->threads : 2u;
-    ctx->thread_list[ctx->thread_count++] = 1;
-    if (many != 1)
-        ctx->thread_list[ctx->thread_count++] = many;
+    ctx->thread_count = bench_thread_list(options, ctx->thread_list);
 
-    char err[512];
-    if (fs_mkdir_p(ctx->dir, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
+    if (fs_mkdir_p_or_say(ctx->dir)) {
         free(ctx);
         return 1;
     }
@@ -693,12 +633,8 @@ int cli_bench_scenes(const cli_plugin *plugin, const cli_bench_options *options)
         for (uint32_t t = 0; t < ctx->thread_count && !rc; ++t)
             rc = run_scene(ctx, &entries[e], ctx->thread_list[t], &ctx->rows[ctx->row_count++]);
     ctx->load_end = bench_load_average();
-    if (!rc)
-        rc = write_csv(ctx);
-    if (!rc)
-        rc = write_md(ctx);
-    if (!rc)
-        rc = write_plot(ctx);
+    if (!rc) /* each returns 0, or 1 after a message: the first to fail ends it */
+        rc = write_csv(ctx) || write_md(ctx) || write_plot(ctx);
     if (!rc) {
         printf("\nThe paper's scenes\n\n");
         write_intro(ctx, stdout);

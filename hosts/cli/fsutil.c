@@ -57,6 +57,14 @@ int fs_mkdir_p(const char *path, char *err, size_t err_size) {
     return rc;
 }
 
+int fs_mkdir_p_or_say(const char *path) {
+    char err[512];
+    if (fs_mkdir_p(path, err, sizeof err) == 0)
+        return 0;
+    fprintf(stderr, "rbcloth: %s\n", err);
+    return 1;
+}
+
 char *fs_path(const char *dir, const char *stem, const char *ext) {
     size_t d = strlen(dir);
     while (d > 1 && dir[d - 1] == '/')

@@ -267,12 +267,9 @@ static char *parent_folder(const char *dir) {
 
 /* One cloth: NAME.obj/.pc2; several: NAME_CLOTH.obj/.pc2. */
 static int plan_outputs(run_state *s) {
-    char err[512];
     const char *dir = s->options->out_dir;
-    if (fs_mkdir_p(dir, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
+    if (fs_mkdir_p_or_say(dir))
         return 1;
-    }
     /* Not into a running batch's folder, nor one of its jobs' (DIR/JOB): its
      * workers write there. A batch started during this run is refused in turn. */
     char *parent = parent_folder(dir);
