@@ -81,16 +81,12 @@ static double eq7_of(const float *p, double *bound) {
     return e;
 }
 
-int main(int argc, char **argv) {
-    csv_file csv;
-    int rc = checker_open(argc, argv, "peers.csv", header, "check_bench_peers", &csv);
-    if (rc >= 0)
-        return rc;
-    const char *dir = argv[1];
+/* Everything after the header (checker_main). */
+static void check_file(const char *dir, const csv_file *csv) {
     char path[4096];
     int n = 0;
-    for (int i = 0; i < csv.row_count; ++i) {
-        char **f = checker_fields(&csv, i, C_COUNT);
+    for (int i = 0; i < csv->row_count; ++i) {
+        char **f = checker_fields(csv, i, C_COUNT);
         if (!f || n == MAX_ROWS)
             continue;
         row *r = &rows[n++];
@@ -102,8 +98,8 @@ int main(int argc, char **argv) {
             char *end;
             r->v[k] = strtod(f[k], &end);
             if (*end || !isfinite(r->v[k]))
-                fprintf(stderr, "%s:%d: %s = '%s' is not a finite number\n", csv.path,
-                        csv.rows[i].line, f[C_SOLVER], f[k]);
+                fprintf(stderr, "%s:%d: %s = '%s' is not a finite number\n", csv->path,
+                        csv->rows[i].line, f[C_SOLVER], f[k]);
             CHECK(*end == '\0' && isfinite(r->v[k]));
         }
     }
@@ -164,6 +160,8 @@ int main(int argc, char **argv) {
     static const char *const phrases[] = {"## Pareto front", "measured elsewhere, docs/facts.md",
                                           "XPBD 11x1"};
     free(checker_page(dir, "peers.md", phrases, 3));
-    csv_free(&csv);
-    return check_report("check_bench_peers");
+}
+
+int main(int argc, char **argv) {
+    return checker_main(argc, argv, "peers.csv", header, "check_bench_peers", check_file);
 }

@@ -1,6 +1,6 @@
 /* checker.h -- what the checkers of the benches' outputs (check_bench_*.c) do alike
- * beyond reading a CSV (csv.h): start on DIR/FILE.csv, take a row's fields, and find
- * a page's phrases. Static inline, so that each check counts in the checker that
+ * beyond reading a CSV (csv.h): a main over DIR/FILE.csv, a row's fields, a page's
+ * phrases. Static inline, so that each check counts in the checker that
  * includes it (check.h's counters are its own). */
 #ifndef RBC_BENCH_CHECKER_H
 #define RBC_BENCH_CHECKER_H
@@ -11,22 +11,25 @@
 #include "csv.h"
 #include "text_file.h"
 
-/// The start of a checker of one CSV: argv must be "checker DIR"; DIR/name is read
-/// into csv and its header compared with `header` (each a check). Returns -1 to go
-/// on, else main's exit code: 2 after the usage, or check_report(report) when the
-/// file could not be read.
-static inline int checker_open(int argc, char **argv, const char *name, const char *header,
-                               const char *report, csv_file *csv) {
+/// The main of a checker of one CSV: argv must be "checker DIR"; DIR/name is read and
+/// its header compared with `header` (each a check), then `check` checks the rest of
+/// DIR. Returns main's exit code: 2 after the usage, else check_report(report).
+static inline int checker_main(int argc, char **argv, const char *name, const char *header,
+                               const char *report,
+                               void (*check)(const char *dir, const csv_file *csv)) {
     if (argc != 2) {
         fprintf(stderr, "usage: %s DIR\n", argv[0]);
         return 2;
     }
-    int have_csv = csv_read_in(argv[1], name, csv) == 0;
+    csv_file csv;
+    int have_csv = csv_read_in(argv[1], name, &csv) == 0;
     CHECK(have_csv);
-    if (!have_csv)
-        return check_report(report);
-    CHECK(csv_header_is(csv, header));
-    return -1;
+    if (have_csv) {
+        CHECK(csv_header_is(&csv, header));
+        check(argv[1], &csv);
+    }
+    csv_free(&csv);
+    return check_report(report);
 }
 
 /// The fields of row i when it has `cols` of them (a check), else NULL.
