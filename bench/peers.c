@@ -29,6 +29,7 @@
  * Outputs: peers.csv, peers.md, peers.gp and peers.png (gnuplot) in DIR.
  */
 #include <math.h>
+#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -172,6 +173,32 @@ static int row_valid(const peer_row *r, uint32_t frames) {
     return r->frames_done == frames && !r->unstable && !r->diverged && isfinite(r->eq7_host);
 }
 
+/* printf onto buf after its first n characters: the new length, or n as it is once
+ * the text is full or an earlier printf failed. */
+static int append(char *buf, size_t size, int n, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
+static int append(char *buf, size_t size, int n, const char *fmt, ...) {
+    if (n <= 0 || (size_t)n >= size)
+        return n;
+    va_list ap;
+    va_start(ap, fmt);
+    n += vsnprintf(buf + n, size - (size_t)n, fmt, ap);
+    va_end(ap);
+    return n;
+}
+
+/* What a configuration sets beyond the counts (omega, rho, an energy guard other than
+ * the default clamp), in the words of the text it goes into (printf formats). */
+static void append_settings(const peer_config *c, char *buf, size_t size, int n,
+                            const char *omega, const char *rho, const char *guard) {
+    if (c->omega > 0.0f)
+        n = append(buf, size, n, omega, (double)c->omega);
+    if (c->rho > 0.0f)
+        n = append(buf, size, n, rho, (double)c->rho);
+    if (c->guard != RBC_ENERGY_GUARD_CLAMP)
+        append(buf, size, n, guard, guard_name(c->guard));
+}
+
 /* "rbgs 11x1x1", "rbgs_sor 2x1x3 w1.6", "direct 4x2", + " guard off". */
 static void config_text(const peer_config *c, char *buf, size_t size) {
     int n;
@@ -180,12 +207,7 @@ static void config_text(const peer_config *c, char *buf, size_t size) {
     else
         n = snprintf(buf, size, "%s %ux%ux%u", solver_name(c->solver), c->substeps, c->nonlinear,
                      c->linear);
-    if (n > 0 && (size_t)n < size && c->omega > 0.0f)
-        n += snprintf(buf + n, size - (size_t)n, " w%.2g", (double)c->omega);
-    if (n > 0 && (size_t)n < size && c->rho > 0.0f)
-        n += snprintf(buf + n, size - (size_t)n, " rho%.4g", (double)c->rho);
-    if (n > 0 && (size_t)n < size && c->guard != RBC_ENERGY_GUARD_CLAMP)
-        snprintf(buf + n, size - (size_t)n, " guard %s", guard_name(c->guard));
+    append_settings(c, buf, size, n, " w%.2g", " rho%.4g", " guard %s");
 }
 
 /* The command line that runs the same configuration. */
@@ -193,14 +215,10 @@ static void command_text(const peers_ctx *ctx, const peer_config *c, char *buf, 
     int n = snprintf(buf, size, "rbcloth run --threads %u --frames %u --solver %s --substeps %u "
                                 "--nonlinear %u",
                      ctx->threads, ctx->frames, solver_name(c->solver), c->substeps, c->nonlinear);
-    if (n > 0 && (size_t)n < size && c->solver != RBC_SOLVER_DIRECT)
-        n += snprintf(buf + n, size - (size_t)n, " --iterations %u", c->linear);
-    if (n > 0 && (size_t)n < size && c->omega > 0.0f)
-        n += snprintf(buf + n, size - (size_t)n, " --omega %.2g", (double)c->omega);
-    if (n > 0 && (size_t)n < size && c->rho > 0.0f)
-        n += snprintf(buf + n, size - (size_t)n, " (scene: \"rho\": %.4g)", (double)c->rho);
-    if (n > 0 && (size_t)n < size && c->guard != RBC_ENERGY_GUARD_CLAMP)
-        snprintf(buf + n, size - (size_t)n, " --energy-guard %s", guard_name(c->guard));
+    if (c->solver != RBC_SOLVER_DIRECT)
+        n = append(buf, size, n, " --iterations %u", c->linear);
+    append_settings(c, buf, size, n, " --omega %.2g", " (scene: \"rho\": %.4g)",
+                    " --energy-guard %s");
 }
 
 /* ------------------------------------------------------------------------- */
