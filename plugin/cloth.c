@@ -27,17 +27,12 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create(rbc_world_id wid, const rbc_cloth_d
                                              rbc_cloth_id *out_cloth) {
     static const char fn[] = "rbc_cloth_create";
     rbc_world *w;
-    rbc_result rc = rbc_plugin_lookup_world(wid, fn, &w);
+    rbc_result rc = rbc_plugin_create_begin(wid, fn, out_cloth, "out_cloth", &w);
     if (rc) return rc;
-    if (!out_cloth)
-        return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: out_cloth is NULL", fn);
-    *out_cloth = 0;
     rbc_cloth_def def = rbc_plugin_cloth_def_defaults();
-    if ((rc = rbc_plugin_read_def2(&def, sizeof def, RBC_CLOTH_DEF_SIZE_V1_0,
-                                   RBC_CLOTH_DEF_SIZE_V1_1, user_def, fn, "rbc_cloth_def"))) {
-        rbc_plugin_world_log(w, RBC_LOG_ERROR, rbc_last_error());
+    if ((rc = rbc_plugin_world_read_def(w, &def, sizeof def, RBC_CLOTH_DEF_SIZE_V1_0,
+                                        RBC_CLOTH_DEF_SIZE_V1_1, user_def, fn, "rbc_cloth_def")))
         return rc;
-    }
     if (!(isfinite(def.shear_stiffness) && def.shear_stiffness >= 0.0f) ||
         !(isfinite(def.bend_stiffness) && def.bend_stiffness >= 0.0f))
         return rbc_plugin_world_error(

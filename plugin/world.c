@@ -49,6 +49,25 @@ rbc_result rbc_plugin_lookup_world(rbc_world_id id, const char *fn, rbc_world **
     return *out ? RBC_OK : RBC_ERR_STALE_HANDLE;
 }
 
+rbc_result rbc_plugin_create_begin(rbc_world_id wid, const char *fn, uint32_t *out,
+                                   const char *out_name, rbc_world **w) {
+    rbc_result rc = rbc_plugin_lookup_world(wid, fn, w);
+    if (rc) return rc;
+    if (!out)
+        return rbc_plugin_world_error(*w, RBC_ERR_INVALID_ARGUMENT, "%s: %s is NULL", fn,
+                                      out_name);
+    *out = 0;
+    return RBC_OK;
+}
+
+rbc_result rbc_plugin_world_read_def(rbc_world *w, void *dst, size_t dst_size, size_t old_size,
+                                     size_t old_size2, const void *src, const char *fn,
+                                     const char *what) {
+    rbc_result rc = rbc_plugin_read_def2(dst, dst_size, old_size, old_size2, src, fn, what);
+    if (rc) rbc_plugin_world_log(w, RBC_LOG_ERROR, rbc_last_error());
+    return rc;
+}
+
 /* ------------------------------------------------------------------------- */
 /* World                                                                     */
 /* ------------------------------------------------------------------------- */
@@ -516,11 +535,9 @@ RBC_API rbc_result RBC_CALL rbc_world_set_solver(rbc_world_id id, const rbc_solv
     rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
     if (rc) return rc;
     rbc_solver_def def = rbc_plugin_solver_def_defaults();
-    if ((rc = rbc_plugin_read_def2(&def, sizeof def, RBC_SOLVER_DEF_SIZE_V1_1,
-                                   RBC_SOLVER_DEF_SIZE_V1_2, user_def, fn, "rbc_solver_def"))) {
-        rbc_plugin_world_log(w, RBC_LOG_ERROR, rbc_last_error());
+    if ((rc = rbc_plugin_world_read_def(w, &def, sizeof def, RBC_SOLVER_DEF_SIZE_V1_1,
+                                        RBC_SOLVER_DEF_SIZE_V1_2, user_def, fn, "rbc_solver_def")))
         return rc;
-    }
     rbc_solver_settings st;
     if ((rc = rbc_plugin_solver_settings_from(w, fn, &def, &st))) return rc;
     if ((rc = rbc_solver_set_settings(&w->solver, &st)))
