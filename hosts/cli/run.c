@@ -959,21 +959,9 @@ int cli_run(const cli_plugin *plugin, const cli_run_options *options) {
     sigaction(SIGINT, &sa, &old_int);
     sigaction(SIGTERM, &sa, &old_term);
 
-    int rc = load_scene(&s);
-    if (!rc)
-        rc = plan_outputs(&s);
-    if (!rc)
-        rc = list_temporaries(&s);
-    if (!rc)
-        rc = create_world(&s);
-    if (!rc)
-        rc = start_outputs(&s);
-    if (!rc)
-        rc = start_view(&s);
-    if (!rc)
-        rc = simulate(&s);
-    if (!rc)
-        rc = write_summary(&s);
+    /* Each step returns 0, or 1 after saying why: the first to fail ends the run. */
+    int rc = load_scene(&s) || plan_outputs(&s) || list_temporaries(&s) || create_world(&s) ||
+             start_outputs(&s) || start_view(&s) || simulate(&s) || write_summary(&s);
     if (!rc && !options->quiet)
         print_table(&s);
     const uint32_t frames_done = s.frames_done, frames = s.scene.frames;
