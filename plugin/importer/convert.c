@@ -537,39 +537,30 @@ static rbc_result weld(build *b) {
 /* 4. Faces                                                                  */
 /* ------------------------------------------------------------------------- */
 
-/* A triangle or quad kept, counted by origin (a face of the file, or a piece of an
- * n-gon); a degenerate one is dropped and counted. */
-static rbc_result push_tri(build *b, uint32_t a, uint32_t c1, uint32_t c2, int from_ngon) {
-    if (!tri_ok(b->w_pos, a, c1, c2)) {
+/* A triangle or quad (k corners) kept in v, counted by origin (a face of the file, or
+ * a piece of an n-gon); a degenerate one (ok 0) is dropped and counted. */
+static rbc_result push_face(build *b, u32vec *v, const uint32_t *c, size_t k, int ok,
+                            int from_ngon, uint32_t *ngon_pieces, uint32_t *file_faces) {
+    if (!ok) {
         b->info.degenerate_faces++;
         return RBC_OK;
     }
-    if (!vec_reserve(&b->tris, 3)) return oom(b);
-    uint32_t *t = b->tris.v + b->tris.n;
-    t[0] = a;
-    t[1] = c1;
-    t[2] = c2;
-    b->tris.n += 3;
-    if (from_ngon)
-        b->info.triangles_from_ngons++;
-    else
-        b->info.file_triangles++;
+    if (!vec_reserve(v, k)) return oom(b);
+    memcpy(v->v + v->n, c, k * sizeof *c);
+    v->n += k;
+    ++*(from_ngon ? ngon_pieces : file_faces);
     return RBC_OK;
 }
 
+static rbc_result push_tri(build *b, uint32_t a, uint32_t c1, uint32_t c2, int from_ngon) {
+    const uint32_t t[3] = {a, c1, c2};
+    return push_face(b, &b->tris, t, 3, tri_ok(b->w_pos, a, c1, c2), from_ngon,
+                     &b->info.triangles_from_ngons, &b->info.file_triangles);
+}
+
 static rbc_result push_quad(build *b, const uint32_t q[4], int from_ngon) {
-    if (!quad_ok(b->w_pos, q)) {
-        b->info.degenerate_faces++;
-        return RBC_OK;
-    }
-    if (!vec_reserve(&b->quads, 4)) return oom(b);
-    memcpy(b->quads.v + b->quads.n, q, 4 * sizeof(uint32_t));
-    b->quads.n += 4;
-    if (from_ngon)
-        b->info.quads_from_ngons++;
-    else
-        b->info.file_quads++;
-    return RBC_OK;
+    return push_face(b, &b->quads, q, 4, quad_ok(b->w_pos, q), from_ngon,
+                     &b->info.quads_from_ngons, &b->info.file_quads);
 }
 
 static rbc_result add_faces(build *b, const struct aiScene *s) {
