@@ -70,6 +70,19 @@ int cli_bench_defaults(const cli_plugin *plugin, const cli_bench_options *option
 /// every core, idle and with one busy loop per core (issue 17). Returns 0, or 1.
 int cli_bench_pool(const cli_plugin *plugin, const cli_bench_options *options);
 
+/// What the context of each bench that measures starts with: the plugin's function
+/// table, the options and the output folder (their out_dir).
+typedef struct bench_run {
+    const rbc_api_v1 *api;
+    const cli_bench_options *opt;
+    const char *dir;
+} bench_run;
+
+static inline bench_run bench_run_of(const cli_plugin *plugin, const cli_bench_options *options) {
+    bench_run run = {plugin->api, options, options->out_dir};
+    return run;
+}
+
 /// The head of a results page (docs/results/): the command that regenerates it
 /// (`rbcloth bench BENCH --out DIR`, --quick as given), and the date (UTC), the commit
 /// of the source tree this binary was built from (with "+ uncommitted changes" when

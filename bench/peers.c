@@ -125,9 +125,7 @@ typedef struct energy_probe {
 } energy_probe;
 
 typedef struct peers_ctx {
-    const rbc_api_v1 *api;
-    const cli_bench_options *opt;
-    const char *dir;
+    bench_run run;
     uint32_t threads, frames;
     float dt;
     float gravity[3];
@@ -228,7 +226,7 @@ static void command_text(const peers_ctx *ctx, const peer_config *c, char *buf, 
 static rbc_result make_world(peers_ctx *ctx, const peer_config *c, rbc_world_id *world,
                              rbc_cloth_id *cloth) {
     bench_world_config cfg;
-    if (bench_world_config_init(ctx->api, &cfg))
+    if (bench_world_config_init(ctx->run.api, &cfg))
         return RBC_ERR_INVALID_ARGUMENT;
     memcpy(cfg.gravity, ctx->gravity, sizeof cfg.gravity);
     cfg.substeps = c->substeps;
@@ -239,7 +237,7 @@ static rbc_result make_world(peers_ctx *ctx, const peer_config *c, rbc_world_id 
     cfg.solver.omega = c->omega;
     cfg.solver.rho = c->rho;
     cfg.solver.energy_guard = c->guard;
-    return bench_world_create(ctx->api, &ctx->mesh, &cfg, world, cloth);
+    return bench_world_create(ctx->run.api, &ctx->mesh, &cfg, world, cloth);
 }
 
 static double rel_diff(double a, double b) {
@@ -249,7 +247,7 @@ static double rel_diff(double a, double b) {
 
 /* Run configuration c for ctx->frames frames into *out (positions kept). */
 static int run_config(peers_ctx *ctx, const peer_config *c, peer_row *out) {
-    const rbc_api_v1 *api = ctx->api;
+    const rbc_api_v1 *api = ctx->run.api;
     memset(out, 0, sizeof *out);
     out->c = *c;
     out->eq7 = out->eq7_host = out->max_strain = NAN;
@@ -573,7 +571,7 @@ static const peer_row *find_row(const peers_ctx *ctx, const peer_config *c) {
  * guard clamps? Kinetic (velocities over the substep) + gravitational (work) +
  * spring energy against the start's (0: the cloth starts at rest, unstretched). */
 static int run_probe(peers_ctx *ctx, const peer_config *c, energy_probe *p) {
-    const rbc_api_v1 *api = ctx->api;
+    const rbc_api_v1 *api = ctx->run.api;
     memset(p, 0, sizeof *p);
     p->c = *c;
     p->c.guard = RBC_ENERGY_GUARD_OFF;
@@ -643,7 +641,7 @@ static size_t front_order(const peers_ctx *ctx, size_t *order) {
 
 static int write_positions(peers_ctx *ctx) {
     char sub[4096];
-    snprintf(sub, sizeof sub, "%s/peers_positions", ctx->dir);
+    snprintf(sub, sizeof sub, "%s/peers_positions", ctx->run.dir);
     if (fs_mkdir_p_or_say(sub))
         return 1;
     for (size_t i = 0; i < ctx->row_count; ++i) {
@@ -652,7 +650,7 @@ static int write_positions(peers_ctx *ctx) {
         snprintf(name, sizeof name, "%zu.f32", i);
         char path[4096 + 64];
         snprintf(path, sizeof path, "%s/%s", sub, name);
-        if (!r->positions || (!ctx->opt->quick && !r->pareto)) {
+        if (!r->positions || (!ctx->run.opt->quick && !r->pareto)) {
             unlink(path); /* a file from an earlier run would name another row */
             continue;
         }
@@ -668,7 +666,7 @@ static int write_positions(peers_ctx *ctx) {
 
 static int write_csv(peers_ctx *ctx) {
     FILE *f = bench_open_csv(
-        ctx->dir, "peers.csv",
+        ctx->run.dir, "peers.csv",
         "id,phase,solver,substeps,nonlinear,linear,omega_set,rho_set,energy_guard,threads,"
         "frames,ms_per_frame,integrate_ms,local_ms,global_ms,other_ms,eq7,eq7_host,max_strain,"
         "eq7_tail_min,eq7_tail_max,omega,rho,guard_clamps,unstable,diverged,pareto,meets_target");
@@ -688,10 +686,10 @@ static int write_csv(peers_ctx *ctx) {
                 (unsigned long long)r->clamps,
                 r->unstable, r->diverged, r->pareto, meets);
     }
-    if (bench_close(f, ctx->dir, "peers.csv"))
+    if (bench_close(f, ctx->run.dir, "peers.csv"))
         return 1;
     /* The front in ms order, for the plot's line. */
-    if (!(f = bench_open(ctx->dir, "peers_front.csv")))
+    if (!(f = bench_open(ctx->run.dir, "peers_front.csv")))
         return 1;
     fprintf(f, "id,solver,ms_per_frame,eq7_host\n");
     size_t *order = malloc((ctx->row_count ? ctx->row_count : 1) * sizeof *order);
@@ -704,7 +702,7 @@ static int write_csv(peers_ctx *ctx) {
         fprintf(f, "%zu,%s,%.6f,%.12g\n", order[k], solver_name(ctx->rows[order[k]].c.solver),
                 ctx->rows[order[k]].ms, ctx->rows[order[k]].eq7_host);
     free(order);
-    return bench_close(f, ctx->dir, "peers_front.csv") ? 1 : 0;
+    return bench_close(f, ctx->run.dir, "peers_front.csv") ? 1 : 0;
 }
 
 /* The fastest valid row with E <= the target (NULL if none). */
@@ -782,7 +780,7 @@ static void md_fixed_costs(const peers_ctx *ctx, FILE *f, const peer_row *best) 
 }
 
 static int write_md(peers_ctx *ctx) {
-    FILE *f = bench_open(ctx->dir, "peers.md");
+    FILE *f = bench_open(ctx->run.dir, "peers.md");
     if (!f)
         return 1;
     size_t *order = malloc((ctx->row_count ? ctx->row_count : 1) * sizeof *order);
@@ -945,13 +943,13 @@ static int write_md(peers_ctx *ctx) {
                "prediction y (p = y at each substep, then the last iterate for later non-linear "
                "iterations); `rbc_solver_def` offers no other start.\n");
     free(order);
-    return bench_close(f, ctx->dir, "peers.md") ? 1 : 0;
+    return bench_close(f, ctx->run.dir, "peers.md") ? 1 : 0;
 }
 
 static int write_plot(peers_ctx *ctx) {
     static const char *const colors[SWEEP_SOLVERS] = {"#d62728", "#ff7f0e", "#9467bd", "#17becf",
                                                       "#000000"};
-    FILE *f = bench_open(ctx->dir, "peers.gp");
+    FILE *f = bench_open(ctx->run.dir, "peers.gp");
     if (!f)
         return 1;
     fprintf(f, "# Generated by `rbcloth bench peers`; run `gnuplot peers.gp` in this directory.\n");
@@ -990,17 +988,17 @@ static int write_plot(peers_ctx *ctx) {
                "(measured elsewhere, docs/facts.md)', \\\n     ");
     fprintf(f, "$peers using 1:4:5 with labels offset 0.8,0.6 left font ',9' tc rgb '#333333' "
                "notitle noenhanced\n");
-    if (bench_close(f, ctx->dir, "peers.gp"))
+    if (bench_close(f, ctx->run.dir, "peers.gp"))
         return 1;
     if (!bench_have_gnuplot()) {
         printf("Plot skipped: gnuplot is not on PATH. The script is %s/peers.gp; install gnuplot "
                "(Debian: apt-get install gnuplot-nox) and run `gnuplot peers.gp` there.\n",
-               ctx->dir);
+               ctx->run.dir);
         return 0;
     }
-    int status = bench_run_gnuplot(ctx->dir, "peers.gp");
+    int status = bench_run_gnuplot(ctx->run.dir, "peers.gp");
     if (status != 0)
-        fprintf(stderr, "rbcloth: bench peers: gnuplot %s/peers.gp exited with %d\n", ctx->dir,
+        fprintf(stderr, "rbcloth: bench peers: gnuplot %s/peers.gp exited with %d\n", ctx->run.dir,
                 status);
     return 0;
 }
@@ -1023,14 +1021,14 @@ static void probe_solvers(peers_ctx *ctx) {
         rbc_cloth_id cl;
         rbc_result r = make_world(ctx, &c, &w, &cl);
         if (r == RBC_OK) {
-            r = ctx->api->world_step(w, ctx->dt);
-            ctx->api->world_destroy(w);
+            r = ctx->run.api->world_step(w, ctx->dt);
+            ctx->run.api->world_destroy(w);
         }
         if (r != RBC_OK) {
             ctx->available[k] = 0;
             fprintf(stderr, "rbcloth: bench peers: solver %s is not available (%s: %s); skipped\n",
-                    solver_name(sweep_kinds[k]), ctx->api->result_string(r),
-                    ctx->api->last_error());
+                    solver_name(sweep_kinds[k]), ctx->run.api->result_string(r),
+                    ctx->run.api->last_error());
         }
     }
     ctx->mesh = saved;
@@ -1058,15 +1056,11 @@ int cli_bench_peers(const cli_plugin *plugin, const cli_bench_options *options) 
                 plugin->path);
         return 1;
     }
-    peers_ctx ctx;
-    memset(&ctx, 0, sizeof ctx);
-    ctx.api = api;
-    ctx.opt = options;
-    ctx.dir = options->out_dir;
+    peers_ctx ctx = {.run = bench_run_of(plugin, options)};
     /* The peers' figures are one thread: so is this bench unless told otherwise. */
     ctx.threads = options->threads >= 0 ? (uint32_t)options->threads : 1u;
     ctx.frames = options->frames > 0 ? (uint32_t)options->frames : options->quick ? 60u : 500u;
-    if (fs_mkdir_p_or_say(ctx.dir))
+    if (fs_mkdir_p_or_say(ctx.run.dir))
         return 1;
     double start = bench_now();
     ctx.load_start = bench_load_average();
@@ -1148,7 +1142,7 @@ int cli_bench_peers(const cli_plugin *plugin, const cli_bench_options *options) 
                    ctx.stats_mismatches);
         printf("Wrote peers.csv, peers_front.csv, peers.md, peers.gp, peers.png and "
                "peers_positions/ in %s (%zu configurations, %.1f s)\n",
-               ctx.dir, ctx.row_count, bench_now() - start);
+               ctx.run.dir, ctx.row_count, bench_now() - start);
     }
     ctx_free(&ctx);
     return rc;

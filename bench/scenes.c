@@ -93,9 +93,7 @@ typedef struct scene_row {
 } scene_row;
 
 typedef struct scenes_ctx {
-    const rbc_api_v1 *api;
-    const cli_bench_options *opt;
-    const char *dir;
+    bench_run run;
     char scenes_dir[1024];
     uint32_t thread_list[MAX_THREAD_COUNTS], thread_count;
     scene_row rows[ENTRY_COUNT * MAX_THREAD_COUNTS];
@@ -219,8 +217,8 @@ static double max_penetration_mm(const scenes_ctx *ctx, const rbc_scene *s,
     double deepest = NAN;
     for (uint32_t i = 0; i < s->cloth_count; ++i) {
         size_t written = 0;
-        if (ctx->api->cloth_read_positions(inst->world, inst->cloths[i], xyz, capacity, &written) !=
-            RBC_OK)
+        if (ctx->run.api->cloth_read_positions(inst->world, inst->cloths[i], xyz, capacity,
+                                               &written) != RBC_OK)
             return NAN;
         for (uint32_t k = 0; k < s->collider_count; ++k) {
             const rbc_scene_collider *c = &s->colliders[k];
@@ -265,7 +263,7 @@ static void sanitize(char *text) {
 /* Run one scene with `threads` threads into row. Returns 0 (a failing step or a scene
  * the library refuses is a note on the row) or 1 (out of memory). */
 static int run_scene(scenes_ctx *ctx, const scene_entry *e, uint32_t threads, scene_row *row) {
-    const rbc_api_v1 *api = ctx->api;
+    const rbc_api_v1 *api = ctx->run.api;
     memset(row, 0, sizeof *row);
     row->entry = e;
     row->threads_requested = threads;
@@ -287,9 +285,9 @@ static int run_scene(scenes_ctx *ctx, const scene_entry *e, uint32_t threads, sc
     }
     s.world.thread_count = threads;
     uint32_t measured;
-    if (ctx->opt->frames > 0)
-        measured = (uint32_t)ctx->opt->frames;
-    else if (ctx->opt->quick)
+    if (ctx->run.opt->frames > 0)
+        measured = (uint32_t)ctx->run.opt->frames;
+    else if (ctx->run.opt->quick)
         measured = QUICK_FRAMES;
     else
         measured = s.frames > BENCH_WARMUP ? s.frames - BENCH_WARMUP : 1;
@@ -426,7 +424,7 @@ static const char *num(double x, char *buf, size_t size) {
 }
 
 static int write_csv(const scenes_ctx *ctx) {
-    FILE *f = bench_open_csv(ctx->dir, "scenes.csv", csv_header);
+    FILE *f = bench_open_csv(ctx->run.dir, "scenes.csv", csv_header);
     if (!f)
         return 1;
     for (uint32_t k = 0; k < ctx->row_count; ++k) {
@@ -446,7 +444,7 @@ static int write_csv(const scenes_ctx *ctx) {
                 num(r->entry->paper_ms_substep, b[14], 32), num(r->entry->paper_ms_frame, b[15], 32),
                 r->entry->paper, r->note, ctx->cores, ctx->cpu);
     }
-    return bench_close(f, ctx->dir, "scenes.csv") ? 1 : 0;
+    return bench_close(f, ctx->run.dir, "scenes.csv") ? 1 : 0;
 }
 
 static const char *fixed(double x, int digits, char *buf, size_t size) {
@@ -512,20 +510,20 @@ static void write_intro(const scenes_ctx *ctx, FILE *f) {
 }
 
 static int write_md(const scenes_ctx *ctx) {
-    FILE *f = bench_open(ctx->dir, "scenes.md");
+    FILE *f = bench_open(ctx->run.dir, "scenes.md");
     if (!f)
         return 1;
     fprintf(f, "# The paper's scenes (`rbcloth bench scenes%s`)\n\n",
-            ctx->opt->quick ? " --quick" : "");
+            ctx->run.opt->quick ? " --quick" : "");
     write_intro(ctx, f);
     write_tables(ctx, f);
-    return bench_close(f, ctx->dir, "scenes.md") ? 1 : 0;
+    return bench_close(f, ctx->run.dir, "scenes.md") ? 1 : 0;
 }
 
 /* scenes_plot.csv (one line per scene: ms per substep and per frame for each thread
  * count, and the paper's) and scenes.gp: two clustered bar charts. */
 static int write_plot(const scenes_ctx *ctx) {
-    FILE *f = bench_open(ctx->dir, "scenes_plot.csv");
+    FILE *f = bench_open(ctx->run.dir, "scenes_plot.csv");
     if (!f)
         return 1;
     fprintf(f, "# scene"); /* a comment for gnuplot, a header for people */
@@ -557,10 +555,10 @@ static int write_plot(const scenes_ctx *ctx) {
         }
         fprintf(f, "\n");
     }
-    if (bench_close(f, ctx->dir, "scenes_plot.csv"))
+    if (bench_close(f, ctx->run.dir, "scenes_plot.csv"))
         return 1;
 
-    f = bench_open(ctx->dir, "scenes.gp");
+    f = bench_open(ctx->run.dir, "scenes.gp");
     if (!f)
         return 1;
     char cpu[sizeof ctx->cpu];
@@ -597,9 +595,9 @@ static int write_plot(const scenes_ctx *ctx) {
         fprintf(f, ", '' using %u lt 3 title 'paper (GTX 970)'\n", base + n);
     }
     fprintf(f, "unset multiplot\n");
-    if (bench_close(f, ctx->dir, "scenes.gp"))
+    if (bench_close(f, ctx->run.dir, "scenes.gp"))
         return 1;
-    bench_plot(ctx->dir, "scenes.gp");
+    bench_plot(ctx->run.dir, "scenes.gp");
     return 0;
 }
 
@@ -611,9 +609,7 @@ int cli_bench_scenes(const cli_plugin *plugin, const cli_bench_options *options)
     scenes_ctx *ctx = calloc(1, sizeof *ctx);
     if (!ctx)
         return out_of_memory();
-    ctx->api = plugin->api;
-    ctx->opt = options;
-    ctx->dir = options->out_dir;
+    ctx->run = bench_run_of(plugin, options);
     if (find_scenes_dir(ctx)) {
         free(ctx);
         return 1;
@@ -622,7 +618,7 @@ int cli_bench_scenes(const cli_plugin *plugin, const cli_bench_options *options)
     ctx->cores = sysconf(_SC_NPROCESSORS_ONLN);
     ctx->thread_count = bench_thread_list(options, ctx->thread_list);
 
-    if (fs_mkdir_p_or_say(ctx->dir)) {
+    if (fs_mkdir_p_or_say(ctx->run.dir)) {
         free(ctx);
         return 1;
     }
@@ -640,7 +636,7 @@ int cli_bench_scenes(const cli_plugin *plugin, const cli_bench_options *options)
         write_intro(ctx, stdout);
         write_tables(ctx, stdout);
         printf("\nWrote scenes.csv, scenes.md%s in %s (%.1f s)\n",
-               bench_have_gnuplot() ? ", scenes.png" : "", ctx->dir, bench_now() - start);
+               bench_have_gnuplot() ? ", scenes.png" : "", ctx->run.dir, bench_now() - start);
         if (ctx->failed_rows) {
             fprintf(stderr, "rbcloth: bench scenes: %u run%s measured no frame (see scenes.md, "
                             "Notes)\n",

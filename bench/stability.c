@@ -100,9 +100,7 @@ typedef struct stab_result {
 } stab_result;
 
 typedef struct stab_ctx {
-    const rbc_api_v1 *api;
-    const cli_bench_options *opt;
-    const char *dir;
+    bench_run run;
     uint32_t threads;
     stab_case *cases;
     uint32_t case_count;
@@ -130,16 +128,17 @@ static stab_case *add_case(stab_ctx *ctx, const char *dimension, case_kind kind)
     memset(c, 0, sizeof *c);
     c->dimension = dimension;
     c->kind = kind;
-    uint32_t side = ctx->opt->quick ? 10 : 20;
+    const cli_bench_options *o = ctx->run.opt;
+    uint32_t side = o->quick ? 10 : 20;
     c->nx = c->ny = side;
     c->dt = 0.002f;
     c->mass_ratio = 1.0;
-    c->frames = ctx->opt->frames > 0 ? (uint32_t)ctx->opt->frames : ctx->opt->quick ? 60 : 200;
+    c->frames = o->frames > 0 ? (uint32_t)o->frames : o->quick ? 60 : 200;
     return c;
 }
 
 static int build_cases(stab_ctx *ctx) {
-    const int quick = ctx->opt->quick;
+    const int quick = ctx->run.opt->quick;
     stab_case *c;
 /* A case of dimension `dim` and its value as the tables show it (printf). */
 #define ADD(dim, kind, ...)                                \
@@ -335,7 +334,7 @@ static void set_note(stab_result *res, const char *fmt, const char *a, const cha
 }
 
 static int run_case(stab_ctx *ctx, const stab_case *c, uint32_t solver, stab_result *res) {
-    const rbc_api_v1 *api = ctx->api;
+    const rbc_api_v1 *api = ctx->run.api;
     memset(res, 0, sizeof *res);
     res->first_unstable = -1;
     res->nonfinite_frame = -1;
@@ -570,7 +569,7 @@ static const char *csv_text(const char *in, char *buf, size_t size) {
 
 static int write_csv(stab_ctx *ctx) {
     FILE *f = bench_open_csv(
-        ctx->dir, "stability.csv",
+        ctx->run.dir, "stability.csv",
         "dimension,value,solver,nx,ny,particles,springs,dt,khm,mass_ratio,frames_planned,"
         "frames_run,status,first_unstable_frame,nonfinite_frame,ke_max,energy_ref,ke_ratio,"
         "final_eq7,final_max_strain,peak_max_strain,median_step_ms,wall_s,clamped_steps,"
@@ -594,7 +593,7 @@ static int write_csv(stab_ctx *ctx) {
                     r->energy_removed, r->note);
         }
     }
-    return bench_close(f, ctx->dir, "stability.csv") ? 1 : 0;
+    return bench_close(f, ctx->run.dir, "stability.csv") ? 1 : 0;
 }
 
 static void md_map(stab_ctx *ctx, FILE *f, int what) {
@@ -633,7 +632,8 @@ static void md_map(stab_ctx *ctx, FILE *f, int what) {
 }
 
 static int write_md(stab_ctx *ctx) {
-    FILE *f = bench_open(ctx->dir, "stability.md");
+    const int quick = ctx->run.opt->quick;
+    FILE *f = bench_open(ctx->run.dir, "stability.md");
     if (!f)
         return 1;
     fprintf(f, "# Stability map\n\n");
@@ -648,8 +648,7 @@ static int write_md(stab_ctx *ctx) {
                "step returned OK but the kinetic energy exceeded what the configuration can "
                "supply, ke_ratio > %g); **NaN-leak** (a non-finite value reached the host: a "
                "library bug); skipped, rejected (the library refused the mesh) or error.\n\n",
-            ctx->opt->quick ? " --quick" : "", ctx->opt->quick ? 10 : 20, ctx->opt->quick ? 10 : 20,
-            STAB_KE_BOUND);
+            quick ? " --quick" : "", quick ? 10 : 20, quick ? 10 : 20, STAB_KE_BOUND);
     md_map(ctx, f, 0);
     fprintf(f, "\n## Kinetic energy against the energy supplied\n\n"
                "ke_ratio = max over frames of KE / (E_spring(0) + E_drive + max(W_gravity, 0)); "
@@ -668,7 +667,7 @@ static int write_md(stab_ctx *ctx) {
                         bench_solvers[k].name, r->note);
             }
         }
-    return bench_close(f, ctx->dir, "stability.md") ? 1 : 0;
+    return bench_close(f, ctx->run.dir, "stability.md") ? 1 : 0;
 }
 
 static int status_code(stab_status s) {
@@ -683,7 +682,7 @@ static int status_code(stab_status s) {
 }
 
 static int write_plot(stab_ctx *ctx) {
-    FILE *d = bench_open(ctx->dir, "stability_map.dat");
+    FILE *d = bench_open(ctx->run.dir, "stability_map.dat");
     if (!d)
         return 1;
     /* x y code label: one line per cell, for `with image` and `with labels`. */
@@ -703,10 +702,10 @@ static int write_plot(stab_ctx *ctx) {
         }
         fprintf(d, "\n");
     }
-    if (bench_close(d, ctx->dir, "stability_map.dat"))
+    if (bench_close(d, ctx->run.dir, "stability_map.dat"))
         return 1;
 
-    FILE *f = bench_open(ctx->dir, "stability.gp");
+    FILE *f = bench_open(ctx->run.dir, "stability.gp");
     if (!f)
         return 1;
     int height = 140 + 22 * (int)ctx->case_count;
@@ -732,7 +731,7 @@ static int write_plot(stab_ctx *ctx) {
     }
     fprintf(f, ")\nset lmargin 46\nset rmargin 18\nunset key\n");
     fprintf(f, "plot 'stability_map.dat' using 1:2:3 with image, '' using 1:2:4 with labels font ',8'\n");
-    return bench_close(f, ctx->dir, "stability.gp") ? 1 : 0;
+    return bench_close(f, ctx->run.dir, "stability.gp") ? 1 : 0;
 }
 
 static const char *short_status(const stab_result *r, char *buf, size_t size) {
@@ -793,13 +792,9 @@ static void print_summary(const stab_ctx *ctx, double seconds) {
 int cli_bench_stability(const cli_plugin *plugin, const cli_bench_options *options) {
     if (bench_require_v1_1(plugin))
         return 1;
-    stab_ctx ctx;
-    memset(&ctx, 0, sizeof ctx);
-    ctx.api = plugin->api;
-    ctx.opt = options;
-    ctx.dir = options->out_dir;
+    stab_ctx ctx = {.run = bench_run_of(plugin, options)};
     ctx.threads = options->threads >= 0 ? (uint32_t)options->threads : 0;
-    if (fs_mkdir_p_or_say(ctx.dir))
+    if (fs_mkdir_p_or_say(ctx.run.dir))
         return 1;
     int rc = build_cases(&ctx);
     if (!rc) {
@@ -842,10 +837,10 @@ int cli_bench_stability(const cli_plugin *plugin, const cli_bench_options *optio
     if (!rc) /* each returns 0, or 1 after a message: the first to fail ends it */
         rc = write_csv(&ctx) || write_md(&ctx) || write_plot(&ctx);
     if (!rc) {
-        bench_plot(ctx.dir, "stability.gp");
+        bench_plot(ctx.run.dir, "stability.gp");
         print_summary(&ctx, seconds);
         printf("Wrote stability.csv, stability.md%s in %s\n",
-               bench_have_gnuplot() ? ", stability.png" : "", ctx.dir);
+               bench_have_gnuplot() ? ", stability.png" : "", ctx.run.dir);
     }
     free(ctx.cases);
     free(ctx.results);
