@@ -631,14 +631,10 @@ static void config_text(const sweep_row *r, char *buf, size_t size) {
 }
 
 static int write_pareto(acc_ctx *ctx) {
-    FILE *f = bench_open(ctx->run.dir, "pareto.md");
+    size_t *order;
+    FILE *f = bench_open_ordered(ctx->run.dir, "pareto.md", "accuracy", ctx->row_count, &order);
     if (!f)
         return 1;
-    size_t *order = malloc((ctx->row_count ? ctx->row_count : 1) * sizeof *order);
-    if (!order) {
-        fclose(f);
-        return out_of_memory();
-    }
     fprintf(f, "# Accuracy against time: Pareto front per scene\n\n");
     fprintf(f,
             "Every run of the sweep (budgets of RBC_ITERATE_BUDGET and fixed substeps x linear "
@@ -831,14 +827,12 @@ static int write_plots(acc_ctx *ctx) {
     if (bench_close(f, ctx->run.dir, scripts[3]))
         return 1;
 
-    if (!bench_have_gnuplot()) {
-        printf("Plots skipped: gnuplot is not on PATH. The scripts are in %s; install gnuplot "
-               "(Debian: apt-get install gnuplot-nox) and run `gnuplot SCRIPT.gp` there.\n",
-               ctx->run.dir);
-        return 0;
-    }
-    for (size_t k = 0; k < sizeof scripts / sizeof scripts[0]; ++k)
-        bench_plot_run(ctx->run.dir, scripts[k]);
+    if (bench_gnuplot_or_say(ctx->run.dir,
+                             "Plots skipped: gnuplot is not on PATH. The scripts are in %s; "
+                             "install gnuplot (Debian: apt-get install gnuplot-nox) and run "
+                             "`gnuplot SCRIPT.gp` there.\n"))
+        for (size_t k = 0; k < sizeof scripts / sizeof scripts[0]; ++k)
+            bench_plot_run(ctx->run.dir, scripts[k]);
     return 0;
 }
 

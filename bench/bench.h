@@ -263,6 +263,10 @@ void bench_sort(double *v, size_t n);
 void bench_median_p90(double *v, size_t n, double *median, double *p90);
 /// fopen(dir/name, "w") with a message on stderr on failure.
 FILE *bench_open(const char *dir, const char *name);
+/// bench_open, and *order room for an ordering of a table's `rows` rows (malloc'd, at
+/// least one entry). NULL after a message when either fails (nothing left open).
+FILE *bench_open_ordered(const char *dir, const char *name, const char *bench, size_t rows,
+                         size_t **order);
 /// bench_open, then `header` and a newline: a CSV file's first line.
 FILE *bench_open_csv(const char *dir, const char *name, const char *header);
 /// fclose with an error check; message on stderr on failure. Returns 0 or -1.
@@ -289,6 +293,9 @@ int bench_out_of_memory(const char *bench);
 void bench_plot(const char *dir, const char *script);
 /// The same, when gnuplot is known to be there: only the run and its report.
 void bench_plot_run(const char *dir, const char *script);
+/// 1 if gnuplot is on PATH; else 0 after `skipped` (a printf format of dir, the
+/// folder of the scripts) on stdout.
+int bench_gnuplot_or_say(const char *dir, const char *skipped);
 /// The CPU's model name from /proc/cpuinfo ("model name"; with `fallbacks`, else
 /// "Hardware" or "CPU part" as some ARM kernels have them), "unknown" without one,
 /// with commas and quotes replaced so that it fits a CSV field and a gnuplot title.

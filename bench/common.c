@@ -540,6 +540,19 @@ FILE *bench_open(const char *dir, const char *name) {
     return f;
 }
 
+FILE *bench_open_ordered(const char *dir, const char *name, const char *bench, size_t rows,
+                         size_t **order) {
+    FILE *f = bench_open(dir, name);
+    if (!f)
+        return NULL;
+    if (!(*order = malloc((rows ? rows : 1) * sizeof **order))) {
+        fclose(f);
+        bench_out_of_memory(bench);
+        return NULL;
+    }
+    return f;
+}
+
 FILE *bench_open_csv(const char *dir, const char *name, const char *header) {
     FILE *f = bench_open(dir, name);
     if (f)
@@ -597,6 +610,13 @@ void bench_plot_run(const char *dir, const char *script) {
     int status = bench_run_gnuplot(dir, script);
     if (status != 0)
         fprintf(stderr, "rbcloth: bench: gnuplot %s/%s exited with %d\n", dir, script, status);
+}
+
+int bench_gnuplot_or_say(const char *dir, const char *skipped) {
+    if (bench_have_gnuplot())
+        return 1;
+    printf(skipped, dir);
+    return 0;
 }
 
 void bench_plot(const char *dir, const char *script) {

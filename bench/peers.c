@@ -780,14 +780,10 @@ static void md_fixed_costs(const peers_ctx *ctx, FILE *f, const peer_row *best) 
 }
 
 static int write_md(peers_ctx *ctx) {
-    FILE *f = bench_open(ctx->run.dir, "peers.md");
+    size_t *order;
+    FILE *f = bench_open_ordered(ctx->run.dir, "peers.md", "peers", ctx->row_count, &order);
     if (!f)
         return 1;
-    size_t *order = malloc((ctx->row_count ? ctx->row_count : 1) * sizeof *order);
-    if (!order) {
-        fclose(f);
-        return out_of_memory();
-    }
     size_t n = front_order(ctx, order), valid = 0;
     for (size_t i = 0; i < ctx->row_count; ++i)
         valid += (size_t)row_valid(&ctx->rows[i], ctx->frames);
@@ -990,12 +986,11 @@ static int write_plot(peers_ctx *ctx) {
                "notitle noenhanced\n");
     if (bench_close(f, ctx->run.dir, "peers.gp"))
         return 1;
-    if (!bench_have_gnuplot()) {
-        printf("Plot skipped: gnuplot is not on PATH. The script is %s/peers.gp; install gnuplot "
-               "(Debian: apt-get install gnuplot-nox) and run `gnuplot peers.gp` there.\n",
-               ctx->run.dir);
+    if (!bench_gnuplot_or_say(ctx->run.dir,
+                              "Plot skipped: gnuplot is not on PATH. The script is %s/peers.gp; "
+                              "install gnuplot (Debian: apt-get install gnuplot-nox) and run "
+                              "`gnuplot peers.gp` there.\n"))
         return 0;
-    }
     int status = bench_run_gnuplot(ctx->run.dir, "peers.gp");
     if (status != 0)
         fprintf(stderr, "rbcloth: bench peers: gnuplot %s/peers.gp exited with %d\n", ctx->run.dir,
