@@ -74,9 +74,7 @@ typedef struct sweep_row {
 } sweep_row;
 
 typedef struct acc_ctx {
-    const rbc_api_v1 *api;
-    const cli_bench_options *opt;
-    const char *dir;
+    bench_run run;
     uint32_t threads;
     uint32_t frames;
     acc_scene scenes[MAX_SCENES];
@@ -110,10 +108,7 @@ typedef struct acc_ctx {
     uint32_t stats_mismatches;
 } acc_ctx;
 
-static int out_of_memory(void) {
-    fputs("rbcloth: out of memory in the accuracy bench\n", stderr);
-    return 1;
-}
+static int out_of_memory(void) { return bench_out_of_memory("accuracy"); }
 
 static int build_scenes(acc_ctx *ctx) {
     rbc_scene sc;
@@ -168,7 +163,7 @@ static int build_scenes(acc_ctx *ctx) {
     /* The convergence experiment of docs/facts.md: the hanging cloth at h = 1/60 with
      * k h^2/m = 10 and 100 (gap after 11 iterations only). */
     static const double ratios[2] = {10.0, 100.0};
-    for (int k = 0; !rc && !ctx->opt->quick && k < 2; ++k) {
+    for (int k = 0; !rc && !ctx->run.opt->quick && k < 2; ++k) {
         s = &ctx->scenes[ctx->scene_count++];
         snprintf(s->name, sizeof s->name, "hanging_h60_khm%g", ratios[k]);
         s->title = "hanging cloth, h = 1/60 s";
@@ -199,7 +194,7 @@ static int build_scenes(acc_ctx *ctx) {
 static rbc_result make_world(acc_ctx *ctx, const acc_scene *s, const rbc_solver_def *solver,
                              uint32_t substeps, uint32_t nonlinear, uint32_t linear,
                              rbc_world_id *world, rbc_cloth_id *cloth) {
-    const rbc_api_v1 *api = ctx->api;
+    const rbc_api_v1 *api = ctx->run.api;
     bench_world_config cfg;
     if (bench_world_config_init(api, &cfg))
         return RBC_ERR_INVALID_ARGUMENT;
@@ -222,7 +217,7 @@ static rbc_result make_world(acc_ctx *ctx, const acc_scene *s, const rbc_solver_
 
 static rbc_solver_def solver_def(const acc_ctx *ctx, uint32_t solver, const acc_control *c) {
     rbc_solver_def d;
-    ctx->api->solver_def_init(&d, (uint32_t)sizeof d);
+    ctx->run.api->solver_def_init(&d, (uint32_t)sizeof d);
     d.solver = bench_solvers[solver].kind;
     /* The solvers themselves are measured: the energy guard (on by default) would
      * scale velocities where Chebyshev or SOR overshoot and so change their error;
@@ -238,7 +233,7 @@ static rbc_solver_def solver_def(const acc_ctx *ctx, uint32_t solver, const acc_
 
 /* Which solvers this plugin supports: a 3 x 3 cloth stepped once with each. */
 static void probe_solvers(acc_ctx *ctx) {
-    const rbc_api_v1 *api = ctx->api;
+    const rbc_api_v1 *api = ctx->run.api;
     acc_scene probe;
     memset(&probe, 0, sizeof probe);
     if (bench_mesh_grid(&probe.mesh, 3, 3, 0.1, 0, 0.0) || bench_mesh_finish(&probe.mesh)) {
@@ -272,7 +267,7 @@ static void probe_solvers(acc_ctx *ctx) {
 /* The gap reference: the direct solver with 30 non-linear iterations, or, without
  * it, RBGS to a relative residual of 1e-7 (at most 5000 iterations) x 30. */
 static void choose_reference(acc_ctx *ctx) {
-    const rbc_api_v1 *api = ctx->api;
+    const rbc_api_v1 *api = ctx->run.api;
     ctx->reference_nonlinear = 30;
     api->solver_def_init(&ctx->reference_def, (uint32_t)sizeof ctx->reference_def);
     if (ctx->available[RBC_SOLVER_DIRECT]) {
@@ -321,7 +316,7 @@ static void stats_mismatch(acc_ctx *ctx, const char *what, const acc_scene *s, u
  * positions into p, its stats into *st. */
 static int reference_step(acc_ctx *ctx, const acc_scene *s, const rbc_solver_def *def,
                           uint32_t substeps, uint32_t nonlinear, float *p, rbc_world_stats *st) {
-    const rbc_api_v1 *api = ctx->api;
+    const rbc_api_v1 *api = ctx->run.api;
     rbc_world_id rw;
     rbc_cloth_id rc;
     acc_scene at_state = *s;
@@ -346,7 +341,7 @@ static int reference_step(acc_ctx *ctx, const acc_scene *s, const rbc_solver_def
 static int measure_gap(acc_ctx *ctx, const acc_scene *s, uint32_t scene, uint32_t solver,
                        const acc_control *c, uint32_t frame, uint32_t slot,
                        const rbc_world_stats *st, rbc_world_id world, rbc_cloth_id cloth) {
-    const rbc_api_v1 *api = ctx->api;
+    const rbc_api_v1 *api = ctx->run.api;
     const bench_mesh *m = &s->mesh;
     size_t n3 = 3 * (size_t)m->n;
     double h = (double)s->dt / c->substeps;
@@ -423,7 +418,7 @@ static int measure_gap(acc_ctx *ctx, const acc_scene *s, uint32_t scene, uint32_
  * CSV (NULL for none); gaps: measure the gap at ctx->gap_frames. */
 static int run_one(acc_ctx *ctx, uint32_t scene, uint32_t solver, const acc_control *c,
                    uint32_t frames, FILE *series, int gaps, acc_result *out) {
-    const rbc_api_v1 *api = ctx->api;
+    const rbc_api_v1 *api = ctx->run.api;
     const acc_scene *s = &ctx->scenes[scene];
     memset(out, 0, sizeof *out);
     out->final_eq7 = NAN;
@@ -517,14 +512,10 @@ static int run_one(acc_ctx *ctx, uint32_t scene, uint32_t solver, const acc_cont
 
 static int add_row(acc_ctx *ctx, uint32_t scene, uint32_t solver, const acc_control *c,
                    const acc_result *res) {
-    if (ctx->row_count == ctx->row_cap) {
-        size_t cap = ctx->row_cap ? 2 * ctx->row_cap : 64;
-        sweep_row *rows = realloc(ctx->rows, cap * sizeof *rows);
-        if (!rows)
-            return out_of_memory();
-        ctx->rows = rows;
-        ctx->row_cap = cap;
-    }
+    sweep_row *rows = bench_grow(ctx->rows, &ctx->row_cap, ctx->row_count, sizeof *rows, 64);
+    if (!rows)
+        return out_of_memory();
+    ctx->rows = rows;
     sweep_row *row = &ctx->rows[ctx->row_count++];
     row->scene = scene;
     row->solver = solver;
@@ -567,8 +558,8 @@ static int run_scene(acc_ctx *ctx, uint32_t scene) {
         if (!rc && res.available)
             rc = add_row(ctx, scene, k, &budget2, &res);
 
-        const double *budgets = ctx->opt->quick ? quick_budgets : full_budgets;
-        size_t nb = ctx->opt->quick ? sizeof quick_budgets / sizeof quick_budgets[0]
+        const double *budgets = ctx->run.opt->quick ? quick_budgets : full_budgets;
+        size_t nb = ctx->run.opt->quick ? sizeof quick_budgets / sizeof quick_budgets[0]
                                     : sizeof full_budgets / sizeof full_budgets[0];
         for (size_t b = 0; b < nb && !rc && bench_solvers[k].iterative; ++b) {
             /* 2 ms: the run above; the direct solver has no iterations to budget. */
@@ -579,8 +570,8 @@ static int run_scene(acc_ctx *ctx, uint32_t scene) {
             if (!rc && res.available)
                 rc = add_row(ctx, scene, k, &c, &res);
         }
-        const uint32_t(*fixed)[2] = ctx->opt->quick ? quick_fixed : full_fixed;
-        size_t nf = ctx->opt->quick ? sizeof quick_fixed / sizeof quick_fixed[0]
+        const uint32_t(*fixed)[2] = ctx->run.opt->quick ? quick_fixed : full_fixed;
+        size_t nf = ctx->run.opt->quick ? sizeof quick_fixed / sizeof quick_fixed[0]
                                     : sizeof full_fixed / sizeof full_fixed[0];
         uint32_t last_substeps = 0;
         for (size_t f = 0; f < nf && !rc; ++f) {
@@ -640,14 +631,10 @@ static void config_text(const sweep_row *r, char *buf, size_t size) {
 }
 
 static int write_pareto(acc_ctx *ctx) {
-    FILE *f = bench_open(ctx->dir, "pareto.md");
+    size_t *order;
+    FILE *f = bench_open_ordered(ctx->run.dir, "pareto.md", "accuracy", ctx->row_count, &order);
     if (!f)
         return 1;
-    size_t *order = malloc((ctx->row_count ? ctx->row_count : 1) * sizeof *order);
-    if (!order) {
-        fclose(f);
-        return out_of_memory();
-    }
     fprintf(f, "# Accuracy against time: Pareto front per scene\n\n");
     fprintf(f,
             "Every run of the sweep (budgets of RBC_ITERATE_BUDGET and fixed substeps x linear "
@@ -683,7 +670,7 @@ static int write_pareto(acc_ctx *ctx) {
         }
     }
     free(order);
-    return bench_close(f, ctx->dir, "pareto.md") ? 1 : 0;
+    return bench_close(f, ctx->run.dir, "pareto.md") ? 1 : 0;
 }
 
 /* ------------------------------------------------------------------------- */
@@ -762,23 +749,24 @@ static void gp_series(acc_ctx *ctx, FILE *f, const char *csv, int eq7_col, int b
 static int write_plots(acc_ctx *ctx) {
     static const char *const scripts[] = {"accuracy_iterations.gp", "accuracy_budget.gp",
                                           "accuracy_sweep.gp", "accuracy_pareto.gp"};
-    FILE *f = bench_open(ctx->dir, scripts[0]);
-    if (!f)
-        return 1;
-    gp_header(f, "accuracy_iterations.png", 1400, 520);
-    gp_series(ctx, f, "accuracy_iterations.csv", 4, 0);
-    if (bench_close(f, ctx->dir, scripts[0]))
-        return 1;
-
-    if (!(f = bench_open(ctx->dir, scripts[1])))
-        return 1;
-    gp_header(f, "accuracy_budget.png", 1400, 520);
-    gp_series(ctx, f, "accuracy_budget.csv", 5, 1);
-    if (bench_close(f, ctx->dir, scripts[1]))
-        return 1;
+    /* Eq. 7 per frame (eq7_col of the CSV): at fixed iterations, and within a budget. */
+    static const struct {
+        const char *png, *csv;
+        int eq7_col, budget;
+    } series[] = {{"accuracy_iterations.png", "accuracy_iterations.csv", 4, 0},
+                  {"accuracy_budget.png", "accuracy_budget.csv", 5, 1}};
+    FILE *f;
+    for (int k = 0; k < 2; ++k) {
+        if (!(f = bench_open(ctx->run.dir, scripts[k])))
+            return 1;
+        gp_header(f, series[k].png, 1400, 520);
+        gp_series(ctx, f, series[k].csv, series[k].eq7_col, series[k].budget);
+        if (bench_close(f, ctx->run.dir, scripts[k]))
+            return 1;
+    }
 
     /* Final Eq. 7 against budget, log-log, median iterations next to each point. */
-    if (!(f = bench_open(ctx->dir, scripts[2])))
+    if (!(f = bench_open(ctx->run.dir, scripts[2])))
         return 1;
     gp_header(f, "accuracy_sweep.png", 1400, 560);
     fprintf(f, "set multiplot layout 1,2 title 'Final Eq. 7 error after %u frames against the time budget per frame (labels: median linear iterations per frame)'\n",
@@ -809,11 +797,11 @@ static int write_plots(acc_ctx *ctx) {
         fprintf(f, "\n");
     }
     fprintf(f, "unset multiplot\n");
-    if (bench_close(f, ctx->dir, scripts[2]))
+    if (bench_close(f, ctx->run.dir, scripts[2]))
         return 1;
 
     /* Every run: final Eq. 7 against median ms per frame (the time to reach an error). */
-    if (!(f = bench_open(ctx->dir, scripts[3])))
+    if (!(f = bench_open(ctx->run.dir, scripts[3])))
         return 1;
     gp_header(f, "accuracy_pareto.png", 1400, 560);
     fprintf(f, "set multiplot layout 1,2 title 'Final Eq. 7 error against median ms per frame, every run of the sweep (lower left is better)'\n");
@@ -836,21 +824,15 @@ static int write_plots(acc_ctx *ctx) {
         fprintf(f, "\n");
     }
     fprintf(f, "unset multiplot\n");
-    if (bench_close(f, ctx->dir, scripts[3]))
+    if (bench_close(f, ctx->run.dir, scripts[3]))
         return 1;
 
-    if (!bench_have_gnuplot()) {
-        printf("Plots skipped: gnuplot is not on PATH. The scripts are in %s; install gnuplot "
-               "(Debian: apt-get install gnuplot-nox) and run `gnuplot SCRIPT.gp` there.\n",
-               ctx->dir);
-        return 0;
-    }
-    for (size_t k = 0; k < sizeof scripts / sizeof scripts[0]; ++k) {
-        int status = bench_run_gnuplot(ctx->dir, scripts[k]);
-        if (status != 0)
-            fprintf(stderr, "rbcloth: bench: gnuplot %s/%s exited with %d\n", ctx->dir, scripts[k],
-                    status);
-    }
+    if (bench_gnuplot_or_say(ctx->run.dir,
+                             "Plots skipped: gnuplot is not on PATH. The scripts are in %s; "
+                             "install gnuplot (Debian: apt-get install gnuplot-nox) and run "
+                             "`gnuplot SCRIPT.gp` there.\n"))
+        for (size_t k = 0; k < sizeof scripts / sizeof scripts[0]; ++k)
+            bench_plot_run(ctx->run.dir, scripts[k]);
     return 0;
 }
 
@@ -943,21 +925,10 @@ static void ctx_free(acc_ctx *ctx) {
             fclose(files[k]);
 }
 
-static FILE *open_csv(acc_ctx *ctx, const char *name, const char *header) {
-    FILE *f = bench_open(ctx->dir, name);
-    if (f)
-        fprintf(f, "%s\n", header);
-    return f;
-}
-
 int cli_bench_accuracy(const cli_plugin *plugin, const cli_bench_options *options) {
     if (bench_require_v1_1(plugin))
         return 1;
-    acc_ctx ctx;
-    memset(&ctx, 0, sizeof ctx);
-    ctx.api = plugin->api;
-    ctx.opt = options;
-    ctx.dir = options->out_dir;
+    acc_ctx ctx = {.run = bench_run_of(plugin, options)};
     ctx.threads = options->threads >= 0 ? (uint32_t)options->threads : 0;
     ctx.frames = options->frames > 0 ? (uint32_t)options->frames : options->quick ? 20u : 240u;
     static const uint32_t full_gaps[] = {10, 60, 120}, quick_gaps[] = {5, 10};
@@ -967,11 +938,8 @@ int cli_bench_accuracy(const cli_plugin *plugin, const cli_bench_options *option
         if (gaps[g] < ctx.frames)
             ctx.gap_frames[ctx.gap_count++] = gaps[g];
 
-    char err[512];
-    if (fs_mkdir_p(ctx.dir, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
+    if (fs_mkdir_p_or_say(ctx.run.dir))
         return 1;
-    }
     double start = bench_now();
     ctx.load_start = bench_load_average();
     int rc = build_scenes(&ctx);
@@ -993,20 +961,22 @@ int cli_bench_accuracy(const cli_plugin *plugin, const cli_bench_options *option
                 for (uint32_t g = 0; g < MAX_GAP_FRAMES; ++g)
                     ctx.gap[sc][k][g] = ctx.gap_linear[sc][k][g] = NAN;
             }
-        ctx.iter_csv = open_csv(&ctx, "accuracy_iterations.csv",
-                                "scene,solver,frame,eq7,linear_residual,pd_objective,step_ms");
-        ctx.budget_csv = open_csv(&ctx, "accuracy_budget.csv",
-                                  "scene,solver,frame,budget_ms,eq7,linear_iterations,"
-                                  "linear_residual,pd_objective,step_ms");
-        ctx.sweep_csv = open_csv(&ctx, "accuracy_sweep.csv",
-                                 "scene,solver,control,budget_ms,substeps,nonlinear_iterations,"
-                                 "linear_iterations,frames,final_eq7,median_step_ms,"
-                                 "median_linear_iterations,unstable_steps,diverged");
-        ctx.gap_csv = open_csv(&ctx, "accuracy_gap.csv",
-                               "scene,solver,mode,frame,linear_iterations,F0,F,F_star,gap,"
-                               "reference,F_library,F_star_library,eq7_host,eq7_library,"
-                               "residual_host,residual_library,F_linear_star,gap_linear,F_tolerance,"
-                               "F_star_tolerance,residual_tolerance");
+        ctx.iter_csv = bench_open_csv(
+            ctx.run.dir, "accuracy_iterations.csv",
+            "scene,solver,frame,eq7,linear_residual,pd_objective,step_ms");
+        ctx.budget_csv = bench_open_csv(
+            ctx.run.dir, "accuracy_budget.csv",
+            "scene,solver,frame,budget_ms,eq7,linear_iterations,linear_residual,pd_objective,"
+            "step_ms");
+        ctx.sweep_csv = bench_open_csv(
+            ctx.run.dir, "accuracy_sweep.csv",
+            "scene,solver,control,budget_ms,substeps,nonlinear_iterations,linear_iterations,"
+            "frames,final_eq7,median_step_ms,median_linear_iterations,unstable_steps,diverged");
+        ctx.gap_csv = bench_open_csv(
+            ctx.run.dir, "accuracy_gap.csv",
+            "scene,solver,mode,frame,linear_iterations,F0,F,F_star,gap,reference,F_library,"
+            "F_star_library,eq7_host,eq7_library,residual_host,residual_library,F_linear_star,"
+            "gap_linear,F_tolerance,F_star_tolerance,residual_tolerance");
         if (!ctx.iter_csv || !ctx.budget_csv || !ctx.sweep_csv || !ctx.gap_csv)
             rc = 1;
     }
@@ -1024,20 +994,18 @@ int cli_bench_accuracy(const cli_plugin *plugin, const cli_bench_options *option
                                "accuracy_sweep.csv", "accuracy_gap.csv"};
         FILE **files[] = {&ctx.iter_csv, &ctx.budget_csv, &ctx.sweep_csv, &ctx.gap_csv};
         for (size_t k = 0; k < 4; ++k) {
-            if (bench_close(*files[k], ctx.dir, names[k]))
+            if (bench_close(*files[k], ctx.run.dir, names[k]))
                 rc = 1;
             *files[k] = NULL;
         }
     }
     if (!rc)
-        rc = write_pareto(&ctx);
-    if (!rc)
-        rc = write_plots(&ctx);
+        rc = write_pareto(&ctx) || write_plots(&ctx);
     if (!rc) {
         print_summary(&ctx);
         printf("\nWrote accuracy_iterations.csv, accuracy_budget.csv, accuracy_sweep.csv, "
                "accuracy_gap.csv, pareto.md and plots in %s (%.1f s)\n",
-               ctx.dir, bench_now() - start);
+               ctx.run.dir, bench_now() - start);
     }
     ctx_free(&ctx);
     return rc;

@@ -70,11 +70,29 @@ int cli_bench_defaults(const cli_plugin *plugin, const cli_bench_options *option
 /// every core, idle and with one busy loop per core (issue 17). Returns 0, or 1.
 int cli_bench_pool(const cli_plugin *plugin, const cli_bench_options *options);
 
-/// The head of a results page (docs/results/): the command that regenerates it, and
-/// the date (UTC), the commit of the source tree this binary was built from (with
-/// "+ uncommitted changes" when the tree differs; "unknown" without git) and the
-/// machine (CPU model, cores, memory, OS, load average) of this run.
-void bench_write_provenance(FILE *md, const char *command);
+/// What the context of each bench that measures starts with: the plugin's function
+/// table, the options and the output folder (their out_dir).
+typedef struct bench_run {
+    const rbc_api_v1 *api;
+    const cli_bench_options *opt;
+    const char *dir;
+} bench_run;
+
+static inline bench_run bench_run_of(const cli_plugin *plugin, const cli_bench_options *options) {
+    bench_run run = {plugin->api, options, options->out_dir};
+    return run;
+}
+
+/// The head of a results page (docs/results/): the command that regenerates it
+/// (`rbcloth bench BENCH --out DIR`, --quick as given), and the date (UTC), the commit
+/// of the source tree this binary was built from (with "+ uncommitted changes" when
+/// the tree differs; "unknown" without git) and the machine (CPU model, cores,
+/// memory, OS, load average) of this run.
+void bench_write_provenance(FILE *md, const char *bench, const cli_bench_options *options);
+
+/// The plugin is of ABI 1.minor or later, as `rbcloth bench BENCH` needs. Returns 0, or
+/// 1 after a message on stderr.
+int bench_require_minor(const cli_plugin *plugin, const char *bench, uint32_t minor);
 
 /* ------------------------------------------------------------------------- */
 /* Solvers                                                                   */
@@ -238,8 +256,19 @@ long bench_first_nonfinite(const float *v, size_t count);
 double bench_now(void);
 /// Median of v[0..n) (sorts a copy; 0 when n == 0).
 double bench_median(const double *v, size_t n);
+/// Sort v[0..n) ascending.
+void bench_sort(double *v, size_t n);
+/// Sort v[0..n) (n > 0), then its median (the mean of the middle two when n is even)
+/// and its p90 (v[(n - 1) 0.9], rounded down).
+void bench_median_p90(double *v, size_t n, double *median, double *p90);
 /// fopen(dir/name, "w") with a message on stderr on failure.
 FILE *bench_open(const char *dir, const char *name);
+/// bench_open, and *order room for an ordering of a table's `rows` rows (malloc'd, at
+/// least one entry). NULL after a message when either fails (nothing left open).
+FILE *bench_open_ordered(const char *dir, const char *name, const char *bench, size_t rows,
+                         size_t **order);
+/// bench_open, then `header` and a newline: a CSV file's first line.
+FILE *bench_open_csv(const char *dir, const char *name, const char *header);
 /// fclose with an error check; message on stderr on failure. Returns 0 or -1.
 int bench_close(FILE *f, const char *dir, const char *name);
 /// 1 if an executable `gnuplot` is on PATH.
@@ -249,6 +278,31 @@ int bench_run_gnuplot(const char *dir, const char *script);
 /// The 1-minute load average (/proc/loadavg), or -1 where unknown: timings taken
 /// while other processes compete for the cores are not the solver's.
 double bench_load_average(void);
+/// Room for element `count` of the array p, *cap elements of `size` bytes: p as it
+/// is, or reallocated to twice as many (`first` when empty). NULL when out of
+/// memory, p and *cap then unchanged.
+void *bench_grow(void *p, size_t *cap, size_t count, size_t size, size_t first);
+/// Room for n values in each of the `count` per-frame arrays samples[] (*cap each,
+/// grown together). Returns 0, or -1 when out of memory.
+int bench_reserve_samples(double **samples, int count, uint32_t *cap, uint32_t n);
+/// "rbcloth: out of memory in the <bench> bench" on stderr; returns 1.
+int bench_out_of_memory(const char *bench);
+/// Run `gnuplot script` in dir when gnuplot is on PATH, else say on stdout how to;
+/// a gnuplot that fails is reported on stderr but is no error of the bench (the CSV
+/// and the tables are its results).
+void bench_plot(const char *dir, const char *script);
+/// The same, when gnuplot is known to be there: only the run and its report.
+void bench_plot_run(const char *dir, const char *script);
+/// 1 if gnuplot is on PATH; else 0 after `skipped` (a printf format of dir, the
+/// folder of the scripts) on stdout.
+int bench_gnuplot_or_say(const char *dir, const char *skipped);
+/// The CPU's model name from /proc/cpuinfo ("model name"; with `fallbacks`, else
+/// "Hardware" or "CPU part" as some ARM kernels have them), "unknown" without one,
+/// with commas and quotes replaced so that it fits a CSV field and a gnuplot title.
+void bench_cpu_model(char *buf, size_t size, int fallbacks);
+/// The thread counts a bench that compares them measures: 1 and, unless it is 1,
+/// --threads (default 2). Returns how many (1 or 2); the last is the larger.
+uint32_t bench_thread_list(const cli_bench_options *options, uint32_t list[2]);
 /// "rbcloth: <result>: <last error>" on stderr; returns 1.
 int bench_report(const rbc_api_v1 *api, rbc_result r, const char *context);
 /// The same message as a string (for tables), into buf.

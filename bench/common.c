@@ -523,12 +523,40 @@ double bench_median(const double *v, size_t n) {
     return med;
 }
 
+void bench_sort(double *v, size_t n) { qsort(v, n, sizeof *v, cmp_double); }
+
+void bench_median_p90(double *v, size_t n, double *median, double *p90) {
+    bench_sort(v, n);
+    *median = n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+    *p90 = v[(size_t)((n - 1) * 0.9)];
+}
+
 FILE *bench_open(const char *dir, const char *name) {
     char path[4096];
     snprintf(path, sizeof path, "%s/%s", dir, name);
     FILE *f = fopen(path, "w");
     if (!f)
         fprintf(stderr, "rbcloth: cannot write %s: %s\n", path, strerror(errno));
+    return f;
+}
+
+FILE *bench_open_ordered(const char *dir, const char *name, const char *bench, size_t rows,
+                         size_t **order) {
+    FILE *f = bench_open(dir, name);
+    if (!f)
+        return NULL;
+    if (!(*order = malloc((rows ? rows : 1) * sizeof **order))) {
+        fclose(f);
+        bench_out_of_memory(bench);
+        return NULL;
+    }
+    return f;
+}
+
+FILE *bench_open_csv(const char *dir, const char *name, const char *header) {
+    FILE *f = bench_open(dir, name);
+    if (f)
+        fprintf(f, "%s\n", header);
     return f;
 }
 
@@ -578,6 +606,28 @@ int bench_run_gnuplot(const char *dir, const char *script) {
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+void bench_plot_run(const char *dir, const char *script) {
+    int status = bench_run_gnuplot(dir, script);
+    if (status != 0)
+        fprintf(stderr, "rbcloth: bench: gnuplot %s/%s exited with %d\n", dir, script, status);
+}
+
+int bench_gnuplot_or_say(const char *dir, const char *skipped) {
+    if (bench_have_gnuplot())
+        return 1;
+    printf(skipped, dir);
+    return 0;
+}
+
+void bench_plot(const char *dir, const char *script) {
+    if (bench_have_gnuplot())
+        bench_plot_run(dir, script);
+    else
+        printf("Plot skipped: gnuplot is not on PATH. Install it (Debian: apt-get install "
+               "gnuplot-nox) and run `gnuplot %s` in %s.\n",
+               script, dir);
+}
+
 double bench_load_average(void) {
     FILE *f = fopen("/proc/loadavg", "r");
     double load = -1.0;
@@ -587,6 +637,76 @@ double bench_load_average(void) {
         fclose(f);
     }
     return load;
+}
+
+void *bench_grow(void *p, size_t *cap, size_t count, size_t size, size_t first) {
+    if (count < *cap)
+        return p;
+    size_t n = *cap ? 2 * *cap : first;
+    void *grown = realloc(p, n * size);
+    if (grown)
+        *cap = n;
+    return grown;
+}
+
+int bench_reserve_samples(double **samples, int count, uint32_t *cap, uint32_t n) {
+    if (n <= *cap)
+        return 0;
+    for (int k = 0; k < count; ++k) {
+        double *p = realloc(samples[k], n * sizeof *p);
+        if (!p)
+            return -1;
+        samples[k] = p;
+    }
+    *cap = n;
+    return 0;
+}
+
+int bench_out_of_memory(const char *bench) {
+    fprintf(stderr, "rbcloth: out of memory in the %s bench\n", bench);
+    return 1;
+}
+
+uint32_t bench_thread_list(const cli_bench_options *options, uint32_t list[2]) {
+    uint32_t many = options->threads >= 0 ? (uint32_t)options->threads : 2u, count = 0;
+    list[count++] = 1;
+    if (many != 1)
+        list[count++] = many;
+    return count;
+}
+
+void bench_cpu_model(char *buf, size_t size, int fallbacks) {
+    snprintf(buf, size, "unknown");
+    FILE *f = fopen("/proc/cpuinfo", "r");
+    if (!f)
+        return;
+    char line[512];
+    int found = 0;
+    while (fgets(line, sizeof line, f)) {
+        const char *keys[] = {"model name", "Hardware", "CPU part"};
+        for (int k = 0; k < (fallbacks ? 3 : 1) && !found; ++k) {
+            size_t len = strlen(keys[k]);
+            if (strncmp(line, keys[k], len) != 0)
+                continue;
+            const char *colon = strchr(line, ':');
+            if (!colon)
+                continue;
+            const char *v = colon + 1;
+            while (*v == ' ' || *v == '\t')
+                ++v;
+            snprintf(buf, size, "%s", v);
+            found = k == 0; /* keep looking for "model name" after a fallback */
+        }
+        if (found)
+            break;
+    }
+    fclose(f);
+    size_t len = strlen(buf);
+    while (len && (buf[len - 1] == '\n' || buf[len - 1] == ' '))
+        buf[--len] = '\0';
+    for (char *p = buf; *p; ++p)
+        if (*p == ',' || *p == '\'' || *p == '"')
+            *p = ';';
 }
 
 int bench_report(const rbc_api_v1 *api, rbc_result r, const char *context) {
@@ -633,8 +753,17 @@ static void field_of(const char *path, const char *key, char sep, char *out, siz
     fclose(f);
 }
 
-void bench_write_provenance(FILE *md, const char *command) {
-    char when[64], commit[64], dirty[64], cpu[256], os[256];
+int bench_require_minor(const cli_plugin *plugin, const char *bench, uint32_t minor) {
+    if ((plugin->api->abi_version_fn() & 0xFFFFu) >= minor)
+        return 0;
+    fprintf(stderr, "rbcloth: bench %s needs a plugin of ABI 1.%u or later\n", bench, minor);
+    return 1;
+}
+
+void bench_write_provenance(FILE *md, const char *bench, const cli_bench_options *options) {
+    char command[512], when[64], commit[64], dirty[64], cpu[256], os[256];
+    snprintf(command, sizeof command, "rbcloth bench %s --out %s%s", bench, options->out_dir,
+             options->quick ? " --quick" : "");
     time_t t = time(NULL);
     struct tm tm;
     gmtime_r(&t, &tm);

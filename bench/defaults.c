@@ -107,10 +107,11 @@ typedef struct run_row {
     uint64_t clamped;
 } run_row;
 
-static int cmp_double(const void *a, const void *b) {
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
+/* defaults.csv: a line per cloth, time step and configuration (a run_row). */
+static const char csv_header[] =
+    "cloth,dt,config,frames,ok,max_strain,frames_over_2x,strain_warnings,final_max_strain,"
+    "final_rms_strain,ms_median,ms_p90,substeps_mean,linear_per_frame,sag_m,fall_error,"
+    "energy_clamped,error";
 
 /* The world of configuration `cfg`, with one cloth from `m`. */
 static rbc_result make_world(const rbc_api_v1 *api, int cfg, uint32_t threads,
@@ -217,9 +218,7 @@ static void run_one(const rbc_api_v1 *api, int cfg, const bench_mesh *m, double 
             double T = dt * done, h = st.substeps ? dt / st.substeps : dt;
             row->fall_error = mean / (9.81 * (T * T + T * h) / 2.0) - 1.0;
         }
-        qsort(ms, done, sizeof *ms, cmp_double);
-        row->ms_median = done % 2 ? ms[done / 2] : 0.5 * (ms[done / 2 - 1] + ms[done / 2]);
-        row->ms_p90 = ms[(size_t)((done - 1) * 0.9)];
+        bench_median_p90(ms, done, &row->ms_median, &row->ms_p90);
         row->substeps_mean = (double)substeps / done;
         row->linear_mean = (double)linear / done;
     }
@@ -255,29 +254,16 @@ static int write_plot(const char *dir) {
 }
 
 int cli_bench_defaults(const cli_plugin *plugin, const cli_bench_options *o) {
+    if (bench_require_minor(plugin, "defaults", 6)) return 1;
     const rbc_api_v1 *api = plugin->api;
-    if ((api->abi_version_fn() & 0xFFFFu) < 6) {
-        fprintf(stderr, "rbcloth: bench defaults needs a plugin of ABI 1.6 or later\n");
-        return 1;
-    }
     const char *dir = o->out_dir;
-    char command[512];
-    snprintf(command, sizeof command, "rbcloth bench defaults --out %s%s", dir,
-             o->quick ? " --quick" : "");
     uint32_t threads = o->threads >= 0 ? (uint32_t)o->threads : 1;
     /* 4 s of simulated time per run; --quick: 0.5 s, the default and the paper only. */
     double seconds = o->quick ? 0.5 : 4.0;
     if (o->frames > 0) seconds = -1.0;
-    char err[512];
-    if (fs_mkdir_p(dir, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
-        return 1;
-    }
-    FILE *csv = bench_open(dir, "defaults.csv");
+    if (fs_mkdir_p_or_say(dir)) return 1;
+    FILE *csv = bench_open_csv(dir, "defaults.csv", csv_header);
     if (!csv) return 1;
-    fprintf(csv, "cloth,dt,config,frames,ok,max_strain,frames_over_2x,strain_warnings,"
-                 "final_max_strain,final_rms_strain,ms_median,ms_p90,substeps_mean,"
-                 "linear_per_frame,sag_m,fall_error,energy_clamped,error\n");
     static run_row rows[CLOTH_COUNT][STEP_COUNT][CFG_COUNT];
     int failed = 0;
     for (int c = 0; c < CLOTH_COUNT; ++c) {
@@ -324,7 +310,7 @@ int cli_bench_defaults(const cli_plugin *plugin, const cli_bench_options *o) {
     FILE *md = bench_open(dir, "defaults.md");
     if (!md) return 1;
     fprintf(md, "# The default solve at 1/240, 1/60 and 1/30 s\n\n");
-    bench_write_provenance(md, command);
+    bench_write_provenance(md, "defaults", o);
     fprintf(md, "Each cloth falls from horizontal, pinned at two corners (the free grid: "
                 "none), for %.1f s of simulated time (1e-4 kg per vertex, 1000 N/m), %u "
                 "thread(s). *largest*: the "

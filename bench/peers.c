@@ -29,6 +29,7 @@
  * Outputs: peers.csv, peers.md, peers.gp and peers.png (gnuplot) in DIR.
  */
 #include <math.h>
+#include <stdarg.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -124,9 +125,7 @@ typedef struct energy_probe {
 } energy_probe;
 
 typedef struct peers_ctx {
-    const rbc_api_v1 *api;
-    const cli_bench_options *opt;
-    const char *dir;
+    bench_run run;
     uint32_t threads, frames;
     float dt;
     float gravity[3];
@@ -144,10 +143,7 @@ typedef struct peers_ctx {
     uint32_t stats_mismatches;
 } peers_ctx;
 
-static int out_of_memory(void) {
-    fputs("rbcloth: out of memory in the peers bench\n", stderr);
-    return 1;
-}
+static int out_of_memory(void) { return bench_out_of_memory("peers"); }
 
 static const char *solver_name(rbc_solver_kind k) {
     for (uint32_t i = 0; i < BENCH_SOLVER_COUNT; ++i)
@@ -175,6 +171,32 @@ static int row_valid(const peer_row *r, uint32_t frames) {
     return r->frames_done == frames && !r->unstable && !r->diverged && isfinite(r->eq7_host);
 }
 
+/* printf onto buf after its first n characters: the new length, or n as it is once
+ * the text is full or an earlier printf failed. */
+static int append(char *buf, size_t size, int n, const char *fmt, ...)
+    __attribute__((format(printf, 4, 5)));
+static int append(char *buf, size_t size, int n, const char *fmt, ...) {
+    if (n <= 0 || (size_t)n >= size)
+        return n;
+    va_list ap;
+    va_start(ap, fmt);
+    n += vsnprintf(buf + n, size - (size_t)n, fmt, ap);
+    va_end(ap);
+    return n;
+}
+
+/* What a configuration sets beyond the counts (omega, rho, an energy guard other than
+ * the default clamp), in the words of the text it goes into (printf formats). */
+static void append_settings(const peer_config *c, char *buf, size_t size, int n,
+                            const char *omega, const char *rho, const char *guard) {
+    if (c->omega > 0.0f)
+        n = append(buf, size, n, omega, (double)c->omega);
+    if (c->rho > 0.0f)
+        n = append(buf, size, n, rho, (double)c->rho);
+    if (c->guard != RBC_ENERGY_GUARD_CLAMP)
+        append(buf, size, n, guard, guard_name(c->guard));
+}
+
 /* "rbgs 11x1x1", "rbgs_sor 2x1x3 w1.6", "direct 4x2", + " guard off". */
 static void config_text(const peer_config *c, char *buf, size_t size) {
     int n;
@@ -183,12 +205,7 @@ static void config_text(const peer_config *c, char *buf, size_t size) {
     else
         n = snprintf(buf, size, "%s %ux%ux%u", solver_name(c->solver), c->substeps, c->nonlinear,
                      c->linear);
-    if (n > 0 && (size_t)n < size && c->omega > 0.0f)
-        n += snprintf(buf + n, size - (size_t)n, " w%.2g", (double)c->omega);
-    if (n > 0 && (size_t)n < size && c->rho > 0.0f)
-        n += snprintf(buf + n, size - (size_t)n, " rho%.4g", (double)c->rho);
-    if (n > 0 && (size_t)n < size && c->guard != RBC_ENERGY_GUARD_CLAMP)
-        snprintf(buf + n, size - (size_t)n, " guard %s", guard_name(c->guard));
+    append_settings(c, buf, size, n, " w%.2g", " rho%.4g", " guard %s");
 }
 
 /* The command line that runs the same configuration. */
@@ -196,14 +213,10 @@ static void command_text(const peers_ctx *ctx, const peer_config *c, char *buf, 
     int n = snprintf(buf, size, "rbcloth run --threads %u --frames %u --solver %s --substeps %u "
                                 "--nonlinear %u",
                      ctx->threads, ctx->frames, solver_name(c->solver), c->substeps, c->nonlinear);
-    if (n > 0 && (size_t)n < size && c->solver != RBC_SOLVER_DIRECT)
-        n += snprintf(buf + n, size - (size_t)n, " --iterations %u", c->linear);
-    if (n > 0 && (size_t)n < size && c->omega > 0.0f)
-        n += snprintf(buf + n, size - (size_t)n, " --omega %.2g", (double)c->omega);
-    if (n > 0 && (size_t)n < size && c->rho > 0.0f)
-        n += snprintf(buf + n, size - (size_t)n, " (scene: \"rho\": %.4g)", (double)c->rho);
-    if (n > 0 && (size_t)n < size && c->guard != RBC_ENERGY_GUARD_CLAMP)
-        snprintf(buf + n, size - (size_t)n, " --energy-guard %s", guard_name(c->guard));
+    if (c->solver != RBC_SOLVER_DIRECT)
+        n = append(buf, size, n, " --iterations %u", c->linear);
+    append_settings(c, buf, size, n, " --omega %.2g", " (scene: \"rho\": %.4g)",
+                    " --energy-guard %s");
 }
 
 /* ------------------------------------------------------------------------- */
@@ -213,7 +226,7 @@ static void command_text(const peers_ctx *ctx, const peer_config *c, char *buf, 
 static rbc_result make_world(peers_ctx *ctx, const peer_config *c, rbc_world_id *world,
                              rbc_cloth_id *cloth) {
     bench_world_config cfg;
-    if (bench_world_config_init(ctx->api, &cfg))
+    if (bench_world_config_init(ctx->run.api, &cfg))
         return RBC_ERR_INVALID_ARGUMENT;
     memcpy(cfg.gravity, ctx->gravity, sizeof cfg.gravity);
     cfg.substeps = c->substeps;
@@ -224,7 +237,7 @@ static rbc_result make_world(peers_ctx *ctx, const peer_config *c, rbc_world_id 
     cfg.solver.omega = c->omega;
     cfg.solver.rho = c->rho;
     cfg.solver.energy_guard = c->guard;
-    return bench_world_create(ctx->api, &ctx->mesh, &cfg, world, cloth);
+    return bench_world_create(ctx->run.api, &ctx->mesh, &cfg, world, cloth);
 }
 
 static double rel_diff(double a, double b) {
@@ -234,7 +247,7 @@ static double rel_diff(double a, double b) {
 
 /* Run configuration c for ctx->frames frames into *out (positions kept). */
 static int run_config(peers_ctx *ctx, const peer_config *c, peer_row *out) {
-    const rbc_api_v1 *api = ctx->api;
+    const rbc_api_v1 *api = ctx->run.api;
     memset(out, 0, sizeof *out);
     out->c = *c;
     out->eq7 = out->eq7_host = out->max_strain = NAN;
@@ -339,14 +352,10 @@ static int add_config(peers_ctx *ctx, const peer_config *c) {
     for (size_t i = 0; i < ctx->row_count; ++i)
         if (same_config(&ctx->rows[i].c, c))
             return 0;
-    if (ctx->row_count == ctx->row_cap) {
-        size_t cap = ctx->row_cap ? 2 * ctx->row_cap : 128;
-        peer_row *rows = realloc(ctx->rows, cap * sizeof *rows);
-        if (!rows)
-            return out_of_memory();
-        ctx->rows = rows;
-        ctx->row_cap = cap;
-    }
+    peer_row *rows = bench_grow(ctx->rows, &ctx->row_cap, ctx->row_count, sizeof *rows, 128);
+    if (!rows)
+        return out_of_memory();
+    ctx->rows = rows;
     peer_row *row = &ctx->rows[ctx->row_count];
     int rc = run_config(ctx, c, row);
     ++ctx->row_count;
@@ -562,7 +571,7 @@ static const peer_row *find_row(const peers_ctx *ctx, const peer_config *c) {
  * guard clamps? Kinetic (velocities over the substep) + gravitational (work) +
  * spring energy against the start's (0: the cloth starts at rest, unstretched). */
 static int run_probe(peers_ctx *ctx, const peer_config *c, energy_probe *p) {
-    const rbc_api_v1 *api = ctx->api;
+    const rbc_api_v1 *api = ctx->run.api;
     memset(p, 0, sizeof *p);
     p->c = *c;
     p->c.guard = RBC_ENERGY_GUARD_OFF;
@@ -631,19 +640,17 @@ static size_t front_order(const peers_ctx *ctx, size_t *order) {
 }
 
 static int write_positions(peers_ctx *ctx) {
-    char sub[4096], err[512];
-    snprintf(sub, sizeof sub, "%s/peers_positions", ctx->dir);
-    if (fs_mkdir_p(sub, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
+    char sub[4096];
+    snprintf(sub, sizeof sub, "%s/peers_positions", ctx->run.dir);
+    if (fs_mkdir_p_or_say(sub))
         return 1;
-    }
     for (size_t i = 0; i < ctx->row_count; ++i) {
         const peer_row *r = &ctx->rows[i];
         char name[64];
         snprintf(name, sizeof name, "%zu.f32", i);
         char path[4096 + 64];
         snprintf(path, sizeof path, "%s/%s", sub, name);
-        if (!r->positions || (!ctx->opt->quick && !r->pareto)) {
+        if (!r->positions || (!ctx->run.opt->quick && !r->pareto)) {
             unlink(path); /* a file from an earlier run would name another row */
             continue;
         }
@@ -658,13 +665,13 @@ static int write_positions(peers_ctx *ctx) {
 }
 
 static int write_csv(peers_ctx *ctx) {
-    FILE *f = bench_open(ctx->dir, "peers.csv");
+    FILE *f = bench_open_csv(
+        ctx->run.dir, "peers.csv",
+        "id,phase,solver,substeps,nonlinear,linear,omega_set,rho_set,energy_guard,threads,"
+        "frames,ms_per_frame,integrate_ms,local_ms,global_ms,other_ms,eq7,eq7_host,max_strain,"
+        "eq7_tail_min,eq7_tail_max,omega,rho,guard_clamps,unstable,diverged,pareto,meets_target");
     if (!f)
         return 1;
-    fprintf(f, "id,phase,solver,substeps,nonlinear,linear,omega_set,rho_set,energy_guard,threads,"
-               "frames,ms_per_frame,integrate_ms,local_ms,global_ms,other_ms,eq7,eq7_host,"
-               "max_strain,eq7_tail_min,eq7_tail_max,omega,rho,guard_clamps,unstable,diverged,"
-               "pareto,meets_target\n");
     for (size_t i = 0; i < ctx->row_count; ++i) {
         const peer_row *r = &ctx->rows[i];
         int meets = row_valid(r, ctx->frames) && r->eq7_host <= PEERS_TARGET_E &&
@@ -679,10 +686,10 @@ static int write_csv(peers_ctx *ctx) {
                 (unsigned long long)r->clamps,
                 r->unstable, r->diverged, r->pareto, meets);
     }
-    if (bench_close(f, ctx->dir, "peers.csv"))
+    if (bench_close(f, ctx->run.dir, "peers.csv"))
         return 1;
     /* The front in ms order, for the plot's line. */
-    if (!(f = bench_open(ctx->dir, "peers_front.csv")))
+    if (!(f = bench_open(ctx->run.dir, "peers_front.csv")))
         return 1;
     fprintf(f, "id,solver,ms_per_frame,eq7_host\n");
     size_t *order = malloc((ctx->row_count ? ctx->row_count : 1) * sizeof *order);
@@ -695,7 +702,7 @@ static int write_csv(peers_ctx *ctx) {
         fprintf(f, "%zu,%s,%.6f,%.12g\n", order[k], solver_name(ctx->rows[order[k]].c.solver),
                 ctx->rows[order[k]].ms, ctx->rows[order[k]].eq7_host);
     free(order);
-    return bench_close(f, ctx->dir, "peers_front.csv") ? 1 : 0;
+    return bench_close(f, ctx->run.dir, "peers_front.csv") ? 1 : 0;
 }
 
 /* The fastest valid row with E <= the target (NULL if none). */
@@ -773,14 +780,10 @@ static void md_fixed_costs(const peers_ctx *ctx, FILE *f, const peer_row *best) 
 }
 
 static int write_md(peers_ctx *ctx) {
-    FILE *f = bench_open(ctx->dir, "peers.md");
+    size_t *order;
+    FILE *f = bench_open_ordered(ctx->run.dir, "peers.md", "peers", ctx->row_count, &order);
     if (!f)
         return 1;
-    size_t *order = malloc((ctx->row_count ? ctx->row_count : 1) * sizeof *order);
-    if (!order) {
-        fclose(f);
-        return out_of_memory();
-    }
     size_t n = front_order(ctx, order), valid = 0;
     for (size_t i = 0; i < ctx->row_count; ++i)
         valid += (size_t)row_valid(&ctx->rows[i], ctx->frames);
@@ -936,13 +939,13 @@ static int write_md(peers_ctx *ctx) {
                "prediction y (p = y at each substep, then the last iterate for later non-linear "
                "iterations); `rbc_solver_def` offers no other start.\n");
     free(order);
-    return bench_close(f, ctx->dir, "peers.md") ? 1 : 0;
+    return bench_close(f, ctx->run.dir, "peers.md") ? 1 : 0;
 }
 
 static int write_plot(peers_ctx *ctx) {
     static const char *const colors[SWEEP_SOLVERS] = {"#d62728", "#ff7f0e", "#9467bd", "#17becf",
                                                       "#000000"};
-    FILE *f = bench_open(ctx->dir, "peers.gp");
+    FILE *f = bench_open(ctx->run.dir, "peers.gp");
     if (!f)
         return 1;
     fprintf(f, "# Generated by `rbcloth bench peers`; run `gnuplot peers.gp` in this directory.\n");
@@ -981,17 +984,16 @@ static int write_plot(peers_ctx *ctx) {
                "(measured elsewhere, docs/facts.md)', \\\n     ");
     fprintf(f, "$peers using 1:4:5 with labels offset 0.8,0.6 left font ',9' tc rgb '#333333' "
                "notitle noenhanced\n");
-    if (bench_close(f, ctx->dir, "peers.gp"))
+    if (bench_close(f, ctx->run.dir, "peers.gp"))
         return 1;
-    if (!bench_have_gnuplot()) {
-        printf("Plot skipped: gnuplot is not on PATH. The script is %s/peers.gp; install gnuplot "
-               "(Debian: apt-get install gnuplot-nox) and run `gnuplot peers.gp` there.\n",
-               ctx->dir);
+    if (!bench_gnuplot_or_say(ctx->run.dir,
+                              "Plot skipped: gnuplot is not on PATH. The script is %s/peers.gp; "
+                              "install gnuplot (Debian: apt-get install gnuplot-nox) and run "
+                              "`gnuplot peers.gp` there.\n"))
         return 0;
-    }
-    int status = bench_run_gnuplot(ctx->dir, "peers.gp");
+    int status = bench_run_gnuplot(ctx->run.dir, "peers.gp");
     if (status != 0)
-        fprintf(stderr, "rbcloth: bench peers: gnuplot %s/peers.gp exited with %d\n", ctx->dir,
+        fprintf(stderr, "rbcloth: bench peers: gnuplot %s/peers.gp exited with %d\n", ctx->run.dir,
                 status);
     return 0;
 }
@@ -1014,14 +1016,14 @@ static void probe_solvers(peers_ctx *ctx) {
         rbc_cloth_id cl;
         rbc_result r = make_world(ctx, &c, &w, &cl);
         if (r == RBC_OK) {
-            r = ctx->api->world_step(w, ctx->dt);
-            ctx->api->world_destroy(w);
+            r = ctx->run.api->world_step(w, ctx->dt);
+            ctx->run.api->world_destroy(w);
         }
         if (r != RBC_OK) {
             ctx->available[k] = 0;
             fprintf(stderr, "rbcloth: bench peers: solver %s is not available (%s: %s); skipped\n",
-                    solver_name(sweep_kinds[k]), ctx->api->result_string(r),
-                    ctx->api->last_error());
+                    solver_name(sweep_kinds[k]), ctx->run.api->result_string(r),
+                    ctx->run.api->last_error());
         }
     }
     ctx->mesh = saved;
@@ -1049,22 +1051,16 @@ int cli_bench_peers(const cli_plugin *plugin, const cli_bench_options *options) 
                 plugin->path);
         return 1;
     }
-    peers_ctx ctx;
-    memset(&ctx, 0, sizeof ctx);
-    ctx.api = api;
-    ctx.opt = options;
-    ctx.dir = options->out_dir;
+    peers_ctx ctx = {.run = bench_run_of(plugin, options)};
     /* The peers' figures are one thread: so is this bench unless told otherwise. */
     ctx.threads = options->threads >= 0 ? (uint32_t)options->threads : 1u;
     ctx.frames = options->frames > 0 ? (uint32_t)options->frames : options->quick ? 60u : 500u;
-    char err[RBC_SCENE_ERROR_MAX > 512 ? RBC_SCENE_ERROR_MAX : 512];
-    if (fs_mkdir_p(ctx.dir, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
+    if (fs_mkdir_p_or_say(ctx.run.dir))
         return 1;
-    }
     double start = bench_now();
     ctx.load_start = bench_load_average();
     rbc_scene sc;
+    char err[RBC_SCENE_ERROR_MAX];
     if (rbc_scene_load_paper(&sc, err, sizeof err)) {
         fprintf(stderr, "rbcloth: %s\n", err);
         return 1;
@@ -1123,12 +1119,8 @@ int cli_bench_peers(const cli_plugin *plugin, const cli_bench_options *options) 
         mark_front(&ctx);
         rc = write_positions(&ctx);
     }
-    if (!rc)
-        rc = write_csv(&ctx);
-    if (!rc)
-        rc = write_md(&ctx);
-    if (!rc)
-        rc = write_plot(&ctx);
+    if (!rc) /* each returns 0, or 1 after a message: the first to fail ends it */
+        rc = write_csv(&ctx) || write_md(&ctx) || write_plot(&ctx);
     if (!rc) {
         const peer_row *best = best_at_target(&ctx);
         char cfg[128];
@@ -1145,7 +1137,7 @@ int cli_bench_peers(const cli_plugin *plugin, const cli_bench_options *options) 
                    ctx.stats_mismatches);
         printf("Wrote peers.csv, peers_front.csv, peers.md, peers.gp, peers.png and "
                "peers_positions/ in %s (%zu configurations, %.1f s)\n",
-               ctx.dir, ctx.row_count, bench_now() - start);
+               ctx.run.dir, ctx.row_count, bench_now() - start);
     }
     ctx_free(&ctx);
     return rc;

@@ -86,9 +86,7 @@ typedef struct perf_row {
 } perf_row;
 
 typedef struct perf_ctx {
-    const rbc_api_v1 *api;
-    const cli_bench_options *opt;
-    const char *dir;
+    bench_run run;
     /// The ABI minor of the plugin: 2 has memory_bytes and the energy guard.
     uint32_t abi_minor;
     /// The thread counts measured: 1 and, unless it is 1, threads_many.
@@ -116,10 +114,7 @@ typedef struct perf_ctx {
     double peak_gflops;
 } perf_ctx;
 
-static int out_of_memory(void) {
-    fputs("rbcloth: out of memory in the perf bench\n", stderr);
-    return 1;
-}
+static int out_of_memory(void) { return bench_out_of_memory("perf"); }
 
 /* ------------------------------------------------------------------------- */
 /* Machine: memory bandwidth (a STREAM-style triad)                          */
@@ -218,42 +213,6 @@ static double peak_gflops(void) {
 /* ------------------------------------------------------------------------- */
 /* Machine                                                                   */
 /* ------------------------------------------------------------------------- */
-
-/* The CPU's model name from /proc/cpuinfo ("model name", or "Hardware" / "CPU part"
- * on some ARM kernels), commas replaced so it fits a CSV field. */
-static void read_cpu_model(char *buf, size_t size) {
-    snprintf(buf, size, "unknown");
-    FILE *f = fopen("/proc/cpuinfo", "r");
-    if (!f)
-        return;
-    char line[512];
-    int found = 0;
-    while (fgets(line, sizeof line, f)) {
-        const char *keys[] = {"model name", "Hardware", "CPU part"};
-        for (int k = 0; k < 3 && !found; ++k) {
-            size_t len = strlen(keys[k]);
-            if (strncmp(line, keys[k], len) != 0)
-                continue;
-            const char *colon = strchr(line, ':');
-            if (!colon)
-                continue;
-            const char *v = colon + 1;
-            while (*v == ' ' || *v == '\t')
-                ++v;
-            snprintf(buf, size, "%s", v);
-            found = k == 0; /* keep looking for "model name" after a fallback */
-        }
-        if (found)
-            break;
-    }
-    fclose(f);
-    size_t len = strlen(buf);
-    while (len && (buf[len - 1] == '\n' || buf[len - 1] == ' '))
-        buf[--len] = '\0';
-    for (char *p = buf; *p; ++p)
-        if (*p == ',' || *p == '\'' || *p == '"')
-            *p = ';';
-}
 
 /* CPU time in clock ticks: the whole machine's (busy and total, first line of
  * /proc/stat; steal counts as busy: another guest had the core) and this process's
@@ -430,22 +389,18 @@ static int perf_mesh_irregular(bench_mesh *m, uint32_t target, uint64_t seed) {
             /* Two triangles per cell, corners in one rotational order, each with its
              * edges' midpoints: tri[k] = (a, b, c, m_ab, m_bc, m_ca). */
             uint64_t tv[2][6];
-            const float *da, *db;
             if (diag[c]) { /* diagonal v00 - v11 */
-                uint64_t t0[6] = {v00, v10, v11, e_bottom, e_right, e_diag};
-                uint64_t t1[6] = {v00, v11, v01, e_diag, e_top, e_left};
-                memcpy(tv[0], t0, sizeof t0);
-                memcpy(tv[1], t1, sizeof t1);
-                da = m->rest + 3 * v00;
-                db = m->rest + 3 * v11;
+                const uint64_t tri6[2][6] = {{v00, v10, v11, e_bottom, e_right, e_diag},
+                                            {v00, v11, v01, e_diag, e_top, e_left}};
+                memcpy(tv, tri6, sizeof tri6);
             } else { /* diagonal v10 - v01 */
-                uint64_t t0[6] = {v00, v10, v01, e_bottom, e_diag, e_left};
-                uint64_t t1[6] = {v10, v11, v01, e_right, e_top, e_diag};
-                memcpy(tv[0], t0, sizeof t0);
-                memcpy(tv[1], t1, sizeof t1);
-                da = m->rest + 3 * v10;
-                db = m->rest + 3 * v01;
+                const uint64_t tri6[2][6] = {{v00, v10, v01, e_bottom, e_diag, e_left},
+                                            {v10, v11, v01, e_right, e_top, e_diag}};
+                memcpy(tv, tri6, sizeof tri6);
             }
+            /* The diagonal's ends. */
+            const float *da = m->rest + 3 * (diag[c] ? v00 : v10);
+            const float *db = m->rest + 3 * (diag[c] ? v11 : v01);
             float *pd = m->rest + 3 * DEDGE(i, j);
             for (int k = 0; k < 3; ++k) pd[k] = (float)(0.5 * ((double)da[k] + db[k]));
             for (int k = 0; k < 2; ++k, ++tri) {
@@ -523,7 +478,7 @@ static uint32_t solver_def_size(const perf_ctx *ctx) {
 static rbc_result perf_world_create(const perf_ctx *ctx, const bench_mesh *m, uint32_t solver,
                                     uint32_t threads, rbc_world_id *out_world,
                                     rbc_cloth_id *out_cloth, double *setup_ms) {
-    const rbc_api_v1 *api = ctx->api;
+    const rbc_api_v1 *api = ctx->run.api;
     *out_world = 0;
     *out_cloth = 0;
     rbc_solver_def sd;
@@ -564,9 +519,9 @@ static rbc_result perf_world_create(const perf_ctx *ctx, const bench_mesh *m, ui
  * spread between frames is a few percent), and a full run of about 1.5 minutes on
  * 2 cores. */
 static uint32_t default_frames(const perf_ctx *ctx, uint32_t particles) {
-    if (ctx->opt->frames > 0)
-        return (uint32_t)ctx->opt->frames;
-    if (ctx->opt->quick)
+    if (ctx->run.opt->frames > 0)
+        return (uint32_t)ctx->run.opt->frames;
+    if (ctx->run.opt->quick)
         return 20;
     if (particles <= 20000)
         return 200;
@@ -579,7 +534,7 @@ static uint32_t default_frames(const perf_ctx *ctx, uint32_t particles) {
 
 /* Measure one configuration into row (mesh, solver, side and threads set). */
 static int run_row(perf_ctx *ctx, perf_row *row, const bench_mesh *m) {
-    const rbc_api_v1 *api = ctx->api;
+    const rbc_api_v1 *api = ctx->run.api;
     fprintf(stderr, "rbcloth: bench perf: %s, %u particles, %s, %u thread%s ...\n",
             mesh_names[row->mesh], m->n, bench_solvers[row->solver].name, row->threads_requested,
             row->threads_requested == 1 ? "" : "s");
@@ -594,16 +549,9 @@ static int run_row(perf_ctx *ctx, perf_row *row, const bench_mesh *m) {
         return bench_report(api, r, what);
     }
     row->frames_asked = default_frames(ctx, m->n);
-    if (row->frames_asked > ctx->sample_cap) {
-        for (int k = 0; k < 6; ++k) {
-            double *p = realloc(ctx->samples[k], row->frames_asked * sizeof *p);
-            if (!p) {
-                api->world_destroy(world);
-                return out_of_memory();
-            }
-            ctx->samples[k] = p;
-        }
-        ctx->sample_cap = row->frames_asked;
+    if (bench_reserve_samples(ctx->samples, 6, &ctx->sample_cap, row->frames_asked)) {
+        api->world_destroy(world);
+        return out_of_memory();
     }
     double **s = ctx->samples;
     uint32_t done = 0;
@@ -750,10 +698,9 @@ static int write_csv(perf_ctx *ctx) {
     for (uint32_t k = 0; k < ctx->row_count; ++k) ctx->order[k] = k;
     g_order_ctx = ctx;
     qsort(ctx->order, ctx->row_count, sizeof ctx->order[0], cmp_order);
-    FILE *f = bench_open(ctx->dir, "perf.csv");
+    FILE *f = bench_open_csv(ctx->run.dir, "perf.csv", csv_header);
     if (!f)
         return 1;
-    fprintf(f, "%s\n", csv_header);
     for (uint32_t k = 0; k < ctx->row_count; ++k) {
         const perf_row *r = &ctx->rows[ctx->order[k]];
         char mem[3][32], others[32];
@@ -775,7 +722,7 @@ static int write_csv(perf_ctx *ctx) {
                 memory_text(r, (double)r->memory_bytes / r->springs, mem[2], sizeof mem[2]),
                 others, ctx->energy_guard, ctx->cores, ctx->cpu);
     }
-    return bench_close(f, ctx->dir, "perf.csv") ? 1 : 0;
+    return bench_close(f, ctx->run.dir, "perf.csv") ? 1 : 0;
 }
 
 static const char *threads_label(uint32_t requested, char *buf, size_t size) {
@@ -943,20 +890,20 @@ static void write_intro(const perf_ctx *ctx, FILE *f) {
 }
 
 static int write_md(const perf_ctx *ctx) {
-    FILE *f = bench_open(ctx->dir, "perf.md");
+    FILE *f = bench_open(ctx->run.dir, "perf.md");
     if (!f)
         return 1;
-    fprintf(f, "# Performance (`rbcloth bench perf%s`)\n\n", ctx->opt->quick ? " --quick" : "");
+    fprintf(f, "# Performance (`rbcloth bench perf%s`)\n\n", ctx->run.opt->quick ? " --quick" : "");
     write_intro(ctx, f);
     write_tables(ctx, f);
-    return bench_close(f, ctx->dir, "perf.md") ? 1 : 0;
+    return bench_close(f, ctx->run.dir, "perf.md") ? 1 : 0;
 }
 
 /* perf_scaling.gp: ms per frame and particle updates per second against particles,
  * log-log, for each thread count (grid lines, irregular points). Columns of
  * perf.csv: 1 mesh, 2 solver, 3 particles, 6 threads, 9 step_ms, 15 updates/s. */
 static int write_plot(const perf_ctx *ctx) {
-    FILE *f = bench_open(ctx->dir, "perf_scaling.gp");
+    FILE *f = bench_open(ctx->run.dir, "perf_scaling.gp");
     if (!f)
         return 1;
     fprintf(f, "# Generated by `rbcloth bench perf`; run `gnuplot perf_scaling.gp` in this "
@@ -1006,18 +953,9 @@ static int write_plot(const perf_ctx *ctx) {
         fprintf(f, "\n");
     }
     fprintf(f, "unset multiplot\n");
-    if (bench_close(f, ctx->dir, "perf_scaling.gp"))
+    if (bench_close(f, ctx->run.dir, "perf_scaling.gp"))
         return 1;
-    if (!bench_have_gnuplot()) {
-        printf("Plot skipped: gnuplot is not on PATH. Install it (Debian: apt-get install "
-               "gnuplot-nox) and run `gnuplot perf_scaling.gp` in %s.\n",
-               ctx->dir);
-        return 0;
-    }
-    int status = bench_run_gnuplot(ctx->dir, "perf_scaling.gp");
-    if (status != 0)
-        fprintf(stderr, "rbcloth: bench: gnuplot %s/perf_scaling.gp exited with %d\n", ctx->dir,
-                status);
+    bench_plot(ctx->run.dir, "perf_scaling.gp");
     return 0;
 }
 
@@ -1028,7 +966,7 @@ static const char *energy_guard_name(const perf_ctx *ctx) {
     if (ctx->abi_minor < 2)
         return "n/a";
     rbc_solver_def d;
-    if (ctx->api->solver_def_init(&d, (uint32_t)sizeof d) != RBC_OK)
+    if (ctx->run.api->solver_def_init(&d, (uint32_t)sizeof d) != RBC_OK)
         return "n/a";
     switch (d.energy_guard) {
     case RBC_ENERGY_GUARD_OFF: return "off";
@@ -1071,25 +1009,19 @@ int cli_bench_perf(const cli_plugin *plugin, const cli_bench_options *options) {
     perf_ctx *ctx = calloc(1, sizeof *ctx);
     if (!ctx)
         return out_of_memory();
-    ctx->api = plugin->api;
-    ctx->opt = options;
-    ctx->dir = options->out_dir;
+    ctx->run = bench_run_of(plugin, options);
     ctx->abi_minor = plugin->api->abi_version_fn() & 0xFFFFu;
     ctx->energy_guard = energy_guard_name(ctx);
-    read_cpu_model(ctx->cpu, sizeof ctx->cpu);
+    bench_cpu_model(ctx->cpu, sizeof ctx->cpu, 1);
     ctx->cores = sysconf(_SC_NPROCESSORS_ONLN);
-    ctx->threads_many = options->threads >= 0 ? (uint32_t)options->threads : 2u;
-    ctx->thread_list[ctx->thread_count++] = 1;
-    if (ctx->threads_many != 1)
-        ctx->thread_list[ctx->thread_count++] = ctx->threads_many;
+    ctx->thread_count = bench_thread_list(options, ctx->thread_list);
+    ctx->threads_many = ctx->thread_list[ctx->thread_count - 1];
     if (ctx->threads_many > 1 && ctx->cores > 0 && ctx->threads_many > (uint32_t)ctx->cores)
         fprintf(stderr, "rbcloth: bench perf: %u threads on %ld cores: the %u-thread timings "
                         "measure oversubscription\n",
                 ctx->threads_many, ctx->cores, ctx->threads_many);
 
-    char err[512];
-    if (fs_mkdir_p(ctx->dir, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
+    if (fs_mkdir_p_or_say(ctx->run.dir)) {
         free(ctx);
         return 1;
     }
@@ -1141,18 +1073,14 @@ int cli_bench_perf(const cli_plugin *plugin, const cli_bench_options *options) {
     }
     ctx->load_end = bench_load_average();
     double seconds = bench_now() - start;
-    if (!rc)
-        rc = write_csv(ctx);
-    if (!rc)
-        rc = write_md(ctx);
-    if (!rc)
-        rc = write_plot(ctx);
+    if (!rc) /* each returns 0, or 1 after a message: the first to fail ends it */
+        rc = write_csv(ctx) || write_md(ctx) || write_plot(ctx);
     if (!rc) {
         printf("\nPerformance bench\n\n");
         write_intro(ctx, stdout);
         write_tables(ctx, stdout);
         printf("\nWrote perf.csv, perf.md%s in %s (%.1f s)\n",
-               bench_have_gnuplot() ? ", perf_scaling.png" : "", ctx->dir, seconds);
+               bench_have_gnuplot() ? ", perf_scaling.png" : "", ctx->run.dir, seconds);
         if (ctx->failed_rows) {
             fprintf(stderr, "rbcloth: bench perf: %u configuration%s measured no frame (see "
                             "perf.md, Notes)\n",

@@ -49,10 +49,11 @@ typedef struct pool_row {
     char error[256];
 } pool_row;
 
-static int cmp_double(const void *a, const void *b) {
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
-}
+/* pool.csv: a line per cloth, load and configuration. */
+static const char csv_header[] =
+    "cloth,load,particles,cores,one_median_ms,one_mean_ms,one_steps,default_median_ms,"
+    "default_mean_ms,default_steps,all_median_ms,all_mean_ms,all_steps,default_over_one,"
+    "all_over_one,default_steps_multithreaded,error";
 
 /* One busy loop per core, each a child process that dies with us. */
 static int start_load(pid_t *pids, uint32_t count) {
@@ -149,10 +150,7 @@ static void measure(const rbc_api_v1 *api, const bench_mesh *m, uint32_t cores, 
             double sum = 0.0;
             for (uint32_t s = 0; s < row->steps; ++s) sum += ms[k][s];
             row->mean = sum / row->steps;
-            qsort(ms[k], row->steps, sizeof(double), cmp_double);
-            row->median = row->steps % 2 ? ms[k][row->steps / 2]
-                                         : 0.5 * (ms[k][row->steps / 2 - 1] + ms[k][row->steps / 2]);
-            row->p90 = ms[k][(size_t)((row->steps - 1) * 0.9)];
+            bench_median_p90(ms[k], row->steps, &row->median, &row->p90);
         }
         free(ms[k]);
     }
@@ -193,29 +191,16 @@ static int write_plot(const char *dir, pool_row rows[CLOTH_COUNT][2][CFG_COUNT])
 }
 
 int cli_bench_pool(const cli_plugin *plugin, const cli_bench_options *o) {
+    if (bench_require_minor(plugin, "pool", 7)) return 1;
     const rbc_api_v1 *api = plugin->api;
-    if ((api->abi_version_fn() & 0xFFFFu) < 7) {
-        fprintf(stderr, "rbcloth: bench pool needs a plugin of ABI 1.7 or later\n");
-        return 1;
-    }
     const char *dir = o->out_dir;
-    char command[512];
-    snprintf(command, sizeof command, "rbcloth bench pool --out %s%s", dir,
-             o->quick ? " --quick" : "");
     long nproc = sysconf(_SC_NPROCESSORS_ONLN);
     const uint32_t cores = nproc > 0 ? (uint32_t)nproc : 1;
     const uint32_t rounds = o->quick ? 2 : 8, block = o->quick ? 5 : 25;
     const double block_limit = o->quick ? 0.5 : 3.0;
-    char err[512];
-    if (fs_mkdir_p(dir, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
-        return 1;
-    }
-    FILE *csv = bench_open(dir, "pool.csv");
+    if (fs_mkdir_p_or_say(dir)) return 1;
+    FILE *csv = bench_open_csv(dir, "pool.csv", csv_header);
     if (!csv) return 1;
-    fprintf(csv, "cloth,load,particles,cores,one_median_ms,one_mean_ms,one_steps,"
-                 "default_median_ms,default_mean_ms,default_steps,all_median_ms,all_mean_ms,"
-                 "all_steps,default_over_one,all_over_one,default_steps_multithreaded,error\n");
     static pool_row rows[CLOTH_COUNT][2][CFG_COUNT];
     int failed = 0;
     pid_t pids[256] = {0};
@@ -268,7 +253,7 @@ int cli_bench_pool(const cli_plugin *plugin, const cli_bench_options *o) {
     FILE *md = bench_open(dir, "pool.md");
     if (!md) return 1;
     fprintf(md, "# Threads on a busy machine\n\n");
-    bench_write_provenance(md, command);
+    bench_write_provenance(md, "pool", o);
     fprintf(md,
             "Each cloth hangs from two corners with the default solve at 1/60 s. Three "
             "worlds step in alternation, %u rounds of up to %u steps each (a block stops "

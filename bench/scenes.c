@@ -93,9 +93,7 @@ typedef struct scene_row {
 } scene_row;
 
 typedef struct scenes_ctx {
-    const rbc_api_v1 *api;
-    const cli_bench_options *opt;
-    const char *dir;
+    bench_run run;
     char scenes_dir[1024];
     uint32_t thread_list[MAX_THREAD_COUNTS], thread_count;
     scene_row rows[ENTRY_COUNT * MAX_THREAD_COUNTS];
@@ -109,10 +107,7 @@ typedef struct scenes_ctx {
     double load_start, load_end;
 } scenes_ctx;
 
-static int out_of_memory(void) {
-    fputs("rbcloth: out of memory in the scenes bench\n", stderr);
-    return 1;
-}
+static int out_of_memory(void) { return bench_out_of_memory("scenes"); }
 
 /* ------------------------------------------------------------------------- */
 /* Set-up                                                                    */
@@ -172,32 +167,6 @@ static int find_scenes_dir(scenes_ctx *ctx) {
     return -1;
 }
 
-/* The CPU's model name ("model name" of /proc/cpuinfo), commas replaced for CSV. */
-static void read_cpu_model(char *buf, size_t size) {
-    snprintf(buf, size, "unknown");
-    FILE *f = fopen("/proc/cpuinfo", "r");
-    if (!f)
-        return;
-    char line[512];
-    while (fgets(line, sizeof line, f)) {
-        const char *colon = strchr(line, ':');
-        if (strncmp(line, "model name", 10) != 0 || !colon)
-            continue;
-        const char *v = colon + 1;
-        while (*v == ' ' || *v == '\t')
-            ++v;
-        snprintf(buf, size, "%s", v);
-        break;
-    }
-    fclose(f);
-    size_t len = strlen(buf);
-    while (len && (buf[len - 1] == '\n' || buf[len - 1] == ' '))
-        buf[--len] = '\0';
-    for (char *p = buf; *p; ++p)
-        if (*p == ',' || *p == '\'' || *p == '"')
-            *p = ';';
-}
-
 /* ------------------------------------------------------------------------- */
 /* Penetration                                                               */
 /* ------------------------------------------------------------------------- */
@@ -248,8 +217,8 @@ static double max_penetration_mm(const scenes_ctx *ctx, const rbc_scene *s,
     double deepest = NAN;
     for (uint32_t i = 0; i < s->cloth_count; ++i) {
         size_t written = 0;
-        if (ctx->api->cloth_read_positions(inst->world, inst->cloths[i], xyz, capacity, &written) !=
-            RBC_OK)
+        if (ctx->run.api->cloth_read_positions(inst->world, inst->cloths[i], xyz, capacity,
+                                               &written) != RBC_OK)
             return NAN;
         for (uint32_t k = 0; k < s->collider_count; ++k) {
             const rbc_scene_collider *c = &s->colliders[k];
@@ -276,29 +245,12 @@ static double max_penetration_mm(const scenes_ctx *ctx, const rbc_scene *s,
 /* ------------------------------------------------------------------------- */
 
 /* Nearest-rank p-quantile of v[0..n) (sorts v). */
-static int cmp_double(const void *a, const void *b) {
-    double x = *(const double *)a, y = *(const double *)b;
-    return x < y ? -1 : x > y;
-}
 static double quantile(double *v, uint32_t n, double p) {
     if (n == 0)
         return NAN;
-    qsort(v, n, sizeof *v, cmp_double);
+    bench_sort(v, n);
     uint32_t rank = (uint32_t)ceil(p * n);
     return v[rank ? rank - 1 : 0];
-}
-
-static int reserve_samples(scenes_ctx *ctx, uint32_t n) {
-    if (n <= ctx->sample_cap)
-        return 0;
-    for (int k = 0; k < 9; ++k) {
-        double *p = realloc(ctx->samples[k], n * sizeof *p);
-        if (!p)
-            return -1;
-        ctx->samples[k] = p;
-    }
-    ctx->sample_cap = n;
-    return 0;
 }
 
 /* Replace commas (CSV) and newlines in a message. */
@@ -311,7 +263,7 @@ static void sanitize(char *text) {
 /* Run one scene with `threads` threads into row. Returns 0 (a failing step or a scene
  * the library refuses is a note on the row) or 1 (out of memory). */
 static int run_scene(scenes_ctx *ctx, const scene_entry *e, uint32_t threads, scene_row *row) {
-    const rbc_api_v1 *api = ctx->api;
+    const rbc_api_v1 *api = ctx->run.api;
     memset(row, 0, sizeof *row);
     row->entry = e;
     row->threads_requested = threads;
@@ -333,9 +285,9 @@ static int run_scene(scenes_ctx *ctx, const scene_entry *e, uint32_t threads, sc
     }
     s.world.thread_count = threads;
     uint32_t measured;
-    if (ctx->opt->frames > 0)
-        measured = (uint32_t)ctx->opt->frames;
-    else if (ctx->opt->quick)
+    if (ctx->run.opt->frames > 0)
+        measured = (uint32_t)ctx->run.opt->frames;
+    else if (ctx->run.opt->quick)
         measured = QUICK_FRAMES;
     else
         measured = s.frames > BENCH_WARMUP ? s.frames - BENCH_WARMUP : 1;
@@ -354,7 +306,7 @@ static int run_scene(scenes_ctx *ctx, const scene_entry *e, uint32_t threads, sc
         ++ctx->failed_rows;
         return 0;
     }
-    if (reserve_samples(ctx, measured)) {
+    if (bench_reserve_samples(ctx->samples, 9, &ctx->sample_cap, measured)) {
         rbc_scene_instance_destroy(api, &inst);
         rbc_scene_free(&s);
         return out_of_memory();
@@ -472,10 +424,9 @@ static const char *num(double x, char *buf, size_t size) {
 }
 
 static int write_csv(const scenes_ctx *ctx) {
-    FILE *f = bench_open(ctx->dir, "scenes.csv");
+    FILE *f = bench_open_csv(ctx->run.dir, "scenes.csv", csv_header);
     if (!f)
         return 1;
-    fprintf(f, "%s\n", csv_header);
     for (uint32_t k = 0; k < ctx->row_count; ++k) {
         const scene_row *r = &ctx->rows[k];
         char b[16][32];
@@ -493,7 +444,7 @@ static int write_csv(const scenes_ctx *ctx) {
                 num(r->entry->paper_ms_substep, b[14], 32), num(r->entry->paper_ms_frame, b[15], 32),
                 r->entry->paper, r->note, ctx->cores, ctx->cpu);
     }
-    return bench_close(f, ctx->dir, "scenes.csv") ? 1 : 0;
+    return bench_close(f, ctx->run.dir, "scenes.csv") ? 1 : 0;
 }
 
 static const char *fixed(double x, int digits, char *buf, size_t size) {
@@ -559,20 +510,20 @@ static void write_intro(const scenes_ctx *ctx, FILE *f) {
 }
 
 static int write_md(const scenes_ctx *ctx) {
-    FILE *f = bench_open(ctx->dir, "scenes.md");
+    FILE *f = bench_open(ctx->run.dir, "scenes.md");
     if (!f)
         return 1;
     fprintf(f, "# The paper's scenes (`rbcloth bench scenes%s`)\n\n",
-            ctx->opt->quick ? " --quick" : "");
+            ctx->run.opt->quick ? " --quick" : "");
     write_intro(ctx, f);
     write_tables(ctx, f);
-    return bench_close(f, ctx->dir, "scenes.md") ? 1 : 0;
+    return bench_close(f, ctx->run.dir, "scenes.md") ? 1 : 0;
 }
 
 /* scenes_plot.csv (one line per scene: ms per substep and per frame for each thread
  * count, and the paper's) and scenes.gp: two clustered bar charts. */
 static int write_plot(const scenes_ctx *ctx) {
-    FILE *f = bench_open(ctx->dir, "scenes_plot.csv");
+    FILE *f = bench_open(ctx->run.dir, "scenes_plot.csv");
     if (!f)
         return 1;
     fprintf(f, "# scene"); /* a comment for gnuplot, a header for people */
@@ -604,10 +555,10 @@ static int write_plot(const scenes_ctx *ctx) {
         }
         fprintf(f, "\n");
     }
-    if (bench_close(f, ctx->dir, "scenes_plot.csv"))
+    if (bench_close(f, ctx->run.dir, "scenes_plot.csv"))
         return 1;
 
-    f = bench_open(ctx->dir, "scenes.gp");
+    f = bench_open(ctx->run.dir, "scenes.gp");
     if (!f)
         return 1;
     char cpu[sizeof ctx->cpu];
@@ -644,17 +595,9 @@ static int write_plot(const scenes_ctx *ctx) {
         fprintf(f, ", '' using %u lt 3 title 'paper (GTX 970)'\n", base + n);
     }
     fprintf(f, "unset multiplot\n");
-    if (bench_close(f, ctx->dir, "scenes.gp"))
+    if (bench_close(f, ctx->run.dir, "scenes.gp"))
         return 1;
-    if (!bench_have_gnuplot()) {
-        printf("Plot skipped: gnuplot is not on PATH. Install it (Debian: apt-get install "
-               "gnuplot-nox) and run `gnuplot scenes.gp` in %s.\n",
-               ctx->dir);
-        return 0;
-    }
-    int status = bench_run_gnuplot(ctx->dir, "scenes.gp");
-    if (status != 0)
-        fprintf(stderr, "rbcloth: bench: gnuplot %s/scenes.gp exited with %d\n", ctx->dir, status);
+    bench_plot(ctx->run.dir, "scenes.gp");
     return 0;
 }
 
@@ -666,23 +609,16 @@ int cli_bench_scenes(const cli_plugin *plugin, const cli_bench_options *options)
     scenes_ctx *ctx = calloc(1, sizeof *ctx);
     if (!ctx)
         return out_of_memory();
-    ctx->api = plugin->api;
-    ctx->opt = options;
-    ctx->dir = options->out_dir;
+    ctx->run = bench_run_of(plugin, options);
     if (find_scenes_dir(ctx)) {
         free(ctx);
         return 1;
     }
-    read_cpu_model(ctx->cpu, sizeof ctx->cpu);
+    bench_cpu_model(ctx->cpu, sizeof ctx->cpu, 0);
     ctx->cores = sysconf(_SC_NPROCESSORS_ONLN);
-    uint32_t many = options->threads >= 0 ? (uint32_t)options->threads : 2u;
-    ctx->thread_list[ctx->thread_count++] = 1;
-    if (many != 1)
-        ctx->thread_list[ctx->thread_count++] = many;
+    ctx->thread_count = bench_thread_list(options, ctx->thread_list);
 
-    char err[512];
-    if (fs_mkdir_p(ctx->dir, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
+    if (fs_mkdir_p_or_say(ctx->run.dir)) {
         free(ctx);
         return 1;
     }
@@ -693,18 +629,14 @@ int cli_bench_scenes(const cli_plugin *plugin, const cli_bench_options *options)
         for (uint32_t t = 0; t < ctx->thread_count && !rc; ++t)
             rc = run_scene(ctx, &entries[e], ctx->thread_list[t], &ctx->rows[ctx->row_count++]);
     ctx->load_end = bench_load_average();
-    if (!rc)
-        rc = write_csv(ctx);
-    if (!rc)
-        rc = write_md(ctx);
-    if (!rc)
-        rc = write_plot(ctx);
+    if (!rc) /* each returns 0, or 1 after a message: the first to fail ends it */
+        rc = write_csv(ctx) || write_md(ctx) || write_plot(ctx);
     if (!rc) {
         printf("\nThe paper's scenes\n\n");
         write_intro(ctx, stdout);
         write_tables(ctx, stdout);
         printf("\nWrote scenes.csv, scenes.md%s in %s (%.1f s)\n",
-               bench_have_gnuplot() ? ", scenes.png" : "", ctx->dir, bench_now() - start);
+               bench_have_gnuplot() ? ", scenes.png" : "", ctx->run.dir, bench_now() - start);
         if (ctx->failed_rows) {
             fprintf(stderr, "rbcloth: bench scenes: %u run%s measured no frame (see scenes.md, "
                             "Notes)\n",

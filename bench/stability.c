@@ -100,12 +100,11 @@ typedef struct stab_result {
 } stab_result;
 
 typedef struct stab_ctx {
-    const rbc_api_v1 *api;
-    const cli_bench_options *opt;
-    const char *dir;
+    bench_run run;
     uint32_t threads;
     stab_case *cases;
-    uint32_t case_count, case_cap;
+    uint32_t case_count;
+    size_t case_cap;
     stab_result *results; /* [case][solver] */
     /// Wall seconds of the direct solver's first step at the largest size run so
     /// far (to decide whether 1000 x 1000 is worth factoring).
@@ -114,51 +113,46 @@ typedef struct stab_ctx {
     uint32_t nan_leaks, restore_mismatches, stats_mismatches;
 } stab_ctx;
 
-static int out_of_memory(void) {
-    fputs("rbcloth: out of memory in the stability bench\n", stderr);
-    return 1;
-}
+static int out_of_memory(void) { return bench_out_of_memory("stability"); }
 
 /* ------------------------------------------------------------------------- */
 /* Cases                                                                     */
 /* ------------------------------------------------------------------------- */
 
 static stab_case *add_case(stab_ctx *ctx, const char *dimension, case_kind kind) {
-    if (ctx->case_count == ctx->case_cap) {
-        uint32_t cap = ctx->case_cap ? 2 * ctx->case_cap : 64;
-        stab_case *c = realloc(ctx->cases, cap * sizeof *c);
-        if (!c)
-            return NULL;
-        ctx->cases = c;
-        ctx->case_cap = cap;
-    }
+    stab_case *cases = bench_grow(ctx->cases, &ctx->case_cap, ctx->case_count, sizeof *cases, 64);
+    if (!cases)
+        return NULL;
+    ctx->cases = cases;
     stab_case *c = &ctx->cases[ctx->case_count++];
     memset(c, 0, sizeof *c);
     c->dimension = dimension;
     c->kind = kind;
-    uint32_t side = ctx->opt->quick ? 10 : 20;
+    const cli_bench_options *o = ctx->run.opt;
+    uint32_t side = o->quick ? 10 : 20;
     c->nx = c->ny = side;
     c->dt = 0.002f;
     c->mass_ratio = 1.0;
-    c->frames = ctx->opt->frames > 0 ? (uint32_t)ctx->opt->frames : ctx->opt->quick ? 60 : 200;
+    c->frames = o->frames > 0 ? (uint32_t)o->frames : o->quick ? 60 : 200;
     return c;
 }
 
 static int build_cases(stab_ctx *ctx) {
-    const int quick = ctx->opt->quick;
+    const int quick = ctx->run.opt->quick;
     stab_case *c;
-#define ADD(dim, kind)                         \
-    if (!(c = add_case(ctx, dim, kind)))       \
-        return out_of_memory();
+/* A case of dimension `dim` and its value as the tables show it (printf). */
+#define ADD(dim, kind, ...)                                \
+    if (!(c = add_case(ctx, dim, kind)))                   \
+        return out_of_memory();                            \
+    snprintf(c->value, sizeof c->value, __VA_ARGS__);
 
     static const double khm_full[] = {1e-2, 1e-1, 1, 10, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7};
     static const double khm_quick[] = {1e-2, 1e7};
     const double *khm = quick ? khm_quick : khm_full;
     size_t nk = quick ? 2 : sizeof khm_full / sizeof khm_full[0];
     for (size_t k = 0; k < nk; ++k) {
-        ADD("k h^2/m", CASE_HANGING);
+        ADD("k h^2/m", CASE_HANGING, "%g", khm[k]);
         c->khm = khm[k];
-        snprintf(c->value, sizeof c->value, "%g", khm[k]);
     }
 
     static const float dt_full[] = {1e-5f, 1e-4f, 1e-3f, 2e-3f, 1.0f / 120, 1.0f / 60, 1.0f / 30};
@@ -167,18 +161,18 @@ static int build_cases(stab_ctx *ctx) {
     static const char *const dt_quick_names[] = {"1e-5", "1/30"};
     size_t nd = quick ? 2 : sizeof dt_full / sizeof dt_full[0];
     for (size_t k = 0; k < nd; ++k) {
-        ADD("dt (s) at k = 1000 N/m", CASE_HANGING);
+        ADD("dt (s) at k = 1000 N/m", CASE_HANGING, "%s",
+            quick ? dt_quick_names[k] : dt_full_names[k]);
         c->dt = quick ? dt_quick[k] : dt_full[k];
-        snprintf(c->value, sizeof c->value, "%s", quick ? dt_quick_names[k] : dt_full_names[k]);
     }
 
     static const double mr_full[] = {10, 1e2, 1e3, 1e4, 1e5, 1e6};
     static const double mr_quick[] = {1e6};
     size_t nm = quick ? 1 : sizeof mr_full / sizeof mr_full[0];
     for (size_t k = 0; k < nm; ++k) {
-        ADD("mass ratio", CASE_HANGING);
-        c->mass_ratio = quick ? mr_quick[k] : mr_full[k];
-        snprintf(c->value, sizeof c->value, "%g", c->mass_ratio);
+        double mass_ratio = quick ? mr_quick[k] : mr_full[k];
+        ADD("mass ratio", CASE_HANGING, "%g", mass_ratio);
+        c->mass_ratio = mass_ratio;
     }
 
     static const uint32_t size_full[] = {2, 4, 10, 32, 100, 316, 1000};
@@ -186,9 +180,8 @@ static int build_cases(stab_ctx *ctx) {
     size_t ns = quick ? 2 : sizeof size_full / sizeof size_full[0];
     for (size_t k = 0; k < ns; ++k) {
         uint32_t n = quick ? size_quick[k] : size_full[k];
-        ADD("size (particles)", CASE_HANGING);
+        ADD("size (particles)", CASE_HANGING, "%ux%u", n, n);
         c->nx = c->ny = n;
-        snprintf(c->value, sizeof c->value, "%ux%u", n, n);
         if (n >= 316) {
             c->large = 1;
             /* A few frames: these rows ask whether the solver stays finite and bounded
@@ -197,43 +190,32 @@ static int build_cases(stab_ctx *ctx) {
         }
     }
 
-    ADD("degenerate springs", CASE_ZERO_LENGTH);
-    snprintf(c->value, sizeof c->value, "zero-length (2 coincident layers)");
-    ADD("degenerate springs", CASE_COINCIDENT_PAIR);
-    snprintf(c->value, sizeof c->value, "coincident neighbours");
-    ADD("degenerate springs", CASE_COLLAPSED);
-    snprintf(c->value, sizeof c->value, "all particles at one point");
+    ADD("degenerate springs", CASE_ZERO_LENGTH, "zero-length (2 coincident layers)");
+    ADD("degenerate springs", CASE_COINCIDENT_PAIR, "coincident neighbours");
+    ADD("degenerate springs", CASE_COLLAPSED, "all particles at one point");
 
-    ADD("start", CASE_STRETCH10);
-    snprintf(c->value, sizeof c->value, "stretched 10x");
+    ADD("start", CASE_STRETCH10, "stretched 10x");
     if (!quick) {
-        ADD("start", CASE_STRETCH10);
+        ADD("start", CASE_STRETCH10, "stretched 10x at dt 1/30");
         c->dt = 1.0f / 30;
-        snprintf(c->value, sizeof c->value, "stretched 10x at dt 1/30");
     }
 
-    ADD("pins", CASE_PINS3X);
-    snprintf(c->value, sizeof c->value, "pulled 3x apart");
+    ADD("pins", CASE_PINS3X, "pulled 3x apart");
 
-    ADD("collider", CASE_SPHERE);
-    snprintf(c->value, sizeof c->value, "sphere 10 m/s at dt 2e-3");
-    ADD("collider", CASE_SPHERE);
+    ADD("collider", CASE_SPHERE, "sphere 10 m/s at dt 2e-3");
+    ADD("collider", CASE_SPHERE, "sphere 10 m/s at dt 1/60");
     c->dt = 1.0f / 60;
-    snprintf(c->value, sizeof c->value, "sphere 10 m/s at dt 1/60");
 
     /* A few extremes together. */
-    ADD("combined", CASE_HANGING);
+    ADD("combined", CASE_HANGING, "mass ratio 1e6 + dt 1/30");
     c->mass_ratio = 1e6;
     c->dt = 1.0f / 30;
-    snprintf(c->value, sizeof c->value, "mass ratio 1e6 + dt 1/30");
     if (!quick) {
-        ADD("combined", CASE_HANGING);
+        ADD("combined", CASE_HANGING, "k h^2/m 1e7 + mass ratio 1e6");
         c->khm = 1e7;
         c->mass_ratio = 1e6;
-        snprintf(c->value, sizeof c->value, "k h^2/m 1e7 + mass ratio 1e6");
-        ADD("combined", CASE_SPHERE);
+        ADD("combined", CASE_SPHERE, "sphere + mass ratio 1e6");
         c->mass_ratio = 1e6;
-        snprintf(c->value, sizeof c->value, "sphere + mass ratio 1e6");
     }
 #undef ADD
     return 0;
@@ -352,7 +334,7 @@ static void set_note(stab_result *res, const char *fmt, const char *a, const cha
 }
 
 static int run_case(stab_ctx *ctx, const stab_case *c, uint32_t solver, stab_result *res) {
-    const rbc_api_v1 *api = ctx->api;
+    const rbc_api_v1 *api = ctx->run.api;
     memset(res, 0, sizeof *res);
     res->first_unstable = -1;
     res->nonfinite_frame = -1;
@@ -586,13 +568,14 @@ static const char *csv_text(const char *in, char *buf, size_t size) {
 }
 
 static int write_csv(stab_ctx *ctx) {
-    FILE *f = bench_open(ctx->dir, "stability.csv");
+    FILE *f = bench_open_csv(
+        ctx->run.dir, "stability.csv",
+        "dimension,value,solver,nx,ny,particles,springs,dt,khm,mass_ratio,frames_planned,"
+        "frames_run,status,first_unstable_frame,nonfinite_frame,ke_max,energy_ref,ke_ratio,"
+        "final_eq7,final_max_strain,peak_max_strain,median_step_ms,wall_s,clamped_steps,"
+        "energy_removed,note");
     if (!f)
         return 1;
-    fprintf(f, "dimension,value,solver,nx,ny,particles,springs,dt,khm,mass_ratio,frames_planned,"
-               "frames_run,status,first_unstable_frame,nonfinite_frame,ke_max,energy_ref,ke_ratio,"
-               "final_eq7,final_max_strain,peak_max_strain,median_step_ms,wall_s,clamped_steps,"
-               "energy_removed,note\n");
     for (uint32_t i = 0; i < ctx->case_count; ++i) {
         const stab_case *c = &ctx->cases[i];
         for (uint32_t k = 0; k < BENCH_SOLVER_COUNT; ++k) {
@@ -610,7 +593,7 @@ static int write_csv(stab_ctx *ctx) {
                     r->energy_removed, r->note);
         }
     }
-    return bench_close(f, ctx->dir, "stability.csv") ? 1 : 0;
+    return bench_close(f, ctx->run.dir, "stability.csv") ? 1 : 0;
 }
 
 static void md_map(stab_ctx *ctx, FILE *f, int what) {
@@ -649,7 +632,8 @@ static void md_map(stab_ctx *ctx, FILE *f, int what) {
 }
 
 static int write_md(stab_ctx *ctx) {
-    FILE *f = bench_open(ctx->dir, "stability.md");
+    const int quick = ctx->run.opt->quick;
+    FILE *f = bench_open(ctx->run.dir, "stability.md");
     if (!f)
         return 1;
     fprintf(f, "# Stability map\n\n");
@@ -664,8 +648,7 @@ static int write_md(stab_ctx *ctx) {
                "step returned OK but the kinetic energy exceeded what the configuration can "
                "supply, ke_ratio > %g); **NaN-leak** (a non-finite value reached the host: a "
                "library bug); skipped, rejected (the library refused the mesh) or error.\n\n",
-            ctx->opt->quick ? " --quick" : "", ctx->opt->quick ? 10 : 20, ctx->opt->quick ? 10 : 20,
-            STAB_KE_BOUND);
+            quick ? " --quick" : "", quick ? 10 : 20, quick ? 10 : 20, STAB_KE_BOUND);
     md_map(ctx, f, 0);
     fprintf(f, "\n## Kinetic energy against the energy supplied\n\n"
                "ke_ratio = max over frames of KE / (E_spring(0) + E_drive + max(W_gravity, 0)); "
@@ -684,7 +667,7 @@ static int write_md(stab_ctx *ctx) {
                         bench_solvers[k].name, r->note);
             }
         }
-    return bench_close(f, ctx->dir, "stability.md") ? 1 : 0;
+    return bench_close(f, ctx->run.dir, "stability.md") ? 1 : 0;
 }
 
 static int status_code(stab_status s) {
@@ -699,7 +682,7 @@ static int status_code(stab_status s) {
 }
 
 static int write_plot(stab_ctx *ctx) {
-    FILE *d = bench_open(ctx->dir, "stability_map.dat");
+    FILE *d = bench_open(ctx->run.dir, "stability_map.dat");
     if (!d)
         return 1;
     /* x y code label: one line per cell, for `with image` and `with labels`. */
@@ -719,10 +702,10 @@ static int write_plot(stab_ctx *ctx) {
         }
         fprintf(d, "\n");
     }
-    if (bench_close(d, ctx->dir, "stability_map.dat"))
+    if (bench_close(d, ctx->run.dir, "stability_map.dat"))
         return 1;
 
-    FILE *f = bench_open(ctx->dir, "stability.gp");
+    FILE *f = bench_open(ctx->run.dir, "stability.gp");
     if (!f)
         return 1;
     int height = 140 + 22 * (int)ctx->case_count;
@@ -748,7 +731,7 @@ static int write_plot(stab_ctx *ctx) {
     }
     fprintf(f, ")\nset lmargin 46\nset rmargin 18\nunset key\n");
     fprintf(f, "plot 'stability_map.dat' using 1:2:3 with image, '' using 1:2:4 with labels font ',8'\n");
-    return bench_close(f, ctx->dir, "stability.gp") ? 1 : 0;
+    return bench_close(f, ctx->run.dir, "stability.gp") ? 1 : 0;
 }
 
 static const char *short_status(const stab_result *r, char *buf, size_t size) {
@@ -809,17 +792,10 @@ static void print_summary(const stab_ctx *ctx, double seconds) {
 int cli_bench_stability(const cli_plugin *plugin, const cli_bench_options *options) {
     if (bench_require_v1_1(plugin))
         return 1;
-    stab_ctx ctx;
-    memset(&ctx, 0, sizeof ctx);
-    ctx.api = plugin->api;
-    ctx.opt = options;
-    ctx.dir = options->out_dir;
+    stab_ctx ctx = {.run = bench_run_of(plugin, options)};
     ctx.threads = options->threads >= 0 ? (uint32_t)options->threads : 0;
-    char err[512];
-    if (fs_mkdir_p(ctx.dir, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
+    if (fs_mkdir_p_or_say(ctx.run.dir))
         return 1;
-    }
     int rc = build_cases(&ctx);
     if (!rc) {
         ctx.results = calloc((size_t)ctx.case_count * BENCH_SOLVER_COUNT, sizeof *ctx.results);
@@ -858,26 +834,13 @@ int cli_bench_stability(const cli_plugin *plugin, const cli_bench_options *optio
         }
     }
     double seconds = bench_now() - start;
-    if (!rc)
-        rc = write_csv(&ctx);
-    if (!rc)
-        rc = write_md(&ctx);
-    if (!rc)
-        rc = write_plot(&ctx);
+    if (!rc) /* each returns 0, or 1 after a message: the first to fail ends it */
+        rc = write_csv(&ctx) || write_md(&ctx) || write_plot(&ctx);
     if (!rc) {
-        if (bench_have_gnuplot()) {
-            int status = bench_run_gnuplot(ctx.dir, "stability.gp");
-            if (status != 0)
-                fprintf(stderr, "rbcloth: bench: gnuplot %s/stability.gp exited with %d\n", ctx.dir,
-                        status);
-        } else {
-            printf("Plot skipped: gnuplot is not on PATH. Install it (Debian: apt-get install "
-                   "gnuplot-nox) and run `gnuplot stability.gp` in %s.\n",
-                   ctx.dir);
-        }
+        bench_plot(ctx.run.dir, "stability.gp");
         print_summary(&ctx, seconds);
         printf("Wrote stability.csv, stability.md%s in %s\n",
-               bench_have_gnuplot() ? ", stability.png" : "", ctx.dir);
+               bench_have_gnuplot() ? ", stability.png" : "", ctx.run.dir);
     }
     free(ctx.cases);
     free(ctx.results);

@@ -27,17 +27,12 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create(rbc_world_id wid, const rbc_cloth_d
                                              rbc_cloth_id *out_cloth) {
     static const char fn[] = "rbc_cloth_create";
     rbc_world *w;
-    rbc_result rc = rbc_plugin_lookup_world(wid, fn, &w);
+    rbc_result rc = rbc_plugin_create_begin(wid, fn, out_cloth, "out_cloth", &w);
     if (rc) return rc;
-    if (!out_cloth)
-        return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: out_cloth is NULL", fn);
-    *out_cloth = 0;
     rbc_cloth_def def = rbc_plugin_cloth_def_defaults();
-    if ((rc = rbc_plugin_read_def2(&def, sizeof def, RBC_CLOTH_DEF_SIZE_V1_0,
-                                   RBC_CLOTH_DEF_SIZE_V1_1, user_def, fn, "rbc_cloth_def"))) {
-        rbc_plugin_world_log(w, RBC_LOG_ERROR, rbc_last_error());
+    if ((rc = rbc_plugin_world_read_def(w, &def, sizeof def, RBC_CLOTH_DEF_SIZE_V1_0,
+                                        RBC_CLOTH_DEF_SIZE_V1_1, user_def, fn, "rbc_cloth_def")))
         return rc;
-    }
     if (!(isfinite(def.shear_stiffness) && def.shear_stiffness >= 0.0f) ||
         !(isfinite(def.bend_stiffness) && def.bend_stiffness >= 0.0f))
         return rbc_plugin_world_error(
@@ -124,6 +119,36 @@ static rbc_result lookup_cloth(rbc_world_id wid, rbc_cloth_id cid, const char *f
     return RBC_OK;
 }
 
+/* A vertex argument in range, and the point that goes with it (a pin's target, an
+ * attachment's local point; NULL: none) finite: set_pin and attach refuse alike. */
+static rbc_result check_vertex(rbc_world *w, const char *fn, rbc_cloth_id cid,
+                               const rbc_cloth_state *c, uint32_t vertex, const float *point,
+                               const char *what) {
+    if (vertex >= c->topo.n)
+        return rbc_plugin_world_error(
+            w, RBC_ERR_INVALID_ARGUMENT,
+            "%s: cloth 0x%08x: vertex %u is out of range (vertex count %u)", fn, cid, vertex,
+            c->topo.n);
+    if (point && !rbc_plugin_finite3(point))
+        return rbc_plugin_world_error(
+            w, RBC_ERR_INVALID_ARGUMENT,
+            "%s: cloth 0x%08x: vertex %u: %s (%g, %g, %g) is not finite", fn, cid, vertex, what,
+            (double)point[0], (double)point[1], (double)point[2]);
+    return RBC_OK;
+}
+
+/* A host array of 3 floats per vertex: read_positions and get_state. */
+static rbc_result check_capacity(rbc_world *w, const char *fn, rbc_cloth_id cid,
+                                 const rbc_cloth_state *c, size_t capacity) {
+    size_t need = 3 * (size_t)c->topo.n;
+    if (capacity < need)
+        return rbc_plugin_world_error(
+            w, RBC_ERR_INVALID_ARGUMENT,
+            "%s: cloth 0x%08x has %u vertices and needs %zu floats; capacity is %zu", fn, cid,
+            c->topo.n, need, capacity);
+    return RBC_OK;
+}
+
 RBC_API rbc_result RBC_CALL rbc_cloth_destroy(rbc_world_id wid, rbc_cloth_id cid) {
     rbc_world *w;
     rbc_cloth_state *c;
@@ -173,11 +198,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_read_positions(rbc_world_id wid, rbc_cloth
         if (out_written) *out_written = need;
         return RBC_OK;
     }
-    if (capacity < need)
-        return rbc_plugin_world_error(
-            w, RBC_ERR_INVALID_ARGUMENT,
-            "%s: cloth 0x%08x has %u vertices and needs %zu floats; capacity is %zu", fn, cid,
-            c->topo.n, need, capacity);
+    if ((rc = check_capacity(w, fn, cid, c, capacity))) return rc;
     rbc_cloth_state_read(c, xyz);
     if (out_written) *out_written = need;
     return RBC_OK;
@@ -190,16 +211,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_set_pin(rbc_world_id wid, rbc_cloth_id cid
     rbc_cloth_state *c;
     rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
     if (rc) return rc;
-    if (vertex >= c->topo.n)
-        return rbc_plugin_world_error(
-            w, RBC_ERR_INVALID_ARGUMENT,
-            "%s: cloth 0x%08x: vertex %u is out of range (vertex count %u)", fn, cid, vertex,
-            c->topo.n);
-    if (target && !rbc_plugin_finite3(target))
-        return rbc_plugin_world_error(
-            w, RBC_ERR_INVALID_ARGUMENT,
-            "%s: cloth 0x%08x: vertex %u: target (%g, %g, %g) is not finite", fn, cid, vertex,
-            (double)target[0], (double)target[1], (double)target[2]);
+    if ((rc = check_vertex(w, fn, cid, c, vertex, target, "target"))) return rc;
     rc = rbc_cloth_state_set_pin(&w->solver.alloc, c, vertex, target);
     if (rc) return rbc_plugin_world_error(w, rc, "%s: out of memory", fn);
     rbc_detach_vertex(c, vertex); /* a pin of the host's own: no longer attached */
@@ -236,12 +248,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_get_state(rbc_world_id wid, rbc_cloth_id c
     rbc_cloth_state *c;
     rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
     if (rc) return rc;
-    size_t need = 3 * (size_t)c->topo.n;
-    if ((positions || previous) && capacity < need)
-        return rbc_plugin_world_error(
-            w, RBC_ERR_INVALID_ARGUMENT,
-            "%s: cloth 0x%08x has %u vertices and needs %zu floats; capacity is %zu", fn, cid,
-            c->topo.n, need, capacity);
+    if ((positions || previous) && (rc = check_capacity(w, fn, cid, c, capacity))) return rc;
     rbc_cloth_state_get(c, positions, previous);
     return RBC_OK;
 }
@@ -280,16 +287,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_attach(rbc_world_id wid, rbc_cloth_id cid,
     rbc_cloth_state *c;
     rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
     if (rc) return rc;
-    if (vertex >= c->topo.n)
-        return rbc_plugin_world_error(
-            w, RBC_ERR_INVALID_ARGUMENT,
-            "%s: cloth 0x%08x: vertex %u is out of range (vertex count %u)", fn, cid, vertex,
-            c->topo.n);
-    if (local && !rbc_plugin_finite3(local))
-        return rbc_plugin_world_error(
-            w, RBC_ERR_INVALID_ARGUMENT,
-            "%s: cloth 0x%08x: vertex %u: local point (%g, %g, %g) is not finite", fn, cid, vertex,
-            (double)local[0], (double)local[1], (double)local[2]);
+    if ((rc = check_vertex(w, fn, cid, c, vertex, local, "local point"))) return rc;
     uint32_t k = 0;
     if ((rc = rbc_plugin_lookup_collider(wid, collider, fn, &w, &k))) return rc;
     rc = rbc_attach(&w->solver, c, vertex, collider, local);

@@ -44,17 +44,12 @@ RBC_API rbc_result RBC_CALL rbc_collider_create(rbc_world_id wid, const rbc_coll
                                                 rbc_collider_id *out) {
     static const char fn[] = "rbc_collider_create";
     rbc_world *w;
-    rbc_result rc = rbc_plugin_lookup_world(wid, fn, &w);
+    rbc_result rc = rbc_plugin_create_begin(wid, fn, out, "out_collider", &w);
     if (rc) return rc;
-    if (!out)
-        return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: out_collider is NULL", fn);
-    *out = 0;
     rbc_collider_def def = rbc_plugin_collider_def_defaults();
-    if ((rc = rbc_plugin_read_def(&def, sizeof def, RBC_COLLIDER_DEF_SIZE_V1_0, user_def, fn,
-                                  "rbc_collider_def"))) {
-        rbc_plugin_world_log(w, RBC_LOG_ERROR, rbc_last_error());
+    if ((rc = rbc_plugin_world_read_def(w, &def, sizeof def, RBC_COLLIDER_DEF_SIZE_V1_0, 0,
+                                        user_def, fn, "rbc_collider_def")))
         return rc;
-    }
     if (def.shape < RBC_SHAPE_PLANE || def.shape > RBC_SHAPE_TRIANGLE_MESH)
         return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT,
                                       "%s: collider def: shape %d is not an rbc_shape", fn,

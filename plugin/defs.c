@@ -1,6 +1,6 @@
 /* defs.c -- the ABI's defs: their defaults, the *_def_init functions, the solver
  * presets, and what reads and checks a host's def for the other files (a def of any
- * released size, rbc_plugin_read_def; a solver def into core settings,
+ * released size, rbc_plugin_read_def2; a solver def into core settings,
  * rbc_plugin_solver_settings_from). A def's defaults are here once, so that
  * rbc_*_def_init and a create given a def of an older size fill the same fields. */
 #include <math.h>
@@ -31,11 +31,6 @@ rbc_result rbc_plugin_read_def2(void *dst, size_t dst_size, size_t old_size, siz
                              fn, what, size, dst_size, old_size, old_size2, what);
     memcpy(dst, src, size);
     return RBC_OK;
-}
-
-rbc_result rbc_plugin_read_def(void *dst, size_t dst_size, size_t old_size, const void *src,
-                               const char *fn, const char *what) {
-    return rbc_plugin_read_def2(dst, dst_size, old_size, 0, src, fn, what);
 }
 
 /* ------------------------------------------------------------------------- */

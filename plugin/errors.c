@@ -15,6 +15,16 @@ rbc_result rbc_set_error(rbc_result code, const char *fmt, ...) {
     return code;
 }
 
+rbc_result rbc_import_error(const char *path, rbc_result code, const char *fmt, ...) {
+    int k = snprintf(g_error, sizeof g_error, "rbc_mesh_import: %s: ", path);
+    if (k < 0 || k >= (int)sizeof g_error) return code;
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(g_error + k, sizeof g_error - (size_t)k, fmt, ap);
+    va_end(ap);
+    return code;
+}
+
 RBC_API const char *RBC_CALL rbc_last_error(void) { return g_error; }
 
 RBC_API const char *RBC_CALL rbc_result_string(rbc_result result) {

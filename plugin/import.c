@@ -18,7 +18,6 @@
 #include <poll.h>
 #include <signal.h>
 #include <spawn.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -82,72 +81,62 @@ RBC_API rbc_result RBC_CALL rbc_mesh_import_def_init(rbc_mesh_import_def *def,
                                "rbc_mesh_import_def");
 }
 
-/* "rbc_mesh_import: <path>: <what>" -- the sweep groups refusals by <what>'s first
- * clause, so each clause starts with a fixed phrase and details follow a ':'. */
-static rbc_result import_error(const char *path, rbc_result code, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
-static rbc_result import_error(const char *path, rbc_result code, const char *fmt, ...) {
-    char *buf = rbc_error_buffer();
-    int k = snprintf(buf, RBC_ERROR_CAP, "%s: %s: ", fn_import, path);
-    if (k < 0 || k >= RBC_ERROR_CAP) return code;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(buf + k, RBC_ERROR_CAP - (size_t)k, fmt, ap);
-    va_end(ap);
-    return code;
-}
-
 static rbc_result check_def(const char *path, const rbc_mesh_import_def *d) {
     if (d->mesh_index < -1)
-        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
-                             "def->mesh_index is %d; it must be >= 0, or -1 for all meshes",
-                             (int)d->mesh_index);
+        return rbc_import_error(path, RBC_ERR_INVALID_ARGUMENT,
+                                "def->mesh_index is %d; it must be >= 0, or -1 for all meshes",
+                                (int)d->mesh_index);
     if (!(isfinite(d->scale) && d->scale > 0.0f))
-        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
-                             "def->scale is %g; it must be finite and > 0", (double)d->scale);
+        return rbc_import_error(path, RBC_ERR_INVALID_ARGUMENT,
+                                "def->scale is %g; it must be finite and > 0", (double)d->scale);
     if (d->weld > 1 || d->pair_triangles > 1)
-        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
-                             "def->weld is %u and def->pair_triangles %u; each must be 0 or 1",
-                             d->weld, d->pair_triangles);
+        return rbc_import_error(path, RBC_ERR_INVALID_ARGUMENT,
+                                "def->weld is %u and def->pair_triangles %u; each must be 0 or 1",
+                                d->weld, d->pair_triangles);
     if (!(isfinite(d->weld_distance) && d->weld_distance >= 0.0f))
-        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
-                             "def->weld_distance is %g m; it must be finite and >= 0", (double)d->weld_distance);
+        return rbc_import_error(path, RBC_ERR_INVALID_ARGUMENT,
+                                "def->weld_distance is %g m; it must be finite and >= 0",
+                                (double)d->weld_distance);
     if (!(d->pair_max_angle_deviation_deg >= 0.0f && d->pair_max_angle_deviation_deg <= 90.0f))
-        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
-                             "def->pair_max_angle_deviation_deg is %g; range 0..90", (double)d->pair_max_angle_deviation_deg);
+        return rbc_import_error(path, RBC_ERR_INVALID_ARGUMENT,
+                                "def->pair_max_angle_deviation_deg is %g; range 0..90",
+                                (double)d->pair_max_angle_deviation_deg);
     if (!(d->pair_max_fold_deg >= 0.0f && d->pair_max_fold_deg <= 180.0f))
-        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
-                             "def->pair_max_fold_deg is %g; range 0..180", (double)d->pair_max_fold_deg);
+        return rbc_import_error(path, RBC_ERR_INVALID_ARGUMENT,
+                                "def->pair_max_fold_deg is %g; range 0..180",
+                                (double)d->pair_max_fold_deg);
     if (d->ngons != RBC_NGON_SPLIT && d->ngons != RBC_NGON_REFUSE)
-        return import_error(path, RBC_ERR_INVALID_ARGUMENT, "def->ngons %d is not an rbc_ngon_mode",
-                             (int)d->ngons);
+        return rbc_import_error(path, RBC_ERR_INVALID_ARGUMENT,
+                                "def->ngons %d is not an rbc_ngon_mode", (int)d->ngons);
     if (!(d->pin_color_threshold >= 0.0f && d->pin_color_threshold <= 1.0f))
-        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
-                             "def->pin_color_threshold is %g; range 0 (off) ..1", (double)d->pin_color_threshold);
+        return rbc_import_error(path, RBC_ERR_INVALID_ARGUMENT,
+                                "def->pin_color_threshold is %g; range 0 (off) ..1",
+                                (double)d->pin_color_threshold);
     if (!(isfinite(d->pin_plane_distance) && isfinite(d->pin_point_distance) &&
           isfinite(d->pin_top_tolerance) && d->pin_top_tolerance >= 0.0f))
-        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
-                             "def->pin_plane_distance %g, pin_point_distance %g and "
-                             "pin_top_tolerance %g must be finite (the tolerance >= 0)",
-                             (double)d->pin_plane_distance, (double)d->pin_point_distance,
-                             (double)d->pin_top_tolerance);
+        return rbc_import_error(path, RBC_ERR_INVALID_ARGUMENT,
+                                "def->pin_plane_distance %g, pin_point_distance %g and "
+                                "pin_top_tolerance %g must be finite (the tolerance >= 0)",
+                                (double)d->pin_plane_distance, (double)d->pin_point_distance,
+                                (double)d->pin_top_tolerance);
     if (d->pin_plane_distance >= 0.0f) {
         for (int c = 0; c < 4; ++c)
             if (!isfinite(d->pin_plane[c]))
-                return import_error(path, RBC_ERR_INVALID_ARGUMENT,
-                                     "def->pin_plane[%d] is not finite", c);
+                return rbc_import_error(path, RBC_ERR_INVALID_ARGUMENT,
+                                        "def->pin_plane[%d] is not finite", c);
         if (d->pin_plane[0] == 0.0f && d->pin_plane[1] == 0.0f && d->pin_plane[2] == 0.0f)
-            return import_error(path, RBC_ERR_INVALID_ARGUMENT,
-                                 "def->pin_plane has a zero normal (its first three values)");
+            return rbc_import_error(path, RBC_ERR_INVALID_ARGUMENT,
+                                    "def->pin_plane has a zero normal (its first three values)");
     }
     if (d->pin_point_distance >= 0.0f)
         for (int c = 0; c < 3; ++c)
             if (!isfinite(d->pin_point[c]))
-                return import_error(path, RBC_ERR_INVALID_ARGUMENT,
-                                     "def->pin_point[%d] is not finite", c);
+                return rbc_import_error(path, RBC_ERR_INVALID_ARGUMENT,
+                                        "def->pin_point[%d] is not finite", c);
     if (d->pin_top_axis < -1 || d->pin_top_axis > 2)
-        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
-                             "def->pin_top_axis is %d; 0 (x), 1 (y), 2 (z) or -1 (off)", (int)d->pin_top_axis);
+        return rbc_import_error(path, RBC_ERR_INVALID_ARGUMENT,
+                                "def->pin_top_axis is %d; 0 (x), 1 (y), 2 (z) or -1 (off)",
+                                (int)d->pin_top_axis);
     return RBC_OK;
 }
 
@@ -234,8 +223,8 @@ static rbc_result parse_answer(const answer_buf *a, const char *path, rbc_mesh *
     rbc_result code = (rbc_result)(int32_t)w[1];
     if (code != RBC_OK) {
         if (code > RBC_OK || code < RBC_ERR_CAPACITY)
-            return import_error(path, RBC_ERR_IO, "the import helper answered an unknown code %d",
-                                (int)code);
+            return rbc_import_error(path, RBC_ERR_IO,
+                                    "the import helper answered an unknown code %d", (int)code);
         char *buf = rbc_error_buffer();
         memcpy(buf, q, w[2]);
         buf[w[2]] = '\0';
@@ -260,7 +249,7 @@ static rbc_result parse_answer(const answer_buf *a, const char *path, rbc_mesh *
     };
     for (size_t i = 0; i < sizeof arr / sizeof arr[0]; ++i) {
         *arr[i].dst = malloc(arr[i].bytes + 1);
-        if (!*arr[i].dst) return import_error(path, RBC_ERR_OUT_OF_MEMORY, "out of memory");
+        if (!*arr[i].dst) return rbc_import_error(path, RBC_ERR_OUT_OF_MEMORY, "out of memory");
         memcpy(*arr[i].dst, q, arr[i].bytes);
         q += arr[i].bytes;
     }
@@ -272,7 +261,7 @@ static rbc_result parse_answer(const answer_buf *a, const char *path, rbc_mesh *
     for (size_t i = 0; i < m->np; ++i) bad |= m->pins[i] >= m->n;
     for (size_t i = 0; i < 3 * (size_t)m->nlt; ++i) bad |= m->ltris[i] >= m->n;
     if (bad || m->info.vertex_count != m->n || m->info.quad_count != m->nq)
-        return import_error(path, RBC_ERR_IO, "the import helper sent a malformed mesh");
+        return rbc_import_error(path, RBC_ERR_IO, "the import helper sent a malformed mesh");
     return RBC_OK;
 }
 
@@ -309,14 +298,14 @@ static rbc_result import_in_helper(const char *path, const rbc_mesh_import_def *
                                    rbc_mesh *m) {
     char helper[PATH_MAX], looked[3 * PATH_MAX];
     if (!find_helper(helper, sizeof helper, looked, sizeof looked))
-        return import_error(path, RBC_ERR_IO,
-                            "the import helper " HELPER_NAME " was not found (looked for %s); "
-                            "it belongs next to librbcloth.so, or set $RBC_IMPORT_HELPER",
-                            looked);
+        return rbc_import_error(path, RBC_ERR_IO,
+                                "the import helper " HELPER_NAME " was not found (looked for %s); "
+                                "it belongs next to librbcloth.so, or set $RBC_IMPORT_HELPER",
+                                looked);
     int sv[2];
     if (socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, sv) != 0)
-        return import_error(path, RBC_ERR_IO, "cannot make the import helper's socket: %s",
-                            strerror(errno));
+        return rbc_import_error(path, RBC_ERR_IO, "cannot make the import helper's socket: %s",
+                                strerror(errno));
     /* The helper's descriptors: 3 the socket (dup2 clears close-on-exec), 0-2
      * /dev/null (the library prints nothing, nor does its helper). Signals at their
      * defaults and none blocked, whatever the host's thread had. */
@@ -345,8 +334,8 @@ static rbc_result import_in_helper(const char *path, const rbc_mesh_import_def *
     close(sv[1]);
     if (err) {
         close(sv[0]);
-        return import_error(path, RBC_ERR_IO, "cannot start the import helper %s: %s", helper,
-                            strerror(err));
+        return rbc_import_error(path, RBC_ERR_IO, "cannot start the import helper %s: %s", helper,
+                                strerror(err));
     }
     const int fd = sv[0];
 
@@ -436,34 +425,35 @@ static rbc_result import_in_helper(const char *path, const rbc_mesh_import_def *
     if (complete) {
         rc = parse_answer(&a, path, m);
     } else if (oom) {
-        rc = import_error(path, RBC_ERR_OUT_OF_MEMORY, "out of memory reading the helper's answer");
+        rc = rbc_import_error(path, RBC_ERR_OUT_OF_MEMORY,
+                              "out of memory reading the helper's answer");
     } else if (timed_out) {
-        rc = import_error(path, RBC_ERR_IO,
-                          "the import did not finish within %u ms (def->timeout_ms): the "
-                          "import helper was stopped; assimp hangs or is slow on this file",
-                          def->timeout_ms);
+        rc = rbc_import_error(path, RBC_ERR_IO,
+                              "the import did not finish within %u ms (def->timeout_ms): the "
+                              "import helper was stopped; assimp hangs or is slow on this file",
+                              def->timeout_ms);
     } else if (a.alloc_failed && reaped && !(WIFEXITED(status) && WEXITSTATUS(status) == 0)) {
-        rc = import_error(path, RBC_ERR_OUT_OF_MEMORY,
-                          "out of memory: the import needed more than its %llu MiB "
-                          "(def->memory_limit_mb) and assimp %s after %.1f s",
-                          (unsigned long long)(limit >> 20),
-                          WIFSIGNALED(status) ? signal_name(WTERMSIG(status)) : "gave up",
-                          secs);
+        rc = rbc_import_error(path, RBC_ERR_OUT_OF_MEMORY,
+                              "out of memory: the import needed more than its %llu MiB "
+                              "(def->memory_limit_mb) and assimp %s after %.1f s",
+                              (unsigned long long)(limit >> 20),
+                              WIFSIGNALED(status) ? signal_name(WTERMSIG(status)) : "gave up",
+                              secs);
     } else if (reaped && WIFSIGNALED(status)) {
-        rc = import_error(path, RBC_ERR_IO,
-                          "assimp crashed reading the file (the import helper died of %s, "
-                          "signal %d, after %.1f s); the file is malformed or assimp has a "
-                          "bug with it",
-                          signal_name(WTERMSIG(status)), WTERMSIG(status), secs);
+        rc = rbc_import_error(path, RBC_ERR_IO,
+                              "assimp crashed reading the file (the import helper died of %s, "
+                              "signal %d, after %.1f s); the file is malformed or assimp has a "
+                              "bug with it",
+                              signal_name(WTERMSIG(status)), WTERMSIG(status), secs);
     } else if (reaped && WIFEXITED(status)) {
-        rc = import_error(path, RBC_ERR_IO,
-                          "the import helper %s exited with status %d without an answer%s",
-                          helper, WEXITSTATUS(status),
-                          read_err ? " (its answer was malformed)" : "");
+        rc = rbc_import_error(path, RBC_ERR_IO,
+                              "the import helper %s exited with status %d without an answer%s",
+                              helper, WEXITSTATUS(status),
+                              read_err ? " (its answer was malformed)" : "");
     } else {
-        rc = import_error(path, RBC_ERR_IO,
-                          "the import helper ended without an answer (its exit status was "
-                          "taken by the host's own SIGCHLD handling)");
+        rc = rbc_import_error(path, RBC_ERR_IO,
+                              "the import helper ended without an answer (its exit status was "
+                              "taken by the host's own SIGCHLD handling)");
     }
     free(a.p);
     return rc;
@@ -497,23 +487,23 @@ RBC_API rbc_result RBC_CALL rbc_mesh_import(const char *path, const rbc_mesh_imp
     size_t plen = strlen(path);
     if (plen >= RBC_WIRE_MAX_STRING || (def.mesh_name && strlen(def.mesh_name) >= RBC_WIRE_MAX_STRING) ||
         (def.pin_group && strlen(def.pin_group) >= RBC_WIRE_MAX_STRING))
-        return import_error(path, RBC_ERR_INVALID_ARGUMENT,
-                            "the path, def->mesh_name or def->pin_group is %u bytes or longer",
-                            RBC_WIRE_MAX_STRING);
+        return rbc_import_error(path, RBC_ERR_INVALID_ARGUMENT,
+                                "the path, def->mesh_name or def->pin_group is %u bytes or longer",
+                                RBC_WIRE_MAX_STRING);
     /* Open errors are named here, before any process is started. */
     struct stat st;
     if (stat(path, &st) != 0)
-        return import_error(path, RBC_ERR_IO, "cannot open the file: %s", strerror(errno));
+        return rbc_import_error(path, RBC_ERR_IO, "cannot open the file: %s", strerror(errno));
     if (!S_ISREG(st.st_mode))
-        return import_error(path, RBC_ERR_IO, "cannot open the file: not a regular file");
+        return rbc_import_error(path, RBC_ERR_IO, "cannot open the file: not a regular file");
     if (access(path, R_OK) != 0)
-        return import_error(path, RBC_ERR_IO, "cannot open the file: %s", strerror(errno));
+        return rbc_import_error(path, RBC_ERR_IO, "cannot open the file: %s", strerror(errno));
 
     rbc_mesh *m = calloc(1, sizeof *m);
-    if (!m) return import_error(path, RBC_ERR_OUT_OF_MEMORY, "out of memory");
+    if (!m) return rbc_import_error(path, RBC_ERR_OUT_OF_MEMORY, "out of memory");
     rc = import_in_helper(path, &def, m);
     if (!rc && rbc_reg_add(&g_meshes, m, 0, &m->id) != RBC_OK)
-        rc = import_error(path, RBC_ERR_CAPACITY, "%u meshes exist already", RBC_MAX_MESHES);
+        rc = rbc_import_error(path, RBC_ERR_CAPACITY, "%u meshes exist already", RBC_MAX_MESHES);
     if (rc) {
         rbc_import_mesh_free(m);
         free(m);

@@ -49,6 +49,25 @@ rbc_result rbc_plugin_lookup_world(rbc_world_id id, const char *fn, rbc_world **
     return *out ? RBC_OK : RBC_ERR_STALE_HANDLE;
 }
 
+rbc_result rbc_plugin_create_begin(rbc_world_id wid, const char *fn, uint32_t *out,
+                                   const char *out_name, rbc_world **w) {
+    rbc_result rc = rbc_plugin_lookup_world(wid, fn, w);
+    if (rc) return rc;
+    if (!out)
+        return rbc_plugin_world_error(*w, RBC_ERR_INVALID_ARGUMENT, "%s: %s is NULL", fn,
+                                      out_name);
+    *out = 0;
+    return RBC_OK;
+}
+
+rbc_result rbc_plugin_world_read_def(rbc_world *w, void *dst, size_t dst_size, size_t old_size,
+                                     size_t old_size2, const void *src, const char *fn,
+                                     const char *what) {
+    rbc_result rc = rbc_plugin_read_def2(dst, dst_size, old_size, old_size2, src, fn, what);
+    if (rc) rbc_plugin_world_log(w, RBC_LOG_ERROR, rbc_last_error());
+    return rc;
+}
+
 /* ------------------------------------------------------------------------- */
 /* World                                                                     */
 /* ------------------------------------------------------------------------- */
@@ -485,16 +504,25 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
     return RBC_OK;
 }
 
-RBC_API rbc_result RBC_CALL rbc_world_set_collision_callback(rbc_world_id id, rbc_collision_fn fn_,
-                                                             void *user) {
-    static const char fn[] = "rbc_world_set_collision_callback";
+/* The collision callback (1.0) and the contact callback (1.3): the same lookup and
+ * the same failure (the buffers the core hands the callback); `contact` says which
+ * of the two is set. */
+static rbc_result set_callback(rbc_world_id id, const char *fn, int contact,
+                               rbc_collision_fn collision_fn, rbc_contact_fn contact_fn,
+                               void *user) {
     rbc_world *w;
     rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
     if (rc) return rc;
-    rc = rbc_solver_set_callback(&w->solver, fn_, user);
+    rc = contact ? rbc_solver_set_contact_callback(&w->solver, contact_fn, user)
+                 : rbc_solver_set_callback(&w->solver, collision_fn, user);
     if (rc)
         return rbc_plugin_world_error(w, rc, "%s: out of memory for the callback's buffers", fn);
     return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_world_set_collision_callback(rbc_world_id id, rbc_collision_fn fn_,
+                                                             void *user) {
+    return set_callback(id, "rbc_world_set_collision_callback", 0, fn_, NULL, user);
 }
 
 /* ------------------------------------------------------------------------- */
@@ -507,11 +535,9 @@ RBC_API rbc_result RBC_CALL rbc_world_set_solver(rbc_world_id id, const rbc_solv
     rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
     if (rc) return rc;
     rbc_solver_def def = rbc_plugin_solver_def_defaults();
-    if ((rc = rbc_plugin_read_def2(&def, sizeof def, RBC_SOLVER_DEF_SIZE_V1_1,
-                                   RBC_SOLVER_DEF_SIZE_V1_2, user_def, fn, "rbc_solver_def"))) {
-        rbc_plugin_world_log(w, RBC_LOG_ERROR, rbc_last_error());
+    if ((rc = rbc_plugin_world_read_def(w, &def, sizeof def, RBC_SOLVER_DEF_SIZE_V1_1,
+                                        RBC_SOLVER_DEF_SIZE_V1_2, user_def, fn, "rbc_solver_def")))
         return rc;
-    }
     rbc_solver_settings st;
     if ((rc = rbc_plugin_solver_settings_from(w, fn, &def, &st))) return rc;
     if ((rc = rbc_solver_set_settings(&w->solver, &st)))
@@ -558,14 +584,7 @@ RBC_API rbc_result RBC_CALL rbc_world_get_solver(rbc_world_id id, rbc_solver_def
 
 RBC_API rbc_result RBC_CALL rbc_world_set_contact_callback(rbc_world_id id, rbc_contact_fn fn_,
                                                            void *user) {
-    static const char fn[] = "rbc_world_set_contact_callback";
-    rbc_world *w;
-    rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
-    if (rc) return rc;
-    rc = rbc_solver_set_contact_callback(&w->solver, fn_, user);
-    if (rc)
-        return rbc_plugin_world_error(w, rc, "%s: out of memory for the callback's buffers", fn);
-    return RBC_OK;
+    return set_callback(id, "rbc_world_set_contact_callback", 1, NULL, fn_, user);
 }
 
 RBC_API rbc_result RBC_CALL rbc_world_pick(rbc_world_id id, const float origin[3],

@@ -43,6 +43,15 @@ rbc_result rbc_plugin_world_error(rbc_world *w, rbc_result code, const char *fmt
 /* Look up a live world id; RBC_ERR_STALE_HANDLE (error set, message starting with
  * fn) if it is not one. */
 rbc_result rbc_plugin_lookup_world(rbc_world_id id, const char *fn, rbc_world **out);
+/* The start of a call that creates an object in world wid: *w the world, and *out
+ * (out_name in the message when it is NULL) zeroed, so that a failed call hands back
+ * no id. */
+rbc_result rbc_plugin_create_begin(rbc_world_id wid, const char *fn, uint32_t *out,
+                                   const char *out_name, rbc_world **w);
+/* rbc_plugin_read_def2 in a call on world w: a refused def also goes to its log hook. */
+rbc_result rbc_plugin_world_read_def(rbc_world *w, void *dst, size_t dst_size, size_t old_size,
+                                     size_t old_size2, const void *src, const char *fn,
+                                     const char *what);
 
 /* collider.c */
 
@@ -55,11 +64,9 @@ rbc_result rbc_plugin_lookup_collider(rbc_world_id wid, rbc_collider_id cid, con
 
 /* Copy a def of a released size into a defaults-filled struct: the current size, or
  * an older released size `old_size` / `old_size2` (0: none), whose missing fields
- * keep their defaults. rbc_plugin_read_def: one older size at most. */
+ * keep their defaults. */
 rbc_result rbc_plugin_read_def2(void *dst, size_t dst_size, size_t old_size, size_t old_size2,
                                 const void *src, const char *fn, const char *what);
-rbc_result rbc_plugin_read_def(void *dst, size_t dst_size, size_t old_size, const void *src,
-                               const char *fn, const char *what);
 /* The field defaults of each def, as rbc_*_def_init gives them. */
 rbc_world_def rbc_plugin_world_def_defaults(void);
 rbc_cloth_def rbc_plugin_cloth_def_defaults(void);

@@ -417,6 +417,59 @@ static int read_array(parser *p, const cJSON *item, const char *key, uint32_t mi
     return 0;
 }
 
+/* An array of min..max points [x, y, z] at `key`: *out malloc'd, *count set. */
+static int read_points(parser *p, const cJSON *item, const char *key, uint32_t min, uint32_t max,
+                       float **out, uint32_t *count) {
+    char k[KEY_MAX];
+    uint32_t n = 0;
+    if (read_array(p, item, key, min, max, &n))
+        return -1;
+    if (!(*out = malloc((size_t)n * 3 * sizeof **out)))
+        return fail(p, key, "out of memory");
+    *count = n;
+    uint32_t i = 0;
+    for (const cJSON *v = item->child; v; v = v->next, ++i) {
+        key_index(k, key, i);
+        if (read_vector_f(p, v, k, 3, *out + 3 * (size_t)i))
+            return -1;
+    }
+    return 0;
+}
+
+/* An array of min..max faces at `key`, each `corners` distinct indices below
+ * vertex_count (`what`, "quad" or "triangle", names one in the messages): *out
+ * malloc'd, *count set. */
+static int read_faces(parser *p, const cJSON *item, const char *key, uint32_t min, uint32_t max,
+                      int corners, const char *what, uint32_t vertex_count, uint32_t **out,
+                      uint32_t *count) {
+    char k[KEY_MAX];
+    uint32_t n = 0;
+    if (read_array(p, item, key, min, max, &n))
+        return -1;
+    if (!(*out = malloc((size_t)n * (size_t)corners * sizeof **out)))
+        return fail(p, key, "out of memory");
+    *count = n;
+    uint32_t i = 0;
+    for (const cJSON *f = item->child; f; f = f->next, ++i) {
+        key_index(k, key, i);
+        if (!cJSON_IsArray(f) || cJSON_GetArraySize(f) != corners)
+            return fail(p, k, "must be an array of %d vertex indices, got %s%s", corners,
+                        json_type(f), cJSON_IsArray(f) ? " of another length" : "");
+        uint32_t *dst = *out + (size_t)corners * i;
+        int corner = 0;
+        for (const cJSON *e = f->child; e; e = e->next, ++corner) {
+            char ek[KEY_MAX];
+            key_index(ek, k, (size_t)corner);
+            if (read_u32(p, e, ek, 0, vertex_count - 1, &dst[corner]))
+                return -1;
+            for (int prev = 0; prev < corner; ++prev)
+                if (dst[prev] == dst[corner])
+                    return fail(p, k, "degenerate %s: vertex %u appears twice", what, dst[corner]);
+        }
+    }
+    return 0;
+}
+
 static int read_bool(parser *p, const cJSON *item, const char *key, int *out) {
     if (!cJSON_IsBool(item))
         return fail(p, key, "must be true or false, got %s", json_type(item));
@@ -688,48 +741,14 @@ static int parse_grid(parser *p, const cJSON *obj, const char *key, rbc_scene_cl
 
 static int parse_inline_mesh(parser *p, const cJSON *vertices, const cJSON *quads,
                              const char *cloth_key, rbc_scene_cloth *c) {
-    char key[KEY_MAX], k[KEY_MAX];
-    uint32_t n;
-
+    char key[KEY_MAX];
     key_join(key, cloth_key, "vertices");
-    if (read_array(p, vertices, key, 1, RBC_GRID_MAX_VERTICES, &n))
+    if (read_points(p, vertices, key, 1, RBC_GRID_MAX_VERTICES, &c->positions, &c->vertex_count))
         return -1;
-    c->positions = malloc((size_t)n * 3 * sizeof *c->positions);
-    if (!c->positions)
-        return fail(p, key, "out of memory");
-    c->vertex_count = n;
-    uint32_t i = 0;
-    for (const cJSON *v = vertices->child; v; v = v->next, ++i) {
-        key_index(k, key, i);
-        if (read_vector_f(p, v, k, 3, c->positions + 3 * (size_t)i))
-            return -1;
-    }
-
     key_join(key, cloth_key, "quads");
-    if (read_array(p, quads, key, 1, UINT32_MAX / 4, &n))
+    if (read_faces(p, quads, key, 1, UINT32_MAX / 4, 4, "quad", c->vertex_count, &c->quads,
+                   &c->quad_count))
         return -1;
-    c->quads = malloc((size_t)n * 4 * sizeof *c->quads);
-    if (!c->quads)
-        return fail(p, key, "out of memory");
-    c->quad_count = n;
-    i = 0;
-    for (const cJSON *q = quads->child; q; q = q->next, ++i) {
-        key_index(k, key, i);
-        if (!cJSON_IsArray(q) || cJSON_GetArraySize(q) != 4)
-            return fail(p, k, "must be an array of 4 vertex indices, got %s%s", json_type(q),
-                        cJSON_IsArray(q) ? " of another length" : "");
-        uint32_t *dst = c->quads + 4 * (size_t)i;
-        int corner = 0;
-        for (const cJSON *e = q->child; e; e = e->next, ++corner) {
-            char ek[KEY_MAX];
-            key_index(ek, k, (size_t)corner);
-            if (read_u32(p, e, ek, 0, c->vertex_count - 1, &dst[corner]))
-                return -1;
-            for (int prev = 0; prev < corner; ++prev)
-                if (dst[prev] == dst[corner])
-                    return fail(p, k, "degenerate quad: vertex %u appears twice", dst[corner]);
-        }
-    }
     c->from_grid = 0;
     return 0;
 }
@@ -948,45 +967,14 @@ static char *resolve_path(const char *source, const char *file) {
 /* An inline triangle mesh: "vertices" [[x, y, z], ...] and "triangles" [[a, b, c], ...]. */
 static int parse_collider_mesh(parser *p, const cJSON *vertices, const cJSON *triangles,
                                const char *collider_key, rbc_scene_collider *c) {
-    char key[KEY_MAX], k[KEY_MAX];
-    uint32_t n;
+    char key[KEY_MAX];
     key_join(key, collider_key, "vertices");
-    if (read_array(p, vertices, key, 3, SCENE_MAX_MESH_VERTICES, &n))
+    if (read_points(p, vertices, key, 3, SCENE_MAX_MESH_VERTICES, &c->mesh_positions,
+                    &c->mesh_vertex_count))
         return -1;
-    if (!(c->mesh_positions = malloc((size_t)n * 3 * sizeof *c->mesh_positions)))
-        return fail(p, key, "out of memory");
-    c->mesh_vertex_count = n;
-    uint32_t i = 0;
-    for (const cJSON *v = vertices->child; v; v = v->next, ++i) {
-        key_index(k, key, i);
-        if (read_vector_f(p, v, k, 3, c->mesh_positions + 3 * (size_t)i))
-            return -1;
-    }
     key_join(key, collider_key, "triangles");
-    if (read_array(p, triangles, key, 1, SCENE_MAX_MESH_TRIANGLES, &n))
-        return -1;
-    if (!(c->mesh_triangles = malloc((size_t)n * 3 * sizeof *c->mesh_triangles)))
-        return fail(p, key, "out of memory");
-    c->mesh_triangle_count = n;
-    i = 0;
-    for (const cJSON *t = triangles->child; t; t = t->next, ++i) {
-        key_index(k, key, i);
-        if (!cJSON_IsArray(t) || cJSON_GetArraySize(t) != 3)
-            return fail(p, k, "must be an array of 3 vertex indices, got %s%s", json_type(t),
-                        cJSON_IsArray(t) ? " of another length" : "");
-        uint32_t *dst = c->mesh_triangles + 3 * (size_t)i;
-        int corner = 0;
-        for (const cJSON *e = t->child; e; e = e->next, ++corner) {
-            char ek[KEY_MAX];
-            key_index(ek, k, (size_t)corner);
-            if (read_u32(p, e, ek, 0, c->mesh_vertex_count - 1, &dst[corner]))
-                return -1;
-            for (int prev = 0; prev < corner; ++prev)
-                if (dst[prev] == dst[corner])
-                    return fail(p, k, "degenerate triangle: vertex %u appears twice", dst[corner]);
-        }
-    }
-    return 0;
+    return read_faces(p, triangles, key, 1, SCENE_MAX_MESH_TRIANGLES, 3, "triangle",
+                      c->mesh_vertex_count, &c->mesh_triangles, &c->mesh_triangle_count);
 }
 
 /* "keyframes": [{"time": t, "position": [x, y, z], "rotation": [x, y, z, w]}, ...];

@@ -18,20 +18,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "check.h"
-#include "csv.h"
-#include "text_file.h"
+#include "checker.h"
 
 enum { MAX_COLS = 32 };
-
-static char *read_file(const char *dir, const char *name) {
-    char path[4096];
-    snprintf(path, sizeof path, "%s/%s", dir, name);
-    char *text = text_file_read(path);
-    if (!text)
-        fprintf(stderr, "cannot open %s\n", path);
-    return text;
-}
 
 static int is_text_column(const char *name) {
     return !strcmp(name, "scene") || !strcmp(name, "solver") || !strcmp(name, "control") ||
@@ -58,10 +47,9 @@ static int check_csv(const char *dir, const char *name, const char *header, int 
     int rows = 0;
     int seen[2] = {0, 0}; /* stretched, hanging */
     for (int i = 0; i < csv.row_count; ++i) {
-        char **f = csv.rows[i].field;
-        const int n = csv.rows[i].count, line = csv.rows[i].line;
-        CHECK_EQ(n, cols);
-        if (n != cols)
+        char **f = checker_fields(&csv, i, cols);
+        const int n = cols, line = csv.rows[i].line;
+        if (!f)
             continue;
         ++rows;
         seen[0] |= !strcmp(f[0], "stretched");
@@ -124,13 +112,7 @@ int main(int argc, char **argv) {
                   "F_linear_star,gap_linear,F_tolerance,F_star_tolerance,residual_tolerance",
                   1);
     printf("accuracy_gap.csv: %d rows\n", n);
-    char *pareto = read_file(dir, "pareto.md");
-    CHECK(pareto != NULL);
-    if (pareto) {
-        CHECK(strstr(pareto, "## stretched") != NULL);
-        CHECK(strstr(pareto, "## hanging") != NULL);
-        CHECK(strstr(pareto, "**front**") != NULL);
-        free(pareto);
-    }
+    static const char *const fronts[] = {"## stretched", "## hanging", "**front**"};
+    free(checker_page(dir, "pareto.md", fronts, 3));
     return check_report("bench_accuracy");
 }

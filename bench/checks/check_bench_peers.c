@@ -30,9 +30,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "check.h"
-#include "csv.h"
-#include "text_file.h"
+#include "checker.h"
 
 enum { MAX_ROWS = 4096, GRID = 100 };
 
@@ -83,25 +81,13 @@ static double eq7_of(const float *p, double *bound) {
     return e;
 }
 
-int main(int argc, char **argv) {
-    if (argc != 2) {
-        fprintf(stderr, "usage: check_bench_peers DIR\n");
-        return 2;
-    }
-    const char *dir = argv[1];
+/* Everything after the header (checker_main). */
+static void check_file(const char *dir, const csv_file *csv) {
     char path[4096];
-    csv_file csv;
-    int have_csv = csv_read_in(dir, "peers.csv", &csv) == 0;
-    CHECK(have_csv);
-    if (!have_csv)
-        return check_report("check_bench_peers");
-    CHECK(csv_header_is(&csv, header));
     int n = 0;
-    for (int i = 0; i < csv.row_count; ++i) {
-        char **f = csv.rows[i].field;
-        const int cols = csv.rows[i].count;
-        CHECK_EQ(cols, C_COUNT);
-        if (cols != C_COUNT || n == MAX_ROWS)
+    for (int i = 0; i < csv->row_count; ++i) {
+        char **f = checker_fields(csv, i, C_COUNT);
+        if (!f || n == MAX_ROWS)
             continue;
         row *r = &rows[n++];
         snprintf(r->solver, sizeof r->solver, "%s", f[C_SOLVER]);
@@ -112,8 +98,8 @@ int main(int argc, char **argv) {
             char *end;
             r->v[k] = strtod(f[k], &end);
             if (*end || !isfinite(r->v[k]))
-                fprintf(stderr, "%s:%d: %s = '%s' is not a finite number\n", csv.path,
-                        csv.rows[i].line, f[C_SOLVER], f[k]);
+                fprintf(stderr, "%s:%d: %s = '%s' is not a finite number\n", csv->path,
+                        csv->rows[i].line, f[C_SOLVER], f[k]);
             CHECK(*end == '\0' && isfinite(r->v[k]));
         }
     }
@@ -171,15 +157,11 @@ int main(int argc, char **argv) {
     }
     CHECK(fronts >= 1);
 
-    snprintf(path, sizeof path, "%s/peers.md", dir);
-    char *md = text_file_read(path);
-    CHECK(md != NULL);
-    if (md) {
-        CHECK(strstr(md, "## Pareto front") != NULL);
-        CHECK(strstr(md, "measured elsewhere, docs/facts.md") != NULL);
-        CHECK(strstr(md, "XPBD 11x1") != NULL);
-    }
-    free(md);
-    csv_free(&csv);
-    return check_report("check_bench_peers");
+    static const char *const phrases[] = {"## Pareto front", "measured elsewhere, docs/facts.md",
+                                          "XPBD 11x1"};
+    free(checker_page(dir, "peers.md", phrases, 3));
+}
+
+int main(int argc, char **argv) {
+    return checker_main(argc, argv, "peers.csv", header, "check_bench_peers", check_file);
 }

@@ -22,9 +22,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "check.h"
-#include "csv.h"
-#include "text_file.h"
+#include "checker.h"
 
 enum { MAX_ROWS = 64 };
 
@@ -70,25 +68,14 @@ static const row *find(const row *rows, int n, const char *mesh, const char *sol
     return NULL;
 }
 
-int main(int argc, char **argv) {
-    if (argc != 2) {
-        fprintf(stderr, "usage: %s DIR\n", argv[0]);
-        return 2;
-    }
-    char path[4096];
-    csv_file csv;
-    if (csv_read_in(argv[1], "perf.csv", &csv) != 0) {
-        CHECK(!"perf.csv exists");
-        return check_report("bench_perf");
-    }
-    CHECK(csv_header_is(&csv, header));
+/* Everything after the header (checker_main). */
+static void check_file(const char *dir, const csv_file *csv) {
     static row rows[MAX_ROWS];
     int n = 0;
-    for (int i = 0; i < csv.row_count; ++i) {
-        char **f = csv.rows[i].field;
-        const int cols = csv.rows[i].count, line = csv.rows[i].line;
-        CHECK_EQ(cols, C_COUNT);
-        if (cols != C_COUNT || n == MAX_ROWS)
+    for (int i = 0; i < csv->row_count; ++i) {
+        char **f = checker_fields(csv, i, C_COUNT);
+        const int line = csv->rows[i].line;
+        if (!f || n == MAX_ROWS)
             continue;
         row *r = &rows[n++];
         snprintf(r->mesh, sizeof r->mesh, "%s", f[C_MESH]);
@@ -107,7 +94,7 @@ int main(int argc, char **argv) {
                 continue;
             }
             if (!parse_number(f[k], &r->v[k])) {
-                fprintf(stderr, "%s:%d: column %d = '%s' is not a finite number\n", csv.path, line, k + 1, f[k]);
+                fprintf(stderr, "%s:%d: column %d = '%s' is not a finite number\n", csv->path, line, k + 1, f[k]);
                 CHECK(!"finite numbers");
                 r->v[k] = NAN;
             }
@@ -119,7 +106,7 @@ int main(int argc, char **argv) {
                           C_CORES};
         for (size_t k = 0; k < sizeof positive / sizeof positive[0]; ++k)
             if (!(v[positive[k]] > 0.0)) {
-                fprintf(stderr, "%s:%d (%s %s): column %d = %g is not positive\n", csv.path, line,
+                fprintf(stderr, "%s:%d (%s %s): column %d = %g is not positive\n", csv->path, line,
                         r->mesh, r->solver, positive[k] + 1, v[positive[k]]);
                 CHECK(!"positive");
             }
@@ -132,7 +119,7 @@ int main(int argc, char **argv) {
         double updates = v[C_PARTICLES] * v[C_ITERATIONS] / (1e-3 * v[C_STEP]);
         if (rel(v[C_UPDATES], updates) > ROUND2)
             fprintf(stderr, "%s:%d (%s %s, %g particles): %g updates/s, but %g x %g / %g ms = %.9g\n",
-                    csv.path, line, r->mesh, r->solver, v[C_PARTICLES], v[C_UPDATES], v[C_PARTICLES],
+                    csv->path, line, r->mesh, r->solver, v[C_PARTICLES], v[C_UPDATES], v[C_PARTICLES],
                     v[C_ITERATIONS], v[C_STEP], updates);
         CHECK(rel(v[C_UPDATES], updates) <= ROUND2);
         CHECK(rel(v[C_NS] * v[C_UPDATES], 1e9) <= ROUND2);
@@ -144,7 +131,6 @@ int main(int argc, char **argv) {
         if (!strcmp(r->solver, "rbgs"))
             CHECK_EQ(v[C_COLORS], 2);
     }
-    csv_free(&csv);
     printf("perf.csv: %d rows\n", n);
 
     /* The quick run's configurations, each with 1 and 2 threads. */
@@ -193,19 +179,12 @@ int main(int argc, char **argv) {
     }
     CHECK_EQ(n, 2 * (3 + 2 + 1));
 
-    snprintf(path, sizeof path, "%s/perf.md", argv[1]);
-    char *md = text_file_read(path);
-    CHECK(md != NULL);
-    if (md) {
-        const char *sections[] = {"## Scaling", "## Speedup of 2 threads over 1",
-                                  "## Grid against irregular mesh", "## Solvers at equal iterations",
-                                  "## Memory"};
-        for (size_t k = 0; k < sizeof sections / sizeof sections[0]; ++k) {
-            if (!strstr(md, sections[k]))
-                fprintf(stderr, "perf.md has no '%s'\n", sections[k]);
-            CHECK(strstr(md, sections[k]) != NULL);
-        }
-        free(md);
-    }
-    return check_report("bench_perf");
+    static const char *const sections[] = {"## Scaling", "## Speedup of 2 threads over 1",
+                                           "## Grid against irregular mesh",
+                                           "## Solvers at equal iterations", "## Memory"};
+    free(checker_page(dir, "perf.md", sections, sizeof sections / sizeof sections[0]));
+}
+
+int main(int argc, char **argv) {
+    return checker_main(argc, argv, "perf.csv", header, "bench_perf", check_file);
 }

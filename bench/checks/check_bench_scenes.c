@@ -21,9 +21,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "check.h"
-#include "csv.h"
-#include "text_file.h"
+#include "checker.h"
 
 static const char header[] =
     "scene,threads,frames,substeps,particles,springs,colliders,step_ms_median,step_ms_p90,"
@@ -76,25 +74,14 @@ static int same_or_both_nan(double a, double b) {
     return (isnan(a) && isnan(b)) || rel(a, b) <= 5.0001e-6;
 }
 
-int main(int argc, char **argv) {
-    if (argc != 2) {
-        fprintf(stderr, "usage: %s DIR\n", argv[0]);
-        return 2;
-    }
-    char path[4096];
-    csv_file csv;
-    if (csv_read_in(argv[1], "scenes.csv", &csv) != 0) {
-        CHECK(!"scenes.csv exists");
-        return check_report("bench_scenes");
-    }
-    CHECK(csv_header_is(&csv, header));
+/* Everything after the header (checker_main). */
+static void check_file(const char *dir, const csv_file *csv) {
     int seen[SCENE_COUNT][3] = {{0}};
     int n = 0;
-    for (int i = 0; i < csv.row_count; ++i) {
-        char **f = csv.rows[i].field;
-        const int cols = csv.rows[i].count, line = csv.rows[i].line;
-        CHECK_EQ(cols, C_COUNT);
-        if (cols != C_COUNT)
+    for (int i = 0; i < csv->row_count; ++i) {
+        char **f = checker_fields(csv, i, C_COUNT);
+        const int line = csv->rows[i].line;
+        if (!f)
             continue;
         ++n;
         int s = -1;
@@ -102,10 +89,10 @@ int main(int argc, char **argv) {
             if (strcmp(f[C_SCENE], scenes[k].name) == 0)
                 s = k;
         if (s < 0)
-            fprintf(stderr, "%s:%d: unknown scene '%s'\n", csv.path, line, f[C_SCENE]);
+            fprintf(stderr, "%s:%d: unknown scene '%s'\n", csv->path, line, f[C_SCENE]);
         CHECK(s >= 0);
         if (f[C_NOTE][0])
-            fprintf(stderr, "%s:%d (%s): note '%s'\n", csv.path, line, f[C_SCENE], f[C_NOTE]);
+            fprintf(stderr, "%s:%d (%s): note '%s'\n", csv->path, line, f[C_SCENE], f[C_NOTE]);
         CHECK(f[C_NOTE][0] == '\0');
         CHECK(f[C_PAPER][0] != '\0' && f[C_CPU][0] != '\0');
         double v[C_COUNT];
@@ -117,21 +104,21 @@ int main(int argc, char **argv) {
             }
             if (!parse_value(f[k], &v[k], &na[k])) {
                 fprintf(stderr, "%s:%d (%s): column %d = '%s' is not a finite number\n",
-                        csv.path, line, f[C_SCENE], k + 1, f[k]);
+                        csv->path, line, f[C_SCENE], k + 1, f[k]);
                 CHECK(!"finite numbers");
             }
         }
         /* n/a only where the bench may say so: no analytic collider, or no paper figure. */
         for (int k = C_THREADS; k <= C_CORES; ++k)
             if (na[k] && k != C_PEN && k != C_PAPER_SUB && k != C_PAPER_FRAME) {
-                fprintf(stderr, "%s:%d (%s): column %d is n/a\n", csv.path, line, f[C_SCENE], k + 1);
+                fprintf(stderr, "%s:%d (%s): column %d is n/a\n", csv->path, line, f[C_SCENE], k + 1);
                 CHECK(!"a measured value");
             }
         int positive[] = {C_THREADS, C_FRAMES, C_SUBSTEPS, C_PARTICLES, C_SPRINGS, C_STEP, C_STEP90,
                           C_SUB, C_SUB90, C_WALL, C_FPS, C_CORES};
         for (size_t k = 0; k < sizeof positive / sizeof positive[0]; ++k)
             if (!(v[positive[k]] > 0.0)) {
-                fprintf(stderr, "%s:%d (%s): column %d = %g is not positive\n", csv.path, line,
+                fprintf(stderr, "%s:%d (%s): column %d = %g is not positive\n", csv->path, line,
                         f[C_SCENE], positive[k] + 1, v[positive[k]]);
                 CHECK(!"positive");
             }
@@ -157,7 +144,6 @@ int main(int argc, char **argv) {
         if (v[C_THREADS] == 1 || v[C_THREADS] == 2)
             seen[s][(int)v[C_THREADS]]++;
     }
-    csv_free(&csv);
     printf("scenes.csv: %d rows\n", n);
     for (int s = 0; s < SCENE_COUNT; ++s)
         for (int t = 1; t <= 2; ++t) {
@@ -168,9 +154,8 @@ int main(int argc, char **argv) {
         }
     CHECK_EQ(n, 2 * SCENE_COUNT);
 
-    snprintf(path, sizeof path, "%s/scenes.md", argv[1]);
-    char *md = text_file_read(path);
-    CHECK(md != NULL);
+    static const char *const paper[] = {"GTX 970"};
+    char *md = checker_page(dir, "scenes.md", paper, 1);
     if (md) {
         for (int s = 0; s < SCENE_COUNT; ++s) {
             char cell[64];
@@ -180,8 +165,10 @@ int main(int argc, char **argv) {
                 ++rows;
             CHECK_EQ(rows, 2);
         }
-        CHECK(strstr(md, "GTX 970") != NULL);
         free(md);
     }
-    return check_report("bench_scenes");
+}
+
+int main(int argc, char **argv) {
+    return checker_main(argc, argv, "scenes.csv", header, "bench_scenes", check_file);
 }

@@ -1209,13 +1209,8 @@ static int write_result(job_run *r, const rbc_world_stats *st, double ms_per_fra
 /* The child: returns its exit status (0 ok, 1 failed, 3 stopped), message in err. */
 static int run_job(const rbc_api_v1 *api, batch_job *j, char *err, size_t err_size) {
     double start = now_seconds();
-    job_run r;
-    memset(&r, 0, sizeof r);
-    r.api = api;
-    r.job = j;
-    r.err = err;
-    r.err_size = err_size;
-    r.outputs = cJSON_CreateArray();
+    job_run r = {.api = api, .job = j, .err = err, .err_size = err_size,
+                 .outputs = cJSON_CreateArray()};
     int rc = fs_mkdir_p(j->dir, err, err_size);
     if (rc == 0 && j->out_objseq) {
         size_t n = strlen(j->dir) + 8;

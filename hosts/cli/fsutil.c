@@ -57,6 +57,14 @@ int fs_mkdir_p(const char *path, char *err, size_t err_size) {
     return rc;
 }
 
+int fs_mkdir_p_or_say(const char *path) {
+    char err[512];
+    if (fs_mkdir_p(path, err, sizeof err) == 0)
+        return 0;
+    fprintf(stderr, "rbcloth: %s\n", err);
+    return 1;
+}
+
 char *fs_path(const char *dir, const char *stem, const char *ext) {
     size_t d = strlen(dir);
     while (d > 1 && dir[d - 1] == '/')
@@ -70,20 +78,32 @@ char *fs_path(const char *dir, const char *stem, const char *ext) {
     return path;
 }
 
-int fs_sync(const char *path, char *err, size_t err_size) {
+/* Open `path` and sync it: fsync, or with `filesystem` syncfs (Linux), which flushes
+ * the whole file system that holds it. 0, or -1 with a message in err. */
+static int sync_opened(const char *path, int filesystem, char *err, size_t err_size) {
     int fd = open(path, O_RDONLY | O_CLOEXEC);
     if (fd < 0) {
         snprintf(err, err_size, "cannot open %s to sync it: %s", path, strerror(errno));
         return -1;
     }
+#ifdef __linux__
+    int rc = filesystem ? syncfs(fd) : fsync(fd);
+#else
     int rc = fsync(fd);
+#endif
     int e = errno;
     close(fd);
-    if (rc != 0 && e != EINVAL) {
-        snprintf(err, err_size, "cannot sync %s: %s", path, strerror(e));
+    /* A file system that cannot sync a folder (EINVAL) counts as synced. */
+    if (rc != 0 && (filesystem || e != EINVAL)) {
+        snprintf(err, err_size, "cannot sync %s%s: %s", filesystem ? "the file system of " : "",
+                 path, strerror(e));
         return -1;
     }
     return 0;
+}
+
+int fs_sync(const char *path, char *err, size_t err_size) {
+    return sync_opened(path, 0, err, err_size);
 }
 
 int fs_sync_parent(const char *path, char *err, size_t err_size) {
@@ -104,19 +124,7 @@ int fs_sync_parent(const char *path, char *err, size_t err_size) {
 
 int fs_sync_filesystem(const char *dir, char *err, size_t err_size) {
 #ifdef __linux__
-    int fd = open(dir, O_RDONLY | O_CLOEXEC);
-    if (fd < 0) {
-        snprintf(err, err_size, "cannot open %s to sync it: %s", dir, strerror(errno));
-        return -1;
-    }
-    int rc = syncfs(fd);
-    int e = errno;
-    close(fd);
-    if (rc != 0) {
-        snprintf(err, err_size, "cannot sync the file system of %s: %s", dir, strerror(e));
-        return -1;
-    }
-    return 0;
+    return sync_opened(dir, 1, err, err_size);
 #else
     (void)dir, (void)err, (void)err_size;
     return 1;

@@ -9,6 +9,10 @@
 /// set and a message in err.
 int fs_mkdir_p(const char *path, char *err, size_t err_size);
 
+/// fs_mkdir_p for a command: 0, or 1 (its exit code) after "rbcloth: <why>" on
+/// stderr.
+int fs_mkdir_p_or_say(const char *path);
+
 /// malloc'd "dir/stem.ext" (no doubled '/'), or NULL when out of memory.
 char *fs_path(const char *dir, const char *stem, const char *ext);
 

@@ -215,8 +215,39 @@ static int string_option(const char *arg, const char *name, int argc, char **arg
     return 1;
 }
 
+/* Load the plugin (plugin.h) for a command: 0, or 1 after "rbcloth: why" on stderr. */
+static int open_plugin(cli_plugin *plugin) {
+    char err[4096 + 512];
+    if (cli_plugin_open(plugin, err, sizeof err) == 0)
+        return 0;
+    fprintf(stderr, "rbcloth: %s\n", err);
+    return 1;
+}
+
 static int is_help(const char *arg) {
     return strcmp(arg, "-h") == 0 || strcmp(arg, "--help") == 0;
+}
+
+/* Any argument -h or --help: 1 after `page` on stdout, else 0. */
+static int help_asked(int argc, char **argv, const char *page) {
+    for (int i = 0; i < argc; ++i)
+        if (is_help(argv[i])) {
+            fputs(page, stdout);
+            return 1;
+        }
+    return 0;
+}
+
+/* Whether arg (name_len characters before any '=') names the option `name`; if so,
+ * *value is its text: after the '=' (already there), else the next argument (*i
+ * advanced past it), else NULL. */
+static int names_option(const char *arg, size_t name_len, const char *name, const char **value,
+                        int argc, char **argv, int *i) {
+    if (name_len != strlen(name) || strncmp(arg, name, name_len) != 0)
+        return 0;
+    if (!*value && *i + 1 < argc)
+        *value = argv[++*i];
+    return 1;
 }
 
 /* A decimal integer in [min, max], the whole string. */
@@ -259,11 +290,9 @@ typedef struct int_option {
 static int take_int_option(const int_option *ints, size_t n, const char *arg, size_t name_len,
                            const char **value, int argc, char **argv, int *i, int *matched) {
     for (size_t k = 0; k < n; ++k) {
-        if (name_len != strlen(ints[k].name) || strncmp(arg, ints[k].name, name_len) != 0)
+        if (!names_option(arg, name_len, ints[k].name, value, argc, argv, i))
             continue;
         *matched = 1;
-        if (!*value && *i + 1 < argc)
-            *value = argv[++*i];
         if (parse_long(*value, ints[k].min, ints[k].max, ints[k].target)) {
             fprintf(stderr, "rbcloth: %s needs an integer in [%ld, %ld], got '%s'\n",
                     ints[k].name, ints[k].min, ints[k].max, *value ? *value : "");
@@ -332,11 +361,9 @@ static int parse_run_args(int argc, char **argv, cli_run_options *o) {
             continue;
         }
         for (size_t k = 0; k < sizeof reals / sizeof reals[0]; ++k) {
-            if (name_len != strlen(reals[k].name) || strncmp(arg, reals[k].name, name_len) != 0)
+            if (!names_option(arg, name_len, reals[k].name, &value, argc, argv, &i))
                 continue;
             matched = 1;
-            if (!value && i + 1 < argc)
-                value = argv[++i];
             char *end = NULL;
             double v = value ? strtod(value, &end) : -1.0;
             if (!value || !value[0] || *end || !(v >= 0.0) || v > 1e9) {
@@ -348,11 +375,9 @@ static int parse_run_args(int argc, char **argv, cli_run_options *o) {
             *reals[k].target = v;
         }
         for (size_t k = 0; k < sizeof names / sizeof names[0]; ++k) {
-            if (name_len != strlen(names[k].name) || strncmp(arg, names[k].name, name_len) != 0)
+            if (!names_option(arg, name_len, names[k].name, &value, argc, argv, &i))
                 continue;
             matched = 1;
-            if (!value && i + 1 < argc)
-                value = argv[++i];
             int found = 0;
             for (int c = 0; value && names[k].choices[c]; ++c)
                 found |= strcmp(value, names[k].choices[c]) == 0;
@@ -399,22 +424,15 @@ static int command_run(int argc, char **argv) {
         .quiet = 0,
     };
     help_hint = "run --help";
-    for (int i = 0; i < argc; ++i) {
-        if (is_help(argv[i])) {
-            fputs(run_usage, stdout);
-            return EXIT_OK;
-        }
-    }
+    if (help_asked(argc, argv, run_usage))
+        return EXIT_OK;
     int rc = parse_run_args(argc, argv, &options);
     if (rc != EXIT_OK)
         return rc;
 
     cli_plugin plugin;
-    char err[4096 + 512];
-    if (cli_plugin_open(&plugin, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
+    if (open_plugin(&plugin))
         return EXIT_RUNTIME;
-    }
     rc = cli_run(&plugin, &options);
     cli_plugin_close(&plugin);
     return rc;
@@ -477,11 +495,10 @@ static int command_batch(int argc, char **argv) {
         }
         int matched = 0;
         for (size_t k = 0; k < sizeof reals / sizeof reals[0]; ++k) {
-            if (name_len != strlen(reals[k].name) || strncmp(arg, reals[k].name, name_len) != 0)
+            if (!names_option(arg, name_len, reals[k].name, &value, argc, argv, &i))
                 continue;
             matched = 1;
-            if (parse_seconds(reals[k].name, value ? value : (i + 1 < argc ? argv[++i] : NULL),
-                              reals[k].target))
+            if (parse_seconds(reals[k].name, value, reals[k].target))
                 return EXIT_USAGE;
         }
         if (!matched && take_int_option(ints, sizeof ints / sizeof ints[0], arg, name_len, &value,
@@ -495,11 +512,8 @@ static int command_batch(int argc, char **argv) {
     if (options.report_only + options.count_only + (options.only >= 0) > 1)
         return usage_error("%s", "--only, --report-only and --count exclude each other");
     cli_plugin plugin;
-    char err[4096 + 512];
-    if (cli_plugin_open(&plugin, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
+    if (open_plugin(&plugin))
         return EXIT_RUNTIME;
-    }
     int rc = cli_batch(&plugin, &options);
     cli_plugin_close(&plugin);
     return rc;
@@ -545,12 +559,8 @@ static int command_bench(int argc, char **argv) {
         .quick = 0,
     };
     help_hint = "bench --help";
-    for (int i = 0; i < argc; ++i) {
-        if (is_help(argv[i])) {
-            fputs(bench_usage, stdout);
-            return EXIT_OK;
-        }
-    }
+    if (help_asked(argc, argv, bench_usage))
+        return EXIT_OK;
     if (argc < 1)
         return usage_error("%s", "bench needs a name: 'defaults', 'accuracy', 'stability', "
                                  "'perf', 'scenes', 'peers' or 'pool'");
@@ -577,11 +587,8 @@ static int command_bench(int argc, char **argv) {
         return rc;
 
     cli_plugin plugin;
-    char err[4096 + 512];
-    if (cli_plugin_open(&plugin, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
+    if (open_plugin(&plugin))
         return EXIT_RUNTIME;
-    }
     rc = run(&plugin, &options);
     cli_plugin_close(&plugin);
     return rc;
@@ -593,11 +600,8 @@ static int command_info(int argc, char **argv) {
         return is_help(argv[0]) ? (fputs(info_usage, stdout), EXIT_OK)
                                 : usage_error("info takes no arguments, got '%s'", argv[0]);
     cli_plugin plugin;
-    char err[4096 + 512];
-    if (cli_plugin_open(&plugin, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
+    if (open_plugin(&plugin))
         return EXIT_RUNTIME;
-    }
     const rbc_api_v1 *api = plugin.api;
     uint32_t abi = api->abi_version_fn();
     printf("plugin:  %s (found by %s)\n", plugin.path, plugin.found_by);
@@ -613,11 +617,8 @@ static int command_version(void) {
     printf("rbcloth %s (built against ABI %d.%d)\n", RBC_CLI_VERSION, RBC_ABI_VERSION_MAJOR,
            RBC_ABI_VERSION_MINOR);
     cli_plugin plugin;
-    char err[4096 + 512];
-    if (cli_plugin_open(&plugin, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
+    if (open_plugin(&plugin))
         return EXIT_RUNTIME;
-    }
     uint32_t abi = plugin.api->abi_version_fn();
     printf("librbcloth %s, ABI %u.%u (%s)\n", plugin.api->version_string(), abi >> 16,
            abi & 0xFFFFu, plugin.path);

@@ -267,12 +267,9 @@ static char *parent_folder(const char *dir) {
 
 /* One cloth: NAME.obj/.pc2; several: NAME_CLOTH.obj/.pc2. */
 static int plan_outputs(run_state *s) {
-    char err[512];
     const char *dir = s->options->out_dir;
-    if (fs_mkdir_p(dir, err, sizeof err)) {
-        fprintf(stderr, "rbcloth: %s\n", err);
+    if (fs_mkdir_p_or_say(dir))
         return 1;
-    }
     /* Not into a running batch's folder, nor one of its jobs' (DIR/JOB): its
      * workers write there. A batch started during this run is refused in turn. */
     char *parent = parent_folder(dir);
@@ -962,21 +959,9 @@ int cli_run(const cli_plugin *plugin, const cli_run_options *options) {
     sigaction(SIGINT, &sa, &old_int);
     sigaction(SIGTERM, &sa, &old_term);
 
-    int rc = load_scene(&s);
-    if (!rc)
-        rc = plan_outputs(&s);
-    if (!rc)
-        rc = list_temporaries(&s);
-    if (!rc)
-        rc = create_world(&s);
-    if (!rc)
-        rc = start_outputs(&s);
-    if (!rc)
-        rc = start_view(&s);
-    if (!rc)
-        rc = simulate(&s);
-    if (!rc)
-        rc = write_summary(&s);
+    /* Each step returns 0, or 1 after saying why: the first to fail ends the run. */
+    int rc = load_scene(&s) || plan_outputs(&s) || list_temporaries(&s) || create_world(&s) ||
+             start_outputs(&s) || start_view(&s) || simulate(&s) || write_summary(&s);
     if (!rc && !options->quiet)
         print_table(&s);
     const uint32_t frames_done = s.frames_done, frames = s.scene.frames;

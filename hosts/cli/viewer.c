@@ -90,6 +90,14 @@ static char *dup_str(const char *s) {
     return d;
 }
 
+/* The array p of `count` elements of `size` bytes with one more, zeroed, at its end;
+ * NULL when out of memory (p is kept). */
+static void *append_zeroed(void *p, size_t count, size_t size) {
+    unsigned char *grown = realloc(p, (count + 1) * size);
+    if (grown) memset(grown + count * size, 0, size);
+    return grown;
+}
+
 static void *dup_mem(const void *src, size_t bytes) {
     void *d = malloc(bytes ? bytes : 1);
     if (d && bytes) memcpy(d, src, bytes);
@@ -214,11 +222,10 @@ int cli_view_add_cloth(cli_view *v, const cli_view_cloth_def *def, char *err, si
             return set_err(err, errlen, "cli_view_add_cloth: cloth %u (%s): triangle %llu has "
                            "vertex %u >= vertex_count %u", id, name, (unsigned long long)(i / 3),
                            def->tris[i], def->vertex_count), 1;
-    vcloth *grown = realloc(v->cloths, (id + 1) * sizeof *grown);
+    vcloth *grown = append_zeroed(v->cloths, id, sizeof *grown);
     if (!grown) return set_err(err, errlen, "cli_view_add_cloth: cloth %u: out of memory", id), 1;
     v->cloths = grown;
     vcloth *c = &v->cloths[id];
-    memset(c, 0, sizeof *c);
     c->n = def->vertex_count, c->nq = def->quad_count, c->nt = def->tri_count;
     c->name = dup_str(name);
     c->rest = dup_mem(def->rest, (size_t)c->n * 3 * sizeof(float));
@@ -266,11 +273,10 @@ int cli_view_add_collider(cli_view *v, const cli_view_collider_def *def, char *e
                                "vertex %u >= %u", id, (unsigned long long)(i / 3),
                                def->mesh_triangles[i], def->mesh_vertex_count), 1;
     }
-    vcollider *grown = realloc(v->colliders, (id + 1) * sizeof *grown);
+    vcollider *grown = append_zeroed(v->colliders, id, sizeof *grown);
     if (!grown) return set_err(err, errlen, "cli_view_add_collider: collider %u: out of memory", id), 1;
     v->colliders = grown;
     vcollider *c = &v->colliders[id];
-    memset(c, 0, sizeof *c);
     c->shape = s, c->radius = def->radius;
     memcpy(c->half, def->half_extents, sizeof c->half);
     if (s == RBC_SHAPE_TRIANGLE_MESH) {

@@ -35,7 +35,6 @@
 #include <assimp/scene.h>
 #include <errno.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -46,8 +45,6 @@
 #include "topology.h"
 
 #define RBC_PI 3.14159265358979323846
-
-static const char fn_import[] = "rbc_mesh_import";
 
 /* ------------------------------------------------------------------------- */
 /* Build state                                                               */
@@ -111,22 +108,9 @@ static void build_free(build *b) {
     free(b->inst);
 }
 
-static rbc_result import_error(const build *b, rbc_result code, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
-/* "rbc_mesh_import: <path>: <what>" -- the sweep groups refusals by <what>'s first
- * clause, so each clause starts with a fixed phrase and details follow a ':'. */
-static rbc_result import_error(const build *b, rbc_result code, const char *fmt, ...) {
-    char *buf = rbc_error_buffer();
-    int k = snprintf(buf, RBC_ERROR_CAP, "%s: %s: ", fn_import, b->path);
-    if (k < 0 || k >= RBC_ERROR_CAP) return code;
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(buf + k, RBC_ERROR_CAP - (size_t)k, fmt, ap);
-    va_end(ap);
-    return code;
+static rbc_result oom(const build *b) {
+    return rbc_import_error(b->path, RBC_ERR_OUT_OF_MEMORY, "out of memory");
 }
-
-static rbc_result oom(const build *b) { return import_error(b, RBC_ERR_OUT_OF_MEMORY, "out of memory"); }
 
 /* ------------------------------------------------------------------------- */
 /* Geometry tests                                                            */
@@ -260,12 +244,12 @@ static void list_names(const struct aiScene *s, char *out, size_t cap) {
 static rbc_result collect_instances(build *b, const struct aiScene *s) {
     const rbc_mesh_import_def *d = &b->def;
     if (s->mNumMeshes == 0 || !s->mMeshes)
-        return import_error(b, RBC_ERR_BAD_MESH, "no mesh in the file");
+        return rbc_import_error(b->path, RBC_ERR_BAD_MESH, "no mesh in the file");
     if (d->mesh_index >= 0 && (uint32_t)d->mesh_index >= s->mNumMeshes)
-        return import_error(b, RBC_ERR_INVALID_ARGUMENT,
-                            "mesh_index out of range: mesh_index is %d and the file has %u "
-                            "meshes",
-                            (int)d->mesh_index, s->mNumMeshes);
+        return rbc_import_error(b->path, RBC_ERR_INVALID_ARGUMENT,
+                                "mesh_index out of range: mesh_index is %d and the file has %u "
+                                "meshes",
+                                (int)d->mesh_index, s->mNumMeshes);
     uint8_t *placed = calloc(s->mNumMeshes, 1);
     if (!placed) return oom(b);
     /* Depth-first over the node tree with the accumulated transform. */
@@ -290,8 +274,8 @@ static rbc_result collect_instances(build *b, const struct aiScene *s) {
         frame f = stack[--top];
         const struct aiNode *nd = f.node;
         if (++visited > RBC_IMPORT_MAX_ELEMENTS) {
-            rc = import_error(b, RBC_ERR_BAD_MESH, "too many nodes: more than %u",
-                              RBC_IMPORT_MAX_ELEMENTS);
+            rc = rbc_import_error(b->path, RBC_ERR_BAD_MESH, "too many nodes: more than %u",
+                                  RBC_IMPORT_MAX_ELEMENTS);
             break;
         }
         const struct aiMatrix4x4 *t = &nd->mTransformation;
@@ -309,10 +293,10 @@ static rbc_result collect_instances(build *b, const struct aiScene *s) {
         for (unsigned k = 0; k < nd->mNumMeshes && rc == RBC_OK; ++k) {
             unsigned mi = nd->mMeshes[k];
             if (mi >= s->mNumMeshes) {
-                rc = import_error(b, RBC_ERR_BAD_MESH,
-                                  "node refers to a missing mesh: node \"%.64s\" names mesh %u of "
-                                  "%u",
-                                  nd->mName.data, mi, s->mNumMeshes);
+                rc = rbc_import_error(b->path, RBC_ERR_BAD_MESH,
+                                      "node refers to a missing mesh: node \"%.64s\" names mesh "
+                                      "%u of %u",
+                                      nd->mName.data, mi, s->mNumMeshes);
                 break;
             }
             placed[mi] = 1;
@@ -359,19 +343,19 @@ static rbc_result collect_instances(build *b, const struct aiScene *s) {
         if (!any) {
             char names[400];
             list_names(s, names, sizeof names);
-            return import_error(b, RBC_ERR_INVALID_ARGUMENT,
-                                "pin_group \"%.128s\" names no mesh or node taken: the file's "
-                                "meshes are %s (node names match too)",
-                                d->pin_group, names);
+            return rbc_import_error(b->path, RBC_ERR_INVALID_ARGUMENT,
+                                    "pin_group \"%.128s\" names no mesh or node taken: the file's "
+                                    "meshes are %s (node names match too)",
+                                    d->pin_group, names);
         }
     }
     if (b->ninst == 0) {
         char names[400];
         list_names(s, names, sizeof names);
-        return import_error(b, RBC_ERR_INVALID_ARGUMENT,
-                            "no mesh named \"%.128s\": the file's meshes are %s (node names "
-                            "match too)",
-                            d->mesh_name ? d->mesh_name : "", names);
+        return rbc_import_error(b->path, RBC_ERR_INVALID_ARGUMENT,
+                                "no mesh named \"%.128s\": the file's meshes are %s (node names "
+                                "match too)",
+                                d->mesh_name ? d->mesh_name : "", names);
     }
     return RBC_OK;
 }
@@ -383,8 +367,8 @@ static rbc_result collect_vertices(build *b, const struct aiScene *s) {
         b->inst[k].base = (uint32_t)total;
         total += me->mVertices ? me->mNumVertices : 0;
         if (total > RBC_IMPORT_MAX_ELEMENTS)
-            return import_error(b, RBC_ERR_BAD_MESH, "too many vertices: more than %u",
-                                RBC_IMPORT_MAX_ELEMENTS);
+            return rbc_import_error(b->path, RBC_ERR_BAD_MESH, "too many vertices: more than %u",
+                                    RBC_IMPORT_MAX_ELEMENTS);
         b->info.source_face_count += me->mNumFaces;
     }
     b->info.source_mesh_count = (uint32_t)b->ninst;
@@ -553,39 +537,30 @@ static rbc_result weld(build *b) {
 /* 4. Faces                                                                  */
 /* ------------------------------------------------------------------------- */
 
-/* A triangle or quad kept, counted by origin (a face of the file, or a piece of an
- * n-gon); a degenerate one is dropped and counted. */
-static rbc_result push_tri(build *b, uint32_t a, uint32_t c1, uint32_t c2, int from_ngon) {
-    if (!tri_ok(b->w_pos, a, c1, c2)) {
+/* A triangle or quad (k corners) kept in v, counted by origin (a face of the file, or
+ * a piece of an n-gon); a degenerate one (ok 0) is dropped and counted. */
+static rbc_result push_face(build *b, u32vec *v, const uint32_t *c, size_t k, int ok,
+                            int from_ngon, uint32_t *ngon_pieces, uint32_t *file_faces) {
+    if (!ok) {
         b->info.degenerate_faces++;
         return RBC_OK;
     }
-    if (!vec_reserve(&b->tris, 3)) return oom(b);
-    uint32_t *t = b->tris.v + b->tris.n;
-    t[0] = a;
-    t[1] = c1;
-    t[2] = c2;
-    b->tris.n += 3;
-    if (from_ngon)
-        b->info.triangles_from_ngons++;
-    else
-        b->info.file_triangles++;
+    if (!vec_reserve(v, k)) return oom(b);
+    memcpy(v->v + v->n, c, k * sizeof *c);
+    v->n += k;
+    ++*(from_ngon ? ngon_pieces : file_faces);
     return RBC_OK;
 }
 
+static rbc_result push_tri(build *b, uint32_t a, uint32_t c1, uint32_t c2, int from_ngon) {
+    const uint32_t t[3] = {a, c1, c2};
+    return push_face(b, &b->tris, t, 3, tri_ok(b->w_pos, a, c1, c2), from_ngon,
+                     &b->info.triangles_from_ngons, &b->info.file_triangles);
+}
+
 static rbc_result push_quad(build *b, const uint32_t q[4], int from_ngon) {
-    if (!quad_ok(b->w_pos, q)) {
-        b->info.degenerate_faces++;
-        return RBC_OK;
-    }
-    if (!vec_reserve(&b->quads, 4)) return oom(b);
-    memcpy(b->quads.v + b->quads.n, q, 4 * sizeof(uint32_t));
-    b->quads.n += 4;
-    if (from_ngon)
-        b->info.quads_from_ngons++;
-    else
-        b->info.file_quads++;
-    return RBC_OK;
+    return push_face(b, &b->quads, q, 4, quad_ok(b->w_pos, q), from_ngon,
+                     &b->info.quads_from_ngons, &b->info.file_quads);
 }
 
 static rbc_result add_faces(build *b, const struct aiScene *s) {
@@ -601,9 +576,9 @@ static rbc_result add_faces(build *b, const struct aiScene *s) {
                 continue;
             }
             if (!fa->mIndices)
-                return import_error(b, RBC_ERR_BAD_MESH,
-                                    "face without indices: mesh %u (\"%.64s\") face %u", in->mesh,
-                                    me->mName.data, f);
+                return rbc_import_error(b->path, RBC_ERR_BAD_MESH,
+                                        "face without indices: mesh %u (\"%.64s\") face %u",
+                                        in->mesh, me->mName.data, f);
             b->corners.n = 0;
             if (!vec_reserve(&b->corners, ni)) return oom(b);
             uint32_t *c = b->corners.v;
@@ -611,18 +586,19 @@ static rbc_result add_faces(build *b, const struct aiScene *s) {
             for (unsigned j = 0; j < ni; ++j) {
                 unsigned idx = fa->mIndices[j];
                 if (idx >= me->mNumVertices || !me->mVertices)
-                    return import_error(b, RBC_ERR_BAD_MESH,
-                                        "face index out of range: mesh %u (\"%.64s\") face %u "
-                                        "corner %u is vertex %u of %u",
-                                        in->mesh, me->mName.data, f, j, idx, me->mNumVertices);
+                    return rbc_import_error(b->path, RBC_ERR_BAD_MESH,
+                                            "face index out of range: mesh %u (\"%.64s\") face %u "
+                                            "corner %u is vertex %u of %u",
+                                            in->mesh, me->mName.data, f, j, idx, me->mNumVertices);
                 size_t src = in->base + (size_t)idx;
                 if (b->src_bad[src]) {
                     const float *p = b->src_pos + 3 * src;
-                    return import_error(b, RBC_ERR_BAD_MESH,
-                                        "non-finite position: mesh %u (\"%.64s\") vertex %u is "
-                                        "(%g, %g, %g) after transform and scale (face %u uses it)",
-                                        in->mesh, me->mName.data, idx, (double)p[0],
-                                        (double)p[1], (double)p[2], f);
+                    return rbc_import_error(b->path, RBC_ERR_BAD_MESH,
+                                            "non-finite position: mesh %u (\"%.64s\") vertex %u is "
+                                            "(%g, %g, %g) after transform and scale (face %u uses "
+                                            "it)",
+                                            in->mesh, me->mName.data, idx, (double)p[0],
+                                            (double)p[1], (double)p[2], f);
                 }
                 uint32_t w = b->weld_map[src];
                 if (nc == 0 || c[nc - 1] != w) c[nc++] = w;
@@ -648,10 +624,10 @@ static rbc_result add_faces(build *b, const struct aiScene *s) {
                 rc = push_quad(b, c, 0);
             } else {
                 if (b->def.ngons == RBC_NGON_REFUSE)
-                    return import_error(b, RBC_ERR_BAD_MESH,
-                                        "n-gon refused: mesh %u (\"%.64s\") face %u has %zu "
-                                        "corners (ngons = RBC_NGON_REFUSE)",
-                                        in->mesh, me->mName.data, f, nc);
+                    return rbc_import_error(b->path, RBC_ERR_BAD_MESH,
+                                            "n-gon refused: mesh %u (\"%.64s\") face %u has %zu "
+                                            "corners (ngons = RBC_NGON_REFUSE)",
+                                            in->mesh, me->mName.data, f, nc);
                 b->info.ngons_split++;
                 size_t i = 1;
                 for (; i + 2 < nc && !rc; i += 2) {
@@ -898,11 +874,11 @@ static rbc_result finish(build *b, rbc_mesh *out) {
     if (nq == 0 && ns == 0) {
         free(se);
         free(lt);
-        return import_error(b, RBC_ERR_BAD_MESH,
-                            "no face to simulate: %u faces in %u meshes, %u points or lines, %u "
-                            "degenerate",
-                            b->info.source_face_count, b->info.source_mesh_count,
-                            b->info.points_lines_skipped, b->info.degenerate_faces);
+        return rbc_import_error(b->path, RBC_ERR_BAD_MESH,
+                                "no face to simulate: %u faces in %u meshes, %u points or lines, "
+                                "%u degenerate",
+                                b->info.source_face_count, b->info.source_mesh_count,
+                                b->info.points_lines_skipped, b->info.degenerate_faces);
     }
     /* Drop unused vertices, keeping the order of the rest. */
     uint32_t *remap = malloc(((size_t)b->nw + 1) * sizeof *remap);
@@ -1017,7 +993,7 @@ static rbc_result finish(build *b, rbc_mesh *out) {
     rbc_allocator alloc = rbc_allocator_default();
     char msg[RBC_ERROR_CAP / 2];
     int32_t trc = rbc_topology_build(&in, &alloc, &topo, msg, sizeof msg);
-    if (trc) return import_error(b, trc, "not a cloth mesh: %s", msg);
+    if (trc) return rbc_import_error(b->path, trc, "not a cloth mesh: %s", msg);
     info->color_count = topo.ncolors;
     rbc_topology_free(&topo, &alloc);
     return RBC_OK;
@@ -1035,11 +1011,12 @@ rbc_result rbc_import_convert(const char *path, const rbc_mesh_import_def *def, 
     /* Open errors are ours to name (assimp's message for them is vaguer). */
     struct stat st;
     if (stat(path, &st) != 0)
-        return import_error(&b, RBC_ERR_IO, "cannot open the file: %s", strerror(errno));
+        return rbc_import_error(b.path, RBC_ERR_IO, "cannot open the file: %s", strerror(errno));
     if (!S_ISREG(st.st_mode))
-        return import_error(&b, RBC_ERR_IO, "cannot open the file: not a regular file");
+        return rbc_import_error(b.path, RBC_ERR_IO, "cannot open the file: not a regular file");
     FILE *probe = fopen(path, "rb");
-    if (!probe) return import_error(&b, RBC_ERR_IO, "cannot open the file: %s", strerror(errno));
+    if (!probe)
+        return rbc_import_error(b.path, RBC_ERR_IO, "cannot open the file: %s", strerror(errno));
     /* assimp 5.2.5 loops forever on a PLY file whose header has no end_header (a
      * truncated or cut header; found by tests/import): refuse it before assimp
      * sees it. assimp recognises PLY by its first token, so do we. */
@@ -1087,17 +1064,17 @@ rbc_result rbc_import_convert(const char *path, const rbc_mesh_import_def *def, 
             unsigned long long nf = end1 && end1 != q ? strtoull(end1, &end2, 10) : 0;
             unsigned long long sz = (unsigned long long)st.st_size;
             if (strncmp(q, "BINARY", 6) != 0 && end1 != q && (nv > sz / 6 || nf > sz / 8))
-                return import_error(&b, RBC_ERR_IO,
-                                    "the OFF header declares %llu vertices and %llu faces, more "
-                                    "than a %llu-byte file can hold (refused here: assimp 5.2.5 "
-                                    "allocates for the declared counts first)",
-                                    nv, nf, sz);
+                return rbc_import_error(b.path, RBC_ERR_IO,
+                                        "the OFF header declares %llu vertices and %llu faces, "
+                                        "more than a %llu-byte file can hold (refused here: assimp "
+                                        "5.2.5 allocates for the declared counts first)",
+                                        nv, nf, sz);
         }
     }
     if (is_ply && !has_end)
-        return import_error(&b, RBC_ERR_IO,
-                            "assimp could not read the file: a PLY header without end_header "
-                            "(refused here: assimp 5.2.5 loops forever on it)");
+        return rbc_import_error(b.path, RBC_ERR_IO,
+                                "assimp could not read the file: a PLY header without end_header "
+                                "(refused here: assimp 5.2.5 loops forever on it)");
 
     /* 1. assimp, keeping polygons. No logger is attached, so assimp's DefaultLogger
      * is its NullLogger: nothing is printed. Skeleton-only files are not turned into
@@ -1118,14 +1095,14 @@ rbc_result rbc_import_convert(const char *path, const rbc_mesh_import_def *def, 
         for (char *p = aierr; *p; ++p)
             if (*p == '\n' || *p == '\r') *p = ' ';
         if (strstr(aierr, "No suitable reader found"))
-            return import_error(&b, RBC_ERR_UNSUPPORTED, "no assimp reader for this format: %s",
-                                aierr);
-        return import_error(&b, RBC_ERR_IO, "assimp could not read the file: %s", aierr);
+            return rbc_import_error(b.path, RBC_ERR_UNSUPPORTED,
+                                    "no assimp reader for this format: %s", aierr);
+        return rbc_import_error(b.path, RBC_ERR_IO, "assimp could not read the file: %s", aierr);
     }
     if (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE)
-        rc = import_error(&b, RBC_ERR_BAD_MESH,
-                          "no mesh in the file: assimp read an incomplete scene (animation or "
-                          "skeleton only)");
+        rc = rbc_import_error(b.path, RBC_ERR_BAD_MESH,
+                              "no mesh in the file: assimp read an incomplete scene (animation or "
+                              "skeleton only)");
     if (!rc) rc = collect_instances(&b, scene);
     if (!rc) rc = collect_vertices(&b, scene);
     if (!rc) rc = weld(&b);
