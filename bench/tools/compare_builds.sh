@@ -61,7 +61,7 @@ done
     echo
     echo "Measured: $start; commit $commit$dirty (B); A and B as named below; $cpu, $(nproc) cores, Debian $(cut -d. -f1 /etc/debian_version); load average $load at the start."
     echo
-    echo "A: \`$a\`; B: \`$b\`."
+    echo "A: \`$a\` (commit $(git -C "$a/.." rev-parse --short HEAD 2>/dev/null || echo unknown)); B: \`$b\` (commit $(git -C "$b/.." rev-parse --short HEAD 2>/dev/null || echo unknown))."
     echo
     echo "## Caches, bitwise"
     echo
