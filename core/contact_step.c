@@ -174,13 +174,13 @@ void rbc_stage_friction(step_ctx *ctx, const rbc_step_at *at) {
          * nothing). */
         rbc_collide_post(s, f0, f1, ctx->h, tid, at->nt);
         rbc_pool_barrier(s->pool);
-        if (rbc_step_uses(ctx, RBC_STAGE_ENERGY) && tid == 0) rbc_guard_add_collider_work(ctx);
+        if (rbc_step_guarded(ctx) && tid == 0) rbc_guard_add_collider_work(ctx);
         rbc_pool_barrier(s->pool);
     }
     if (ctx->host_contacts) {
         /* Host contacts: friction, and their work on the cloth they touch. */
         if (tid == 0) {
-            const int guard = rbc_step_uses(ctx, RBC_STAGE_ENERGY);
+            const int guard = rbc_step_guarded(ctx);
             rbc_contact_list *l = &s->host_contacts;
             if (!s->collider_count && !ctx->color_pass) rbc_collide_normal_forces(s, l, ctx->h);
             for (uint32_t m = 0; m < l->count; ++m) {

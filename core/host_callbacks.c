@@ -65,7 +65,7 @@ static void run_callback(step_ctx *ctx, uint32_t sub) {
 void rbc_stage_callback(step_ctx *ctx, const rbc_step_at *at) {
     rbc_solver *s = ctx->s;
     /* The host's corrections count as work it does: the change of energy. */
-    const int guard = rbc_step_uses(ctx, RBC_STAGE_ENERGY);
+    const int guard = rbc_step_guarded(ctx);
     if (guard)
         rbc_guard_budget_add(ctx, -1.0, at->tid, at->nt);
     else if (rbc_step_uses(ctx, RBC_STAGE_CLOTH_CONTACT))

@@ -90,6 +90,10 @@ typedef struct step_ctx {
 static inline int rbc_step_uses(const step_ctx *ctx, rbc_stage st) {
     return (ctx->uses >> st) & 1u;
 }
+/* The energy guard is on for this step (its stages run). */
+static inline int rbc_step_guarded(const step_ctx *ctx) {
+    return rbc_step_uses(ctx, RBC_STAGE_ENERGY);
+}
 /* Per-cloth parameters are kept for the first 64 cloths; later ones share the last. */
 static inline uint32_t rbc_step_slot(uint32_t cloth) { return cloth < 64 ? cloth : 63; }
 

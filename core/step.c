@@ -103,7 +103,7 @@ static void stage_pins(step_ctx *ctx, const rbc_step_at *at) {
         }
     }
     rbc_pool_barrier(s->pool);
-    if (rbc_step_uses(ctx, RBC_STAGE_ENERGY) && at->tid == 0) rbc_guard_add_pin_work(ctx);
+    if (rbc_step_guarded(ctx) && at->tid == 0) rbc_guard_add_pin_work(ctx);
 }
 
 /* Wind on the quads (shared corners: one thread). */
@@ -242,7 +242,7 @@ static void report_check(step_ctx *ctx, const rbc_step_at *at) {
 static void stage_check(step_ctx *ctx, const rbc_step_at *at) {
     rbc_solver *s = ctx->s;
     const int last = at->sub + 1 == ctx->substeps;
-    const int guard = last && rbc_step_uses(ctx, RBC_STAGE_ENERGY);
+    const int guard = last && rbc_step_guarded(ctx);
     ctx->bad[at->tid][0] = -1;
     if (guard)
         for (uint32_t k = 0; k < s->cloth_count; ++k)

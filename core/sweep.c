@@ -299,16 +299,14 @@ static void jacobi_swap_back(step_ctx *ctx, uint32_t tid) {
     rbc_pool_barrier(s->pool);
 }
 
-/* Contacts join the solve after every RBC_CC_EVERY-th linear iteration and the last
- * (cloth contact reads four particles per contact at random, so a pass costs several
- * sweeps, but every third iteration left four stacked layers 2-3 mm deeper than
- * their 2 mm thickness and let them pass through each other sooner). Collider and
- * host contacts are projected here unless the color sweeps did (color_pass). */
-#define RBC_CC_EVERY 1u
-
-static unsigned iteration_pass(const step_ctx *ctx, uint32_t k, int cloth) {
+/* Contacts join the solve after every linear iteration: cloth contact costs several
+ * sweeps a pass, but a pass every third iteration left four stacked layers 2-3 mm
+ * deeper than their 2 mm thickness and let them pass through each other sooner
+ * (docs/design/cloth-contact.md). Collider and host contacts are projected here
+ * unless the color sweeps did (color_pass). */
+static unsigned iteration_pass(const step_ctx *ctx, uint32_t k) {
     const int jac = is_jacobi(ctx->s->settings.kind);
-    return (jac && !(k & 1) ? RBC_PASS_ALT : 0u) | (cloth ? RBC_PASS_CLOTH : 0u) |
+    return (jac && !(k & 1) ? RBC_PASS_ALT : 0u) | RBC_PASS_CLOTH |
            (!ctx->color_pass ? RBC_PASS_COLLIDERS : 0u);
 }
 
@@ -337,12 +335,10 @@ static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uin
     }
     double deadline = ctx->start_ms + (double)st->budget_ms * (segment + 1) / nsegments;
     uint32_t k = pl.pre;
-    int cloth_done = 1;
     for (;;) {
         double t0 = tid == 0 ? rbc_now_ms() : 0.0;
         linear_iteration(ctx, k, tid, nt);
-        cloth_done = (k + 1) % RBC_CC_EVERY == 0 || (pl.fixed && k + 1 >= pl.limit);
-        rbc_step_project_contacts(ctx, iteration_pass(ctx, k, cloth_done), tid);
+        rbc_step_project_contacts(ctx, iteration_pass(ctx, k), tid);
         k++;
         if (pl.fixed) {
             if (k >= pl.limit) break;
@@ -360,8 +356,6 @@ static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uin
         rbc_pool_barrier(s->pool);
         if (ctx->stop) break;
     }
-    if (ctx->cc_active && !cloth_done) /* the last iteration gets its cloth pass */
-        rbc_step_project_contacts(ctx, iteration_pass(ctx, k - 1, 1), tid);
     if (tid == 0) ctx->linear_done += k;
     if (is_jacobi(st->kind) && (k & 1)) jacobi_swap_back(ctx, tid);
 }
