@@ -21,8 +21,8 @@
  * "Mesh", one position list each (empty if it has no Vertices), named by its first
  * string property ("Name\x00\x01Geometry" binary, "Geometry::Name" ASCII); and FBX 6
  * Objects/Model nodes of type "Mesh" that hold a Vertices node themselves (FBX 6 has
- * no Geometry objects). GlobalSettings/Properties70 (6: Properties60) P (Property)
- * "UnitScaleFactor" (centimetres per unit) and "UpAxis". */
+ * no Geometry objects). GlobalSettings/Properties70 P "UnitScaleFactor" (centimetres
+ * per unit) and "UpAxis"; FBX 6.1: Objects/GlobalSettings/Properties60 Property. */
 #include "file_vertices.h"
 
 #include <errno.h>
@@ -292,6 +292,7 @@ static int child_kind(int parent, const unsigned char *nm, size_t nl, const unsi
         if (name_is(nm, nl, "P") || name_is(nm, nl, "Property")) return K_PROP;
         return K_OTHER;
     case K_OBJECTS:
+        if (name_is(nm, nl, "GlobalSettings")) return K_GLOBAL; /* FBX 6.1 puts it here */
         if ((name_is(nm, nl, "Geometry") || name_is(nm, nl, "Model")) && s1 &&
             name_is(s1, s1l, "Mesh"))
             return K_MESH;

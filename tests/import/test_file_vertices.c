@@ -484,6 +484,9 @@ static int run_bad(const char *fix, const char *models, const char *tmp, size_t 
 
     /* Truncations. */
     prefixes(rbc_fbx_file_vertices, src, tmp, step, 200); /* the footer: ~180 bytes */
+    char v7500[1024];
+    snprintf(v7500, sizeof v7500, "%s/FBX/boxWithCompressedCTypeArray.FBX", models);
+    prefixes(rbc_fbx_file_vertices, v7500, tmp, step, 200); /* 64-bit offsets */
     prefixes(rbc_fbx_file_vertices, ascii, tmp, step, 0);
     prefixes(rbc_dae_file_vertices, dae, tmp, step * 7, 2);
 
@@ -707,6 +710,70 @@ static int run_bad(const char *fix, const char *models, const char *tmp, size_t 
         spew(path, doc, strlen(doc));
         expect_fail(rbc_dae_file_vertices, path, "a POSITION source that does not exist", "not found");
     }
+
+    /* FBX 6.1 ASCII (none among assimp-testmodels; assimp 5.2.5 does not read 6.x):
+     * Objects/Model "Mesh" with its own Vertices across lines, GlobalSettings
+     * inside Objects with Properties60. */
+    snprintf(path, sizeof path, "%s/fbx61.fbx", tmp);
+    static const char fbx61[] =
+        "; FBX 6.1.0 project file\n; ----\n\nFBXHeaderExtension:  {\n\tFBXHeaderVersion: 1003\n"
+        "\tFBXVersion: 6100\n}\nDefinitions:  {\n\tVersion: 100\n\tObjectType: \"Model\" {\n\t\tCount: 1\n\t}\n}\n"
+        "Objects:  {\n\tModel: \"Model::Plane\", \"Mesh\" {\n\t\tVersion: 232\n\t\tProperties60:  {\n"
+        "\t\t\tProperty: \"Lcl Scaling\", \"Lcl Scaling\", \"A+\",2.0,2.0,2.0\n\t\t}\n\t\tShading: Y\n"
+        "\t\tVertices: 1.000000,1.000000,0.250000,1.000000,-1.000000,0.000000,-1.000000,-1.000000,0.000000,\n"
+        "-1.000000,1.000000,0.125000\n\t\tPolygonVertexIndex: 0,3,2,-2\n\t\tGeometryVersion: 124\n\t}\n"
+        "\tModel: \"Model::Camera\", \"Camera\" {\n\t\tVersion: 232\n\t}\n"
+        "\tGlobalSettings:  {\n\t\tVersion: 1000\n\t\tProperties60:  {\n"
+        "\t\t\tProperty: \"UpAxis\", \"int\", \"\",2\n\t\t\tProperty: \"UnitScaleFactor\", \"double\", \"\",2.54\n"
+        "\t\t}\n\t}\n}\nConnections:  {\n\tConnect: \"OO\", \"Model::Plane\", \"Model::Scene\"\n}\n";
+    spew(path, fbx61, strlen(fbx61));
+    {
+        rbc_file_vertices v;
+        char err[512];
+        int r = read_checked(rbc_fbx_file_vertices, path, &v, err, sizeof err);
+        if (r != 1) fprintf(stderr, "FBX 6.1 ASCII: %d %s\n", r, err);
+        CHECK_EQ(r, 1);
+        if (r == 1) {
+            static const double want[12] = {1, 1, 0.25, 1, -1, 0, -1, -1, 0, -1, 1, 0.125};
+            CHECK_EQ(v.count, 4);
+            CHECK_EQ(v.list_count, 1);
+            CHECK(v.count == 4 && memcmp(v.xyz, want, sizeof want) == 0);
+            CHECK(v.list_count == 1 && strcmp(v.list_name[0], "Plane") == 0);
+            CHECK_NEAR(v.unit_metres, 0.0254, 1e-15);
+            CHECK_EQ(v.up_axis, 2);
+            fprintf(stderr, "FBX 6.1 ASCII: 4 vertices of 'Plane', unit %g m, up %d\n", v.unit_metres, v.up_axis);
+        }
+        rbc_file_vertices_free(&v);
+    }
+    /* FBX 7 ASCII whose *N disagrees with its a: values, and a value that is not a
+     * number. */
+    static const char fbx7[] =
+        "; FBX 7.4.0 project file\nObjects:  {\n\tGeometry: 1, \"Geometry::G\", \"Mesh\" {\n"
+        "\t\tVertices: *%s {\n\t\t\ta: %s\n\t\t}\n\t}\n}\n";
+    char txt7[1024];
+    snprintf(txt7, sizeof txt7, fbx7, "6", "0,1,2,3,4,5");
+    spew(path, txt7, strlen(txt7));
+    {
+        rbc_file_vertices v;
+        char err[512];
+        CHECK_EQ(read_checked(rbc_fbx_file_vertices, path, &v, err, sizeof err), 1);
+        CHECK(v.count == 2 && v.xyz[5] == 5 && strcmp(v.list_name[0], "G") == 0);
+        CHECK_EQ(v.up_axis, -1);
+        CHECK_NEAR(v.unit_metres, 0, 0);
+        rbc_file_vertices_free(&v);
+    }
+    snprintf(txt7, sizeof txt7, fbx7, "9", "0,1,2,3,4,5");
+    spew(path, txt7, strlen(txt7));
+    expect_fail(rbc_fbx_file_vertices, path, "ASCII *N disagreeing", "declares *9");
+    snprintf(txt7, sizeof txt7, fbx7, "6", "0,1,2,3,4,5x");
+    spew(path, txt7, strlen(txt7));
+    expect_fail(rbc_fbx_file_vertices, path, "ASCII value not a number", "not a number");
+    snprintf(txt7, sizeof txt7, fbx7, "4", "0,1,2,3");
+    spew(path, txt7, strlen(txt7));
+    expect_fail(rbc_fbx_file_vertices, path, "ASCII count not a multiple of 3", "multiple of 3");
+    snprintf(txt7, sizeof txt7, fbx7, "6\"", "0,1,2,3,4,5");
+    spew(path, txt7, strlen(txt7));
+    expect_fail(rbc_fbx_file_vertices, path, "ASCII unterminated string", NULL);
 
     /* Other formats, empty and missing files. */
     snprintf(path, sizeof path, "%s/empty", tmp);
