@@ -196,10 +196,13 @@ static int parse_floats(dae_ctx *c, const xmlNode *fa, const char *gname, double
 /* One <mesh>: its POSITION source through its accessor, appended as a list. */
 static int read_mesh(dae_ctx *c, const xmlNode *root, const xmlNode *geom, const xmlNode *mesh) {
     char gname[256] = "", gid[128] = "", buf[256], nb[64], nb2[64];
-    if (!attr(geom, "name", gname, sizeof gname)) gname[0] = 0;
+    if (!attr(geom, "name", gname, sizeof gname)) gname[0] = 0; /* for messages */
     if (!attr(geom, "id", gid, sizeof gid)) gid[0] = 0;
     const char *label = gname[0] ? gname : gid;
-    if (!rbc_fv_begin_list(&c->b, gname, strlen(gname))) {
+    xmlChar *full = xmlGetNoNsProp(geom, (const xmlChar *)"name"); /* the name, whole */
+    int begun = rbc_fv_begin_list(&c->b, full ? (const char *)full : "", full ? strlen((const char *)full) : 0);
+    xmlFree(full);
+    if (!begun) {
         dfail(c, "out of memory or over 2^32 vertices");
         return 0;
     }
@@ -371,6 +374,8 @@ int rbc_dae_file_vertices(const char *path, rbc_file_vertices *out, char *err, s
     memset(&msgs, 0, sizeof msgs);
     xmlGenericErrorFunc old_generic = xmlGenericError;
     void *old_generic_ctx = xmlGenericErrorContext;
+    xmlStructuredErrorFunc old_structured = xmlStructuredError;
+    void *old_structured_ctx = xmlStructuredErrorContext;
     xmlSetGenericErrorFunc(NULL, silent_generic);
     xmlParserCtxtPtr px = xmlNewParserCtxt();
     xmlDocPtr doc = NULL;
@@ -382,7 +387,7 @@ int rbc_dae_file_vertices(const char *path, rbc_file_vertices *out, char *err, s
                                 XML_PARSE_NONET | XML_PARSE_NOERROR | XML_PARSE_NOWARNING |
                                     XML_PARSE_NOCDATA);
     }
-    xmlSetStructuredErrorFunc(NULL, NULL);
+    xmlSetStructuredErrorFunc(old_structured_ctx, old_structured);
     xmlSetGenericErrorFunc(old_generic_ctx, old_generic);
     free(data);
     int ret = 1;

@@ -87,8 +87,34 @@ int rbc_fv_begin_list(rbc_fv_builder *b, const char *name, size_t len) {
     }
     char *copy = malloc(len + 1);
     if (!copy) return 0;
-    if (len) memcpy(copy, name, len);
-    copy[len] = 0;
+    /* Valid UTF-8 out, whatever came in: a NUL, a stray or overlong byte, a
+     * surrogate or a cut-short sequence each become '?'. */
+    const unsigned char *u = (const unsigned char *)name;
+    size_t k = 0;
+    for (size_t i = 0; i < len;) {
+        unsigned c0 = u[i];
+        size_t n = c0 < 0x80 ? 1 : (c0 >= 0xC2 && c0 <= 0xDF) ? 2 : (c0 >= 0xE0 && c0 <= 0xEF) ? 3
+                 : (c0 >= 0xF0 && c0 <= 0xF4) ? 4 : 0;
+        int ok = n > 0 && c0 != 0 && i + n <= len;
+        for (size_t j = 1; ok && j < n; ++j) ok = (u[i + j] & 0xC0) == 0x80;
+        if (ok && n == 3) {
+            unsigned c1 = u[i + 1];
+            ok = !(c0 == 0xE0 && c1 < 0xA0) && !(c0 == 0xED && c1 >= 0xA0);
+        }
+        if (ok && n == 4) {
+            unsigned c1 = u[i + 1];
+            ok = !(c0 == 0xF0 && c1 < 0x90) && !(c0 == 0xF4 && c1 >= 0x90);
+        }
+        if (!ok) {
+            copy[k++] = '?';
+            i++;
+        } else {
+            memcpy(copy + k, u + i, n);
+            k += n;
+            i += n;
+        }
+    }
+    copy[k] = 0;
     b->name[b->lists] = copy;
     b->start[b->lists] = (uint32_t)(b->n / 3);
     b->lists++;

@@ -566,6 +566,27 @@ static int run_bad(const char *fix, const char *models, const char *tmp, size_t 
     spew(path, b, n);
     expect_fail(rbc_fbx_file_vertices, path, "damaged magic", "header");
 
+    /* A name that is not UTF-8 comes back as UTF-8. */
+    memcpy(b, d, n);
+    {
+        static const char nm[] = "ClothGrid\0\1Geometry";
+        unsigned char *at = NULL;
+        for (size_t i = 0; i + sizeof nm - 1 <= n && !at; ++i)
+            if (memcmp(d + i, nm, sizeof nm - 1) == 0) at = b + i;
+        CHECK(at != NULL);
+        if (at) {
+            at[0] = 0xff;
+            at[5] = 0xc3; /* a lead byte without its continuation */
+            spew(path, b, n);
+            rbc_file_vertices v;
+            char err[512];
+            CHECK_EQ(read_checked(rbc_fbx_file_vertices, path, &v, err, sizeof err), 1);
+            int li = list_named(&v, "?loth?rid");
+            CHECK(li >= 0);
+            rbc_file_vertices_free(&v);
+        }
+    }
+
     /* Random byte damage: never a crash; any result. */
     unsigned seed = 12345;
     for (int t = 0; t < 300; ++t) {
