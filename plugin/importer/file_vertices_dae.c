@@ -339,7 +339,7 @@ static int mentions_collada(const unsigned char *d, size_t n) {
         if (memcmp(d + i, a, 8) == 0) return 1;
     for (size_t i = 0; i + 16 <= lim; ++i) {
         int hit = 1;
-        for (int k = 0; k < 8 && hit; ++k) {
+        for (size_t k = 0; k < 8 && hit; ++k) {
             unsigned char x = d[i + 2 * k], y = d[i + 2 * k + 1];
             hit = (x == (unsigned char)a[k] && y == 0) || (x == 0 && y == (unsigned char)a[k]);
         }
