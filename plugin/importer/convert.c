@@ -1099,7 +1099,12 @@ static rbc_result read_file_lists(build *b, const struct aiScene *s) {
         if (b->file.count || b->file.list_start) return RBC_OK; /* OBJ, read already */
         r = rbc_fbx_file_vertices(b->path, &b->file, err, sizeof err);
         if (r == 0) r = rbc_dae_file_vertices(b->path, &b->file, err, sizeof err);
-        if (r == 0) return assimp_order(b, s);
+        /* A file assimp reads but our reader cannot (an FBX or Collada variant it does
+         * not know) still simulates: in assimp's order, which the report says. */
+        if (r <= 0) {
+            rbc_file_vertices_free(&b->file);
+            return assimp_order(b, s);
+        }
     }
     if (r < 0)
         return rbc_import_error(b->path, RBC_ERR_IO, "reading the file's vertex lists: %s", err);
