@@ -1023,6 +1023,69 @@ static rbc_result finish(build *b, rbc_mesh *out) {
 /* 0b. Checks assimp's own processing would hide                             */
 /* ------------------------------------------------------------------------- */
 
+/* An ASCII OFF file's face indices: assimp 5.2.5 replaces an index past the vertex
+ * count by the last vertex and reads the file as another mesh. The header is
+ * "[ST][C][N][4][n]OFF", the counts "V F E", V vertex lines, then F faces of "k i1 ..
+ * ik" (colors may follow). Only a clear integer index out of range is reported;
+ * anything this reading does not understand is left to assimp. */
+static rbc_result check_off_indices(build *b, const char *path) {
+    FILE *f = fopen(path, "rb");
+    if (!f) return RBC_OK; /* assimp says why */
+    char line[4096];
+    size_t lineno = 0;
+    long long nv = -1, nf = -1, v = 0, face = 0;
+    int header = 0;
+    rbc_result rc = RBC_OK;
+    while (rc == RBC_OK && fgets(line, sizeof line, f)) {
+        ++lineno;
+        char *hash = strchr(line, '#');
+        if (hash) *hash = '\0';
+        char *p = line;
+        while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n') ++p;
+        if (!*p) continue;
+        if (!header) {
+            while (*p == 'S' || *p == 'T' || *p == 'C' || *p == 'N' || *p == '4' || *p == 'n') ++p;
+            if (strncmp(p, "OFF", 3) != 0) break;
+            p += 3;
+            header = 1;
+            while (*p == ' ' || *p == '\t') ++p;
+            if (strncmp(p, "BINARY", 6) == 0) break;
+            if (!*p || *p == '\r' || *p == '\n') continue; /* counts on the next line */
+        }
+        if (nv < 0) {
+            char *e1, *e2;
+            nv = strtoll(p, &e1, 10);
+            nf = e1 != p ? strtoll(e1, &e2, 10) : -1;
+            if (e1 == p || nv < 0 || nf < 0) break;
+            continue;
+        }
+        if (v < nv) {
+            ++v;
+            continue;
+        }
+        if (face >= nf) break;
+        char *e;
+        long long k = strtoll(p, &e, 10);
+        if (e == p || k < 0 || k > 1 << 20) break;
+        p = e;
+        for (long long j = 0; j < k; ++j) {
+            long long idx = strtoll(p, &e, 10);
+            if (e == p) break;
+            p = e;
+            if (idx < 0 || idx >= nv) {
+                rc = rbc_import_error(b->path, RBC_ERR_BAD_MESH,
+                                      "line %zu, face %lld (0-based), corner %lld: vertex index "
+                                      "%lld is out of range (the file has %lld vertices)",
+                                      lineno, face, j, idx, nv);
+                break;
+            }
+        }
+        ++face;
+    }
+    fclose(f);
+    return rc;
+}
+
 /* A vertex with a non-finite coordinate that a face uses is refused before
  * JoinIdenticalVertices runs: it merges such a vertex into another one (the file
  * would import as a different mesh). */
@@ -1492,8 +1555,10 @@ rbc_result rbc_import_convert(const char *path, const rbc_mesh_import_def *def, 
         return rbc_import_error(b.path, RBC_ERR_IO,
                                 "assimp could not read the file: a PLY header without end_header "
                                 "(refused here: assimp 5.2.5 loops forever on it)");
-    /* An OBJ's "v" list, and its indices checked, before assimp reads it. */
+    /* An OBJ's "v" list, and its indices checked, before assimp reads it; an OFF's
+     * indices too (assimp would clamp them). */
     rc = read_file_lists(&b, NULL);
+    if (!rc && !is_ply && has_ext(path, ".off")) rc = check_off_indices(&b, path);
     if (rc) {
         build_free(&b);
         return rc;
@@ -1518,6 +1583,14 @@ rbc_result rbc_import_convert(const char *path, const rbc_mesh_import_def *def, 
         for (char *p = aierr; *p; ++p)
             if (*p == '\n' || *p == '\r') *p = ' ';
         build_free(&b);
+        /* assimp's ValidateDataStructure names the face and corner of an index
+         * out of range ("aiMesh::mFaces[0]::mIndices[3] is out of range"): the
+         * mesh is bad, not the file unreadable. */
+        if (strstr(aierr, "Validation failed") && strstr(aierr, "mIndices") &&
+            strstr(aierr, "out of range"))
+            return rbc_import_error(b.path, RBC_ERR_BAD_MESH,
+                                    "a face index is out of range: assimp's check says \"%s\"",
+                                    aierr);
         if (strstr(aierr, "No suitable reader found"))
             return rbc_import_error(b.path, RBC_ERR_UNSUPPORTED,
                                     "no assimp reader for this format: %s", aierr);
