@@ -1254,6 +1254,7 @@ static int cmp_grid_entry(const void *x, const void *y) {
 static void cell_of(const double p[3], double inv, int64_t c[3]) {
     for (int k = 0; k < 3; ++k) {
         double q = floor(p[k] * inv);
+        if (isnan(q)) q = 0.0; /* a loose non-finite vertex: never within h of anything */
         if (q > 4e18) q = 4e18;
         if (q < -4e18) q = -4e18;
         c[k] = (int64_t)q;
@@ -1361,7 +1362,6 @@ static rbc_result map_file_vertices(build *b, rbc_mesh *out) {
         rc = oom(b);
         goto done;
     }
-    uint8_t *inst_ok = (uint8_t *)kept; /* reused below after the grids are built */
     double big = 0.0;
     for (size_t i = 0; i < ns; ++i) {
         uint32_t w = b->weld_map[i];
@@ -1397,7 +1397,6 @@ static rbc_result map_file_vertices(build *b, rbc_mesh *out) {
         unmapped += v == UINT32_MAX;
     }
     for (size_t i = 0; i < ns; ++i) out->cv_file[i] = grid_nearest(&gf, fx, sx + 3 * i, h, NULL);
-    memset(inst_ok, 0, b->ninst < ns + 1 ? b->ninst : ns + 1);
     for (size_t k = 0; k < b->ninst; ++k) {
         if (!affine_inverse(b->inst[k].m, b->scale, out->inst_inv + 12 * k)) {
             /* a placement that flattens its mesh cannot be undone: its vertices keep
