@@ -62,4 +62,22 @@ static inline const char *text_file_write_in(const char *dir, const char *name, 
     fclose(f);
     return p;
 }
+
+/* A private folder $TMPDIR/STEM_XXXXXX (default /tmp) into dir (cap bytes), for the
+ * inputs a test writes; the test exits 2 if it cannot make one. */
+static inline void text_file_tempdir(char *dir, size_t cap, const char *stem) {
+    const char *tmp = getenv("TMPDIR");
+    snprintf(dir, cap, "%s/%s_XXXXXX", tmp ? tmp : "/tmp", stem);
+    if (!mkdtemp(dir)) {
+        perror("mkdtemp");
+        exit(2);
+    }
+}
+
+/* Remove that folder and what is in it. */
+static inline void text_file_remove_tree(const char *dir) {
+    char cmd[1100];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", dir);
+}
 #endif

@@ -385,17 +385,11 @@ static void test_loose_nan(void) {
 }
 
 int main(void) {
-    snprintf(g_dir, sizeof g_dir, "%s/rbc_order_XXXXXX", getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp");
-    if (!mkdtemp(g_dir)) {
-        perror("mkdtemp");
-        return 2;
-    }
+    text_file_tempdir(g_dir, sizeof g_dir, "rbc_order");
     test_obj_order();
     test_dae_units();
     test_pins_from_mesh();
     test_loose_nan();
-    char cmd[400];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_dir);
-    if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", g_dir);
+    text_file_remove_tree(g_dir);
     return check_report("import_file_order");
 }

@@ -544,11 +544,7 @@ static void test_bad_input(void) {
 }
 
 int main(void) {
-    snprintf(g_dir, sizeof g_dir, "%s/rbc_import_XXXXXX", getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp");
-    if (!mkdtemp(g_dir)) {
-        perror("mkdtemp");
-        return 2;
-    }
+    text_file_tempdir(g_dir, sizeof g_dir, "rbc_import");
     test_quad_grid();
     test_triangle_grid();
     test_ngons();
@@ -556,8 +552,6 @@ int main(void) {
     test_node_transforms();
     test_ply_pins();
     test_bad_input();
-    char cmd[400];
-    snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_dir);
-    if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", g_dir);
+    text_file_remove_tree(g_dir);
     return check_report("import_unit");
 }
