@@ -18,8 +18,15 @@
 #            state itself) under a keyframed sphere rising through it: every frame
 #            must equal the CLI's exactly (bound 0), so the collider was followed
 #            frame by frame with the poses the replay uses.
-#   cancel   a bake started, stepped 3 frames and cancelled (Baker.cancel, what the
-#            modal operator runs on Esc): no file is left in the cache folder.
+#            A box turning and rising is followed the same way.
+#   cancel   the modal operator's path (invoke needs a window, so its methods are
+#            driven headless with stand-in events): 3 timer events, a mouse move
+#            passed through, Esc: no file is left in the cache folder and no
+#            modifier added; then a modal bake run to its end writes the same bytes
+#            as the operator's execute; then a Baker cancelled directly.
+#   unsaved  a bake in a .blend never saved: the cache goes to the temporary
+#            folder (tempfile.gettempdir()/rbcloth), the modifier names it by its
+#            absolute path and plays it (frame 2 is sample 1 exactly).
 #   bad      the operator on an Empty, an empty mesh, a mesh with triangles, a
 #            missing pin group: each an error report (RuntimeError from bpy.ops
 #            naming the problem), not a Python traceback, and no file written.
@@ -54,7 +61,8 @@ assert rbcloth_blender.bake.rbcloth.api.path.startswith(addon_dir), \
     rbcloth_blender.bake.rbcloth.api.path
 scene = bpy.context.scene
 scene.render.fps, scene.render.fps_base = 30, 1.0
-bpy.ops.wm.save_as_mainfile(filepath=os.path.join(work, "scene.blend"))
+if mode != "unsaved":
+    bpy.ops.wm.save_as_mainfile(filepath=os.path.join(work, "scene.blend"))
 cache_dir = os.path.join(work, "rbcloth")
 
 
@@ -119,13 +127,15 @@ def rest(ob):
 if mode == "bake":
     ob = grid(location=(0.1, -0.2, 1.0), rotation=(0.0, 0.0, math.radians(30)))
     ball = sphere((0.1, -0.2, 0.55))
+    bpy.ops.mesh.primitive_plane_add(size=3.0, location=(0.1, -0.2, 0.2))
+    bpy.context.active_object.rbcloth.collider = 'MESH'
     json_path = bake(ob)
     mod = ob.modifiers[0]
     assert (mod.type, mod.cache_format, mod.frame_start) == ('MESH_CACHE', 'PC2', 1.0)
     assert mod.filepath == "//rbcloth/Cloth.pc2", mod.filepath  # beside the .blend
     scene_json = json.load(open(json_path))
-    assert scene_json["colliders"][0]["shape"] == "sphere"
-    assert "keyframes" not in scene_json["colliders"][0]  # static: no motion to replay
+    assert [c["shape"] for c in scene_json["colliders"]] == ["sphere", "mesh"]
+    assert not any("keyframes" in c for c in scene_json["colliders"])  # static
     cli_frames = replay(json_path)
     assert cli_frames.shape == (30, len(ob.data.vertices), 3), cli_frames.shape
     M = np.array(ob.matrix_world, np.float64)
@@ -153,9 +163,19 @@ elif mode == "moving":
     ball.keyframe_insert("location", frame=1)
     ball.location = (0.0, 0.0, 0.4)
     ball.keyframe_insert("location", frame=31)
+    bpy.ops.mesh.primitive_cube_add(size=0.3, location=(0.0, 0.45, -0.9))
+    box = bpy.context.active_object
+    box.rbcloth.collider, box.rbcloth.friction = 'BOX', 0.4
+    box.keyframe_insert("location", frame=1)
+    box.keyframe_insert("rotation_euler", frame=1)
+    box.location, box.rotation_euler = (0.0, 0.45, -0.5), (0.0, 0.0, math.radians(120))
+    box.keyframe_insert("location", frame=31)
+    box.keyframe_insert("rotation_euler", frame=31)
     json_path = bake(ob)
     scene_json = json.load(open(json_path))
-    assert len(scene_json["colliders"][0]["keyframes"]) == 31
+    keys = [c["keyframes"] for c in scene_json["colliders"]]
+    assert [len(k) for k in keys] == [31, 31]
+    assert keys[1][0]["rotation"] != keys[1][15]["rotation"]  # the box turns
     cli_frames = replay(json_path)
     assert np.array_equal(shown(ob, 1), rest(ob))
     for frame in range(2, 32):
@@ -164,9 +184,48 @@ elif mode == "moving":
     print("every frame equals rbcloth run exactly; highest vertex at z = %.3f m" % lifted)
     assert lifted > 0.3  # the sphere came up through the cloth's plane and carried it
 elif mode == "cancel":
+    from types import SimpleNamespace
+    Op = rbcloth_blender.RBCLOTH_OT_bake
+
+    class FakeOp:
+        """The operator's own methods on a stand-in instance (bpy.ops would need a
+        window for invoke's timer)."""
+        _timer = None
+        _begin, _step, _end, _stop_timer, modal = (
+            Op._begin, Op._step, Op._end, Op._stop_timer, Op.modal)
+
+        def __init__(self):
+            self.reports = []
+
+        def report(self, kind, message):
+            self.reports.append(message)
+
     ob = grid()
     sphere((0.0, 0.0, -0.5))
-    os.makedirs(cache_dir)
+    bpy.context.view_layer.objects.active = ob
+    ctx = bpy.context
+    op = FakeOp()
+    assert op._begin(ctx)
+    for _ in range(3):
+        assert op.modal(ctx, SimpleNamespace(type='TIMER')) == {'RUNNING_MODAL'}
+    assert op.modal(ctx, SimpleNamespace(type='MOUSEMOVE')) == {'PASS_THROUGH'}
+    assert os.listdir(cache_dir) == ["Cloth.pc2.tmp"]
+    assert op.modal(ctx, SimpleNamespace(type='ESC')) == {'CANCELLED'}
+    assert os.listdir(cache_dir) == [] and not ob.modifiers, os.listdir(cache_dir)
+    assert "cancelled" in op.reports[-1], op.reports
+    print("Esc after 3 frames: nothing written (%s)" % op.reports[-1])
+    op = FakeOp()
+    assert op._begin(ctx)
+    events = 1
+    while op.modal(ctx, SimpleNamespace(type='TIMER')) == {'RUNNING_MODAL'}:
+        events += 1
+    assert events == 30 and ob.modifiers[0].type == 'MESH_CACHE', events
+    modal_bytes = open(os.path.join(cache_dir, "Cloth.pc2"), "rb").read()
+    assert bake(ob) and open(os.path.join(cache_dir, "Cloth.pc2"), "rb").read() == modal_bytes
+    assert len(ob.modifiers) == 1  # the second bake reused the modifier
+    print("a modal bake of 30 timer events wrote what execute writes")
+    for f in os.listdir(cache_dir):
+        os.remove(os.path.join(cache_dir, f))
     path = os.path.join(cache_dir, "Cloth.pc2")
     b = rbcloth_blender.bake.Baker(scene, ob, path)
     assert os.listdir(cache_dir) == ["Cloth.pc2.tmp"]  # written while baking
@@ -174,8 +233,21 @@ elif mode == "cancel":
         assert b.step()
     b.cancel()
     assert os.listdir(cache_dir) == [], os.listdir(cache_dir)
-    assert not ob.modifiers
     print("cancelled after 3 frames: nothing left in", cache_dir)
+elif mode == "unsaved":
+    import tempfile
+    tempfile.tempdir = os.path.join(work, "tmp")
+    ob = grid()
+    bpy.context.view_layer.objects.active = ob
+    assert bpy.ops.rbcloth.bake() == {'FINISHED'}
+    pc2 = os.path.join(work, "tmp", "rbcloth", "Cloth.pc2")
+    assert sorted(os.listdir(os.path.dirname(pc2))) == ["Cloth.json", "Cloth.pc2"]
+    assert ob.modifiers[0].filepath == pc2, ob.modifiers[0].filepath
+    data = open(pc2, "rb").read()
+    n = len(ob.data.vertices)
+    sample1 = np.frombuffer(data[32 + n * 12: 32 + 2 * n * 12], "<f4").reshape(n, 3)
+    assert np.array_equal(shown(ob, 2), sample1) and not np.array_equal(sample1, rest(ob))
+    print("unsaved .blend: cache in", os.path.dirname(pc2))
 elif mode == "bad":
     def refused(ob, expect):
         bpy.context.view_layer.objects.active = ob
