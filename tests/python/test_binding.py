@@ -303,3 +303,31 @@ def test_table_and_abi_module():
     assert rbcloth.api.size == ctypes.sizeof(_abi.rbc_api_v1)
     assert all(rbcloth.api.has(n) for n in _abi.API_ENTRIES)
     assert _abi.RBC_CLOTH_DEF_SIZE_V1_0 == _abi.rbc_cloth_def.shear_stiffness.offset
+
+
+def test_log_hook_gets_the_strain_warnings():
+    """The paper's step (1 substep of 11 RBGS iterations) at 1/60 s overstretches a
+    40 x 40 grid; the library logs the first such step and every power of two after
+    it (rbc_world_def.strain_warning), each through the Python hook."""
+    msgs = []
+    p, q = grid(40, 40, 0.025)
+    with rbcloth.World(preset="paper", substeps=1, log=lambda l, m: msgs.append((l, m))) as w:
+        w.cloth(p, q, pins=[0, 39])
+        w.step(DT, steps=30)
+        n = w.stats()["strain_warning_steps"]
+    assert n > 0
+    assert len(msgs) == n.bit_length()  # steps 1, 2, 4, ... up to n
+    assert all(l == rbcloth.CONSTANTS["RBC_LOG_WARNING"] for l, _ in msgs)
+    assert "times its rest length" in msgs[0][1]
+
+
+def test_entries_of_a_newer_header_are_optional():
+    """An entry the header does not have (or the library's table lacks) raises
+    Error(RBC_ERR_UNSUPPORTED) naming it, instead of an AttributeError or a crash."""
+    from rbcloth import _abi
+    assert not rbcloth.api.has("no_such_entry")
+    with pytest.raises(rbcloth.Error) as e:
+        rbcloth.api("no_such_entry")
+    assert e.value.result == rbcloth.CONSTANTS["RBC_ERR_UNSUPPORTED"]
+    assert "no_such_entry" in e.value.message
+    assert rbcloth.api.has("mesh_get_file_map") == ("mesh_get_file_map" in _abi.API_ENTRIES)

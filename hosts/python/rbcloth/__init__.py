@@ -77,8 +77,11 @@ class _Api:
         self.size = self.table.struct_size
 
     def has(self, name):
-        f = getattr(_abi.rbc_api_v1, name)
-        return f.offset + f.size <= self.size and bool(getattr(self.table, name))
+        """Whether the loaded table has entry `name` (False for a name this
+        package's header does not know either)."""
+        f = getattr(_abi.rbc_api_v1, name, None)
+        return (f is not None and f.offset + f.size <= self.size
+                and bool(getattr(self.table, name)))
 
     def __call__(self, name, *args):
         """Call entry `name`; raise Error unless it returns RBC_OK."""
