@@ -331,3 +331,38 @@ def test_entries_of_a_newer_header_are_optional():
     assert e.value.result == rbcloth.CONSTANTS["RBC_ERR_UNSUPPORTED"]
     assert "no_such_entry" in e.value.message
     assert rbcloth.api.has("mesh_get_file_map") == ("mesh_get_file_map" in _abi.API_ENTRIES)
+
+
+def test_an_older_library_gets_an_older_def_size():
+    """A library older than the header refuses sizeof(rbc_cloth_def): the binding
+    falls back to the header's older sizes (RBC_CLOTH_DEF_SIZE_V1_1 here), and a field
+    beyond it is refused by name instead of being dropped silently. The older
+    library is played by a copy of the table whose cloth_def_init takes only the 1.1
+    size (the real one behind it)."""
+    from rbcloth import _abi
+    real = rbcloth.api.table
+    v11 = _abi.RBC_CLOTH_DEF_SIZE_V1_1
+    sizes = []
+
+    @ctypes.CFUNCTYPE(
+        ctypes.c_int32, ctypes.POINTER(_abi.rbc_cloth_def), ctypes.c_uint32)
+    def old_init(d, size):
+        sizes.append(size)
+        return real.cloth_def_init(d, size) if size == v11 else -1
+
+    fake = _abi.rbc_api_v1.from_buffer_copy(
+        ctypes.string_at(ctypes.addressof(real), ctypes.sizeof(real)))
+    fake.cloth_def_init = ctypes.cast(old_init, type(fake.cloth_def_init))
+    p, q = grid(3, 3, 0.1)
+    rbcloth.api.table = fake
+    try:
+        with rbcloth.World() as w:
+            c = w.cloth(p, q, pins=[0], stiffness=300)
+            assert sizes == [ctypes.sizeof(_abi.rbc_cloth_def), v11]
+            w.step(DT)
+            assert c.positions()[8, 1] < 0
+            with pytest.raises(rbcloth.Error) as e:
+                w.cloth(p, q, thickness=0.01)
+            assert e.value.name == "RBC_ERR_UNSUPPORTED" and "cloth.thickness" in e.value.message
+    finally:
+        rbcloth.api.table = real

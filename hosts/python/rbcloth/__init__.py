@@ -194,10 +194,42 @@ def _vec(x, n, what):
 
 # --- defs ---------------------------------------------------------------------
 
+def _sizes(cls):
+    """sizeof(cls), then the older released sizes the header names for it (its
+    RBC_*_SIZE_V* macros), largest first."""
+    older = {getattr(cls, f).offset for s, f in _abi.SIZE_MACROS.values() if s == cls.__name__}
+    return [ctypes.sizeof(cls)] + sorted(older, reverse=True)
+
+
+def _sized(cls, entry, *args, init=True):
+    """A struct filled by `entry`: `entry(&s, size, *args)` for an init function, or
+    `entry(*args, &s)` with s.struct_size = size for a getter. A library older than
+    this package's header refuses sizeof(cls) as an unknown size: the older sizes
+    are tried in turn, and the fields beyond the one it takes keep their zeros
+    (_set_fields refuses to set them). The first refusal is what is raised if none
+    is taken."""
+    first = None
+    for size in _sizes(cls):
+        s = cls()
+        try:
+            if init:
+                api(entry, ctypes.byref(s), size, *args)
+            else:
+                s.struct_size = size
+                api(entry, *args, ctypes.byref(s))
+                # rbc_mesh_get_info (1.8) copies its own record over the whole
+                # struct, struct_size included (0): keep the size it was asked for.
+                s.struct_size = size
+            return s
+        except Error as e:
+            if e.result != CONSTANTS["RBC_ERR_INVALID_ARGUMENT"]:
+                raise
+            first = first or e
+    raise first
+
+
 def _new_def(cls, init):
-    d = cls()
-    api(init, ctypes.byref(d), ctypes.sizeof(cls))
-    return d
+    return _sized(cls, init)
 
 
 def _set_fields(d, fields, what):
@@ -210,6 +242,12 @@ def _set_fields(d, fields, what):
         if name not in types or name == "struct_size":
             raise TypeError("%s: no field %r (fields: %s)"
                             % (what, name, ", ".join(n for n in types if n != "struct_size")))
+        f = getattr(type(d), name)
+        if f.offset + f.size > d.struct_size:
+            raise Error(CONSTANTS["RBC_ERR_UNSUPPORTED"],
+                        "%s.%s: the library (ABI %d.%d) takes the first %d bytes of %s, "
+                        "not this field" % (what, name, *abi_version(), d.struct_size,
+                                            type(d).__name__))
         if types[name] in ENUMS:
             value = _enum(types[name], value, "%s.%s" % (what, name))
         cur = getattr(d, name)
@@ -222,8 +260,12 @@ def _set_fields(d, fields, what):
 
 
 def _to_dict(s):
+    """The fields the library filled (those within s.struct_size) as a dict."""
     out = {}
     for name, _t in s._fields_:
+        f = getattr(type(s), name)
+        if f.offset + f.size > s.struct_size:
+            continue
         v = getattr(s, name)
         if isinstance(v, ctypes.Array):
             v = list(v)
@@ -235,9 +277,8 @@ def solver_def(preset=None, **fields):
     """An rbc_solver_def: rbc_solver_def_preset(preset) ("paper", "cloth",
     "game_60hz"; None = "cloth", the world's default solve), then `fields`.
     target_strain given without a mode switches the mode to "target"."""
-    d = _abi.rbc_solver_def()
-    api("solver_def_preset", ctypes.byref(d), ctypes.sizeof(d),
-        _enum("rbc_preset", "cloth" if preset is None else preset, "preset"))
+    d = _sized(_abi.rbc_solver_def, "solver_def_preset",
+               _enum("rbc_preset", "cloth" if preset is None else preset, "preset"))
     if fields.get("target_strain") is not None and fields.get("mode") is None:
         fields["mode"] = "target"
     _set_fields(d, fields, "solver")
@@ -313,15 +354,11 @@ class World:
 
     def solver(self):
         """The solver settings in use, as a dict of rbc_solver_def fields."""
-        d = _abi.rbc_solver_def()
-        d.struct_size = ctypes.sizeof(d)
-        api("world_get_solver", self.id, ctypes.byref(d))
-        return _to_dict(d)
+        return _to_dict(_sized(_abi.rbc_solver_def, "world_get_solver", self.id, init=False))
 
     def stats(self, skip_measures=False):
         """rbc_world_get_stats as a dict of rbc_world_stats fields."""
-        s = _abi.rbc_world_stats()
-        api("world_stats_init", ctypes.byref(s), ctypes.sizeof(s))
+        s = _sized(_abi.rbc_world_stats, "world_stats_init")
         s.skip_measures = 1 if skip_measures else 0
         api("world_get_stats", self.id, ctypes.byref(s))
         return _to_dict(s)
@@ -551,10 +588,7 @@ class Mesh:
 
     def info(self):
         """rbc_mesh_get_info as a dict of rbc_mesh_info fields."""
-        i = _abi.rbc_mesh_info()
-        i.struct_size = ctypes.sizeof(i)
-        api("mesh_get_info", self.id, ctypes.byref(i))
-        return _to_dict(i)
+        return _to_dict(_sized(_abi.rbc_mesh_info, "mesh_get_info", self.id, init=False))
 
     def _get(self, entry, dtype, cols):
         n = ctypes.c_size_t()
