@@ -28,7 +28,7 @@
 #            folder (tempfile.gettempdir()/rbcloth), the modifier names it by its
 #            absolute path and plays it (frame 2 is sample 1 exactly).
 #   bad      the operator on an Empty, an empty mesh, a mesh with triangles, a
-#            missing pin group: each an error report (RuntimeError from bpy.ops
+#            missing pin group, a flat box collider, an empty frame range: each an error report (RuntimeError from bpy.ops
 #            naming the problem), not a Python traceback, and no file written.
 import json
 import math
@@ -89,10 +89,12 @@ def sphere(location, radius=0.25):
 
 def bake(ob):
     bpy.context.view_layer.objects.active = ob
+    scene.frame_set(7)
     t = time.time()
     r = bpy.ops.rbcloth.bake()
     print("bake: %s in %.2f s" % (r, time.time() - t))
     assert r == {'FINISHED'}, r
+    assert scene.frame_current == 7  # the user's frame is left as it was
     files = sorted(os.listdir(cache_dir))
     assert files == ["Cloth.json", "Cloth.pc2"], files
     return os.path.join(cache_dir, "Cloth.json")
@@ -271,6 +273,14 @@ elif mode == "bad":
     ob = grid()
     ob.rbcloth.pin_group = "nope"
     refused(ob, "no vertex group 'nope'")
+    ob.rbcloth.pin_group = "pins"
+    bpy.ops.mesh.primitive_plane_add(size=1.0, location=(0, 0, -1))
+    flat = bpy.context.active_object
+    flat.rbcloth.collider = 'BOX'
+    refused(ob, "box collider 'Plane' is flat")
+    flat.rbcloth.collider = 'NONE'
+    ob.rbcloth.frame_end = 1
+    refused(ob, "frame range 1-1 has no step")
 else:
     sys.exit("unknown mode %s" % mode)
 print("addon_bake %s: ok" % mode)

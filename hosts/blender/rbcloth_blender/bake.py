@@ -138,10 +138,10 @@ class Baker:
         s = ob.rbcloth
         self.scene, self.ob, self.path = scene, ob, cache_path
         self.start, self.end = s.frame_start, s.frame_end
+        self.user_frame = scene.frame_current
         if self.end <= self.start:
             raise BakeError("rbcloth: frame range %d-%d has no step" % (self.start, self.end))
         rest_local, quads, pins = cloth_mesh(ob, s.pin_group)
-        self.rest_local = rest_local
         self.dt = _f(scene.render.fps_base / scene.render.fps)
         self.frames = self.end - self.start
         scene.frame_set(self.start)
@@ -156,7 +156,7 @@ class Baker:
             scene.frame_set(f)
             for o in colliders:
                 poses[o.name].append(pose(o))
-        scene.frame_set(self.start)
+        scene.frame_set(self.start)  # shapes and scales are taken at the first frame
         cloth_keys = dict(vertex_mass=_f(s.vertex_mass), stiffness=_f(s.stiffness),
                           damping=_f(s.damping), thickness=_f(s.thickness),
                           friction=_f(s.friction))
@@ -190,12 +190,18 @@ class Baker:
                                            "rotation": q} for k, (p, q) in enumerate(seq)]
                     self.moving.append((c, [(p, loader_quaternion(q)) for p, q in seq]))
                 self.json["colliders"].append(entry)
-            self.cache = rbcloth.Cache(self.path + "", len(rest_local), format="pc2",
+            self.cache = rbcloth.Cache(self.path, len(rest_local), format="pc2",
                                        start_frame=self.start, sample_rate=1)
-        except rbcloth.Error as e:
+        except (rbcloth.Error, BakeError) as e:
             self.world.close()
+            scene.frame_set(self.user_frame)
+            raise e if isinstance(e, BakeError) else BakeError("rbcloth: %s" % e)
+        scene.frame_set(self.user_frame)  # the bake leaves the user's frame as it was
+        try:
+            self.cache.write(rest_local)  # sample 0: the rest pose, exactly the mesh's
+        except rbcloth.Error as e:
+            self.cancel()
             raise BakeError("rbcloth: %s" % e)
-        self.cache.write(rest_local)  # sample 0: the rest pose, exactly the mesh's
         self.k = 0
 
     def step(self):
