@@ -205,6 +205,13 @@ def test_presets_and_target_strain():
         w.step(DT, steps=5)
         st = w.stats()
         assert st["target_met"] == 1 and st["target_reached"] <= 0.02
+    with rbcloth.World(solver={"kind": "jacobi", "mode": "tolerance", "tolerance": 1e-4}) as w:
+        s = w.solver()
+        assert (s["solver"], s["mode"], s["tolerance"]) == (
+            rbcloth.CONSTANTS["RBC_SOLVER_JACOBI"], rbcloth.CONSTANTS["RBC_ITERATE_TOLERANCE"],
+            float(np.float32(1e-4)))
+        w.set_solver("game_60hz")
+        assert w.solver()["max_linear_iterations"] == 8
     with pytest.raises(ValueError):
         rbcloth.World(preset="fast")
     with pytest.raises(rbcloth.Error) as e:

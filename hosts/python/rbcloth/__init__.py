@@ -279,6 +279,8 @@ def solver_def(preset=None, **fields):
     target_strain given without a mode switches the mode to "target"."""
     d = _sized(_abi.rbc_solver_def, "solver_def_preset",
                _enum("rbc_preset", "cloth" if preset is None else preset, "preset"))
+    if "kind" in fields:  # the scene format's name for rbc_solver_def.solver
+        fields["solver"] = fields.pop("kind")
     if fields.get("target_strain") is not None and fields.get("mode") is None:
         fields["mode"] = "target"
     _set_fields(d, fields, "solver")
