@@ -15,7 +15,8 @@
 #            frames 2 and 16 against the CLI's samples 0 and 14 (one step apart is
 #            ~1e-2 m, far above the bound: an off-by-one frame mapping fails).
 #   moving   the grid at the origin (identity matrix: the cache is the simulated
-#            state itself) under a keyframed sphere rising through it: every frame
+#            state itself), solved by the game preset with a target strain of 3 %,
+#            under a keyframed sphere rising through it: every frame
 #            must equal the CLI's exactly (bound 0), so the collider was followed
 #            frame by frame with the poses the replay uses.
 #            A box turning and rising is followed the same way.
@@ -161,6 +162,9 @@ if mode == "bake":
     assert fell > 0.1 and -0.01 < gap < 0.01
 elif mode == "moving":
     ob = grid()
+    # The game preset with a target strain of its own: the solve the JSON must name.
+    ob.rbcloth.preset, ob.rbcloth.use_target_strain, ob.rbcloth.target_strain = \
+        'GAME_60HZ', True, 0.03
     ball = sphere((0.0, 0.0, -0.5), radius=0.2)
     ball.keyframe_insert("location", frame=1)
     ball.location = (0.0, 0.0, 0.4)
@@ -175,6 +179,8 @@ elif mode == "moving":
     box.keyframe_insert("rotation_euler", frame=31)
     json_path = bake(ob)
     scene_json = json.load(open(json_path))
+    assert scene_json["world"]["solver"] == {"preset": "game_60hz", "mode": "target",
+                                             "target_strain": float(np.float32(0.03))}
     keys = [c["keyframes"] for c in scene_json["colliders"]]
     assert [len(k) for k in keys] == [31, 31]
     assert keys[1][0]["rotation"] != keys[1][15]["rotation"]  # the box turns
