@@ -7,10 +7,13 @@ set -euo pipefail
 # zlib1g-dev: assimp's CMake config links /usr/lib/x86_64-linux-gnu/libz.so, which
 # libassimp-dev does not pull in (a fresh bookworm root fails to link without it).
 # libpng-dev: the viewer's PNG stills (hosts/cli/viewer.c).
+# libxml2-dev: the import helper reads a Collada file's own vertex order itself
+# (plugin/importer/file_vertices_dae.c), which assimp does not keep; zlib1g-dev also
+# serves its binary FBX reader's compressed arrays.
 # python3: the build generates the Python binding's ctypes module from abi/rbcloth.h
 # (hosts/python/gen_abi.py, standard library only) and zips the Blender add-on.
 build_pkgs=(cmake make gcc libc6-dev pkg-config libcjson-dev libsuitesparse-dev binutils
-            libassimp-dev zlib1g-dev libpng-dev python3)
+            libassimp-dev zlib1g-dev libpng-dev libxml2-dev python3)
 # slurm-wlm, munge: tests/slurm starts a one-node Slurm on localhost to run
 # samples/slurm/ (about 12 s to install on bookworm; the test skips without them).
 # chromium: tests/viewer loads the player page in headless Chromium (software WebGL)

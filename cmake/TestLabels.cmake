@@ -25,7 +25,7 @@ set(RBC_LABEL_THREADS_REGEX
   "^(core_rbgs|core_grid|core_clothcontact|abi_behaviour|abi_energy_guard|abi_target|abi_contact|abi_layer_order|abi_hardening|bench_scenes_quick|cli_batch)$"
   CACHE INTERNAL "")
 set(RBC_LABEL_VALGRIND_REGEX "valgrind" CACHE INTERNAL "")
-set(RBC_LABEL_BLENDER_REGEX "^blender_" CACHE INTERNAL "")
+set(RBC_LABEL_BLENDER_REGEX "^(blender_|import_file_vertices_blender_live$)" CACHE INTERNAL "")
 set(RBC_LABEL_SLURM_REGEX "^slurm_" CACHE INTERNAL "")
 
 function(rbc_label_tests folder)
