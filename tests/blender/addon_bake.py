@@ -1,7 +1,7 @@
 # addon_bake.py -- run inside Blender (blender -b --factory-startup --python-exit-code 1
 # --python addon_bake.py -- ZIP CLI WORKDIR MODE): install the add-on zip into the
-# fresh user folder that BLENDER_USER_SCRIPTS names, enable it, build a scene and
-# check the bake.
+# fresh user folder that BLENDER_USER_SCRIPTS names, enable it (and import a mesh
+# through the shipped library and helper), build a scene and check the bake.
 #
 #   bake     a pinned 17 x 17 grid, moved and turned (a non-identity matrix_world),
 #            over a sphere collider tagged through the add-on's property; the Bake
@@ -60,6 +60,16 @@ addon_dir = os.path.dirname(rbcloth_blender.__file__)
 assert addon_dir.startswith(os.path.realpath(user)) or addon_dir.startswith(user), addon_dir
 assert rbcloth_blender.bake.rbcloth.api.path.startswith(addon_dir), \
     rbcloth_blender.bake.rbcloth.api.path
+# The helper the library spawns for mesh import runs from the add-on's folder
+# (zipfile drops its execute bit; the add-on restores it).
+rb = rbcloth_blender.bake.rbcloth
+helper = os.path.join(addon_dir, "rbcloth", "rbcloth-import")
+assert os.access(helper, os.X_OK), helper
+rb.write_obj(os.path.join(work, "quad.obj"), np.array(
+    [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], np.float32), np.array([[0, 1, 2, 3]], np.uint32))
+with rb.Mesh(os.path.join(work, "quad.obj")) as m:
+    assert m.info()["quad_count"] == 1
+os.remove(os.path.join(work, "quad.obj"))
 scene = bpy.context.scene
 scene.render.fps, scene.render.fps_base = 30, 1.0
 if mode != "unsaved":
