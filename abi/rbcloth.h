@@ -70,7 +70,12 @@
  *    stats.step_max_strain and strain_warning_steps). 1.7: rbc_world_stats_init;
  *    the default thread count probes whether its threads pay. 1.8: mesh import
  *    runs in a helper process (rbcloth-import) with a time and a memory limit
- *    (rbc_mesh_import_def.timeout_ms, memory_limit_mb).
+ *    (rbc_mesh_import_def.timeout_ms, memory_limit_mb). 1.9: the round trip to the
+ *    file's own mesh: every imported mesh maps the file's vertices, in the file's
+ *    order, to its own (rbc_mesh_get_file_map, rbc_mesh_to_file_positions,
+ *    rbc_mesh_write_file_obj); the file's units (rbc_mesh_import_def.keep_file_units,
+ *    rbc_mesh_info.file_unit_metres and applied_scale); MDD times in seconds
+ *    (rbc_cache_def.frame_rate).
  *  - The ABI version is not the library's release version (rbc_version_string).
  */
 #ifndef RBCLOTH_H
@@ -102,7 +107,7 @@ extern "C" {
 /// Major version of this ABI: incompatible changes bump it.
 #define RBC_ABI_VERSION_MAJOR 1
 /// Minor version of this ABI: appended functions or fields bump it.
-#define RBC_ABI_VERSION_MINOR 8
+#define RBC_ABI_VERSION_MINOR 9
 /// (major << 16) | minor, as returned by rbc_abi_version().
 #define RBC_ABI_VERSION ((RBC_ABI_VERSION_MAJOR << 16) | RBC_ABI_VERSION_MINOR)
 
@@ -203,7 +208,8 @@ enum {
     /// PC2 (Blender's Mesh Cache modifier, 3ds Max): little-endian, "POINTCACHE2".
     RBC_CACHE_PC2 = 1,
     /// MDD (LightWave, Blender's Mesh Cache modifier): big-endian; int32 frames,
-    /// int32 points, float32 times[frames] (start_frame + k * sample_rate), then
+    /// int32 points, float32 times[frames] in seconds ((start_frame + k *
+    /// sample_rate) / frame_rate; before 1.9 the frame numbers themselves), then
     /// float32[frames][points][3]. (1.2)
     RBC_CACHE_MDD = 2,
     /// A sequence of Wavefront OBJ files, one per frame: `path` is a prefix and
@@ -693,10 +699,21 @@ typedef struct rbc_cache_def {
     /// lines only. Ignored by PC2 and MDD. Default NULL, 0. (1.2)
     const uint32_t *quads;
     uint32_t quad_count;
+    /// Unused and ignored: the 1.2-1.8 layout's trailing padding, named so that the
+    /// 1.9 field below starts after the size those hosts pass (48 bytes on LP64).
+    uint32_t reserved_v1_2;
+    /* --- 1.9 --- */
+    /// Frames per second, finite and > 0: MDD stores times in seconds, frame /
+    /// frame_rate, which Blender's Mesh Cache modifier plays in its TIME mode at the
+    /// scene's rate. Ignored by PC2 and OBJ sequences. Default 24 (Blender's default
+    /// scene rate); a def of an older size gets 24 too.
+    float frame_rate;
 } rbc_cache_def;
 
 /// sizeof(rbc_cache_def) in ABI 1.0 and 1.1 (before quads).
 #define RBC_CACHE_DEF_SIZE_V1_0 ((uint32_t)offsetof(rbc_cache_def, quads))
+/// sizeof(rbc_cache_def) in ABI 1.2 to 1.8 (before frame_rate).
+#define RBC_CACHE_DEF_SIZE_V1_2 ((uint32_t)offsetof(rbc_cache_def, frame_rate))
 
 /* ------------------------------------------------------------------------- */
 /* Stats                                                                     */
@@ -1145,10 +1162,33 @@ typedef struct rbc_mesh_import_def {
     /// fails with RBC_ERR_OUT_OF_MEMORY. 0 = half of the machine's physical memory.
     /// Default 0. (Not applied in sanitizer builds of the helper.)
     uint32_t memory_limit_mb;
+    /* --- 1.9 --- */
+    /// 0: convert the file's declared unit to metres (an FBX's UnitScaleFactor, a
+    /// Collada <unit meter>; glTF is metres; OBJ, PLY, STL declare none and are
+    /// taken as metres), then apply `scale`. 1: keep the file's units (only `scale`
+    /// is applied). rbc_mesh_info.file_unit_metres and applied_scale say what was
+    /// found and done. Default 0.
+    uint32_t keep_file_units;
 } rbc_mesh_import_def;
 
 /// sizeof(rbc_mesh_import_def) in ABI 1.2 to 1.7 (before timeout_ms).
 #define RBC_MESH_IMPORT_DEF_SIZE_V1_2 ((uint32_t)offsetof(rbc_mesh_import_def, timeout_ms))
+/// sizeof(rbc_mesh_import_def) in ABI 1.8 (before keep_file_units).
+#define RBC_MESH_IMPORT_DEF_SIZE_V1_8 ((uint32_t)offsetof(rbc_mesh_import_def, keep_file_units))
+
+/// Where rbc_mesh_info.file_vertex_count's vertices come from. (1.9)
+typedef int32_t rbc_file_order;
+enum {
+    /// The file's own position lists, as Blender, Maya and the other DCCs create a
+    /// mesh's vertices from them: OBJ "v" lines, FBX Geometry Vertices (control
+    /// points), Collada <vertices> POSITION sources; several lists in file order.
+    RBC_FILE_ORDER_FILE = 1,
+    /// The vertex arrays as assimp reads them, mesh after mesh: the file's order for
+    /// formats whose vertices assimp keeps as they are (glTF accessors, one list per
+    /// primitive; PLY's vertex element, ...).
+    RBC_FILE_ORDER_ASSIMP = 2,
+    RBC_FILE_ORDER_FORCE32 = 0x7FFFFFFF
+};
 
 /// What rbc_mesh_import made of a file, read with rbc_mesh_get_info (set
 /// struct_size first). Counts of faces are of the meshes taken. (1.2)
@@ -1203,7 +1243,25 @@ typedef struct rbc_mesh_info {
     /// Axis-aligned bounds of the positions, metres.
     float bounds_min[3];
     float bounds_max[3];
+    /* --- 1.9 --- */
+    /// The file's own vertices (rbc_mesh_get_file_map): how many, where the list
+    /// comes from (an rbc_file_order), and how many of them no mesh vertex follows
+    /// (in no face taken: another mesh's, a loose vertex).
+    uint32_t file_vertex_count;
+    rbc_file_order file_order;
+    uint32_t unmapped_file_vertices;
+    /// Metres per unit as the file declares it (FBX UnitScaleFactor / 100, Collada
+    /// <unit meter>, glTF 1); 0 = the file declares none.
+    float file_unit_metres;
+    /// The factor between the file's coordinates (after its node transforms) and
+    /// the mesh's: the unit conversion (unless keep_file_units) times `scale`.
+    float applied_scale;
+    /// 1 when keep_file_units kept a declared unit that is not metres.
+    uint32_t file_units_kept;
 } rbc_mesh_info;
+
+/// sizeof(rbc_mesh_info) in ABI 1.2 to 1.8 (before file_vertex_count).
+#define RBC_MESH_INFO_SIZE_V1_2 ((uint32_t)offsetof(rbc_mesh_info, file_vertex_count))
 
 /// Fill an import def with its defaults (see rbc_world_def_init for struct_size).
 RBC_API rbc_result RBC_CALL rbc_mesh_import_def_init(rbc_mesh_import_def *def,
@@ -1251,12 +1309,15 @@ RBC_API rbc_result RBC_CALL rbc_mesh_get_springs(rbc_mesh_id mesh, uint32_t *spr
                                                  size_t capacity, size_t *out_count);
 RBC_API rbc_result RBC_CALL rbc_mesh_get_pins(rbc_mesh_id mesh, uint32_t *pins,
                                               size_t capacity, size_t *out_count);
-/// Create a cloth in `world` from a mesh: its positions, quads, springs and pins;
+/// Create a cloth in `world` from a mesh: its positions, quads, springs and pins
+/// (rbc_mesh_get_pins: the import's vertex colors, rules and pin group);
 /// everything else (masses or density or vertex_mass, stiffness, shear and bend
 /// stiffness, damping) from `settings` (NULL = the defaults). The geometry fields of
-/// settings (vertex_count, positions, quad_count, quads, spring_count, springs,
-/// pin_count, pins) are ignored; `masses`, if given, must hold the mesh's
-/// vertex_count values. Errors as rbc_cloth_create.
+/// settings (vertex_count, positions, quad_count, quads, spring_count, springs) are
+/// ignored; settings->pins (pin_count of them), if given, pin more vertices besides
+/// the import's (from 1.9; before, they were ignored), each an index below the
+/// mesh's vertex_count (else RBC_ERR_INVALID_ARGUMENT naming it); `masses`, if
+/// given, must hold the mesh's vertex_count values. Errors as rbc_cloth_create.
 RBC_API rbc_result RBC_CALL rbc_cloth_create_from_mesh(rbc_world_id world, rbc_mesh_id mesh,
                                                        const rbc_cloth_def *settings,
                                                        rbc_cloth_id *out_cloth);
@@ -1265,6 +1326,52 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create_from_mesh(rbc_world_id world, rbc_m
 /// (rbc_collider_def.mesh_triangles). As rbc_mesh_get_quads. (1.3)
 RBC_API rbc_result RBC_CALL rbc_mesh_get_triangles(rbc_mesh_id mesh, uint32_t *triangles,
                                                    size_t capacity, size_t *out_count);
+
+/* --- 1.9: the file's own mesh --- */
+
+/// Vertex orders of rbc_mesh_write_file_obj. (1.9)
+typedef int32_t rbc_vertex_order;
+enum {
+    /// The file's vertices in the file's order and coordinates (what a DCC that
+    /// imported the file has as the mesh's own, local, coordinates).
+    RBC_ORDER_FILE = 1,
+    /// The mesh's vertices (the simulation's order), in its coordinates.
+    RBC_ORDER_MESH = 2,
+    RBC_ORDER_FORCE32 = 0x7FFFFFFF
+};
+/// For every vertex of the file, in the file's own order (rbc_mesh_info.file_order:
+/// OBJ "v" lines, FBX control points, Collada position lists, glTF accessors), the
+/// mesh vertex it follows: an index into the mesh's positions, or UINT32_MAX for a
+/// file vertex in no face taken. Copies the file splits only for UVs or normals
+/// follow one mesh vertex (they are welded for the simulation). An engine drives
+/// its own render mesh with it: render[k] = positions[map[k]] (mesh coordinates)
+/// or, in the file's coordinates, rbc_mesh_to_file_positions. As
+/// rbc_mesh_get_quads; file_vertex_count values. (1.9)
+RBC_API rbc_result RBC_CALL rbc_mesh_get_file_map(rbc_mesh_id mesh, uint32_t *map,
+                                                  size_t capacity, size_t *out_count);
+/// A state of a cloth made from this mesh, `xyz` (3 * vertex_count floats, as
+/// rbc_cloth_read_positions gives them; NULL = the mesh's rest positions;
+/// xyz_count counts its floats), in the file's vertex order and coordinates:
+/// out[k] is file vertex k with the scale, the unit conversion and its node
+/// transforms undone, which is what a DCC that imported the file holds as the
+/// mesh's local coordinates; a file vertex no mesh vertex follows stays where the
+/// file has it. `capacity` and *out_count count floats (3 * file_vertex_count);
+/// with `out` NULL only *out_count is set. Values of xyz must be finite. (1.9)
+RBC_API rbc_result RBC_CALL rbc_mesh_to_file_positions(rbc_mesh_id mesh, const float *xyz,
+                                                       size_t xyz_count, float *out,
+                                                       size_t capacity, size_t *out_count);
+/// Write a state (`xyz` as for rbc_mesh_to_file_positions, NULL = rest) as a
+/// Wavefront OBJ with the file's own faces (n-gons and triangles as the file has
+/// them, not the quads made for the simulation), its texture coordinates, its
+/// normals (at rest) and a "g" group per placement of a mesh taken, named after
+/// its node (or mesh). RBC_ORDER_FILE: "v" lines in the file's order and
+/// coordinates, one per file vertex (the file's vertex count, so a cache in that
+/// order plays on it); RBC_ORDER_MESH: "v" lines are the mesh's vertices and the
+/// faces use them. Floats are written with %.9g (they read back exactly). The file
+/// is written to "<path>.tmp" and renamed; on error nothing appears. (1.9)
+RBC_API rbc_result RBC_CALL rbc_mesh_write_file_obj(rbc_mesh_id mesh, const float *xyz,
+                                                    size_t xyz_count, rbc_vertex_order order,
+                                                    const char *path);
 
 /* ------------------------------------------------------------------------- */
 /* Function table                                                            */
@@ -1372,6 +1479,15 @@ typedef struct rbc_api_v1 {
                                              rbc_preset preset);
     /* --- 1.7 --- */
     rbc_result (RBC_CALL *world_stats_init)(rbc_world_stats *stats, uint32_t struct_size);
+    /* --- 1.9 --- */
+    rbc_result (RBC_CALL *mesh_get_file_map)(rbc_mesh_id mesh, uint32_t *map, size_t capacity,
+                                             size_t *out_count);
+    rbc_result (RBC_CALL *mesh_to_file_positions)(rbc_mesh_id mesh, const float *xyz,
+                                                  size_t xyz_count, float *out, size_t capacity,
+                                                  size_t *out_count);
+    rbc_result (RBC_CALL *mesh_write_file_obj)(rbc_mesh_id mesh, const float *xyz,
+                                               size_t xyz_count, rbc_vertex_order order,
+                                               const char *path);
 } rbc_api_v1;
 
 /// sizeof(rbc_api_v1) in ABI 1.0 (a host built against 1.0 checks struct_size >= it).
@@ -1384,6 +1500,8 @@ typedef struct rbc_api_v1 {
 #define RBC_API_V1_SIZE_V1_3 ((uint32_t)offsetof(rbc_api_v1, solver_def_preset))
 /// sizeof(rbc_api_v1) in ABI 1.4 to 1.6 (before the 1.7 entries).
 #define RBC_API_V1_SIZE_V1_6 ((uint32_t)offsetof(rbc_api_v1, world_stats_init))
+/// sizeof(rbc_api_v1) in ABI 1.7 and 1.8 (before the 1.9 entries).
+#define RBC_API_V1_SIZE_V1_8 ((uint32_t)offsetof(rbc_api_v1, mesh_get_file_map))
 
 /// The function table of ABI major `abi_major`, or NULL if this library does not
 /// implement that major. The table is static: never free it.

@@ -69,6 +69,9 @@ static const rbc_api_v1 g_api_v1 = {
     rbc_mesh_get_triangles,
     rbc_solver_def_preset,
     rbc_world_stats_init,
+    rbc_mesh_get_file_map,
+    rbc_mesh_to_file_positions,
+    rbc_mesh_write_file_obj,
 };
 
 RBC_API const void *RBC_CALL rbc_get_api(uint32_t abi_major) {

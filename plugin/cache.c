@@ -130,7 +130,11 @@ RBC_API rbc_result RBC_CALL rbc_cache_def_init(rbc_cache_def *def, uint32_t stru
     d.sample_rate = 1.0f;
     d.quads = NULL;
     d.quad_count = 0;
-    return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_CACHE_DEF_SIZE_V1_0,
+    d.frame_rate = 24.0f;
+    /* Three released sizes: 1.0-1.1, 1.2-1.8 and this one. */
+    return rbc_def_init_common(def, struct_size, &d, sizeof d,
+                               struct_size == RBC_CACHE_DEF_SIZE_V1_2 ? RBC_CACHE_DEF_SIZE_V1_2
+                                                                      : RBC_CACHE_DEF_SIZE_V1_0,
                                "rbc_cache_def_init", "rbc_cache_def");
 }
 
@@ -179,15 +183,17 @@ RBC_API rbc_result RBC_CALL rbc_cache_create(const rbc_cache_def *user_def, rbc_
     *out = 0;
     if (!user_def) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: def is NULL", fn);
     if (user_def->struct_size != sizeof(rbc_cache_def) &&
-        user_def->struct_size != RBC_CACHE_DEF_SIZE_V1_0)
+        user_def->struct_size != RBC_CACHE_DEF_SIZE_V1_0 &&
+        user_def->struct_size != RBC_CACHE_DEF_SIZE_V1_2)
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                              "%s: rbc_cache_def->struct_size is %u, which matches no released "
-                             "version (this library knows %zu and the older size %u)",
+                             "version (this library knows %zu and the older sizes %u, %u)",
                              fn, user_def->struct_size, sizeof(rbc_cache_def),
-                             RBC_CACHE_DEF_SIZE_V1_0);
+                             RBC_CACHE_DEF_SIZE_V1_0, RBC_CACHE_DEF_SIZE_V1_2);
     /* Fields the host's struct does not have take their defaults. */
     rbc_cache_def def;
     memset(&def, 0, sizeof def);
+    def.frame_rate = 24.0f;
     memcpy(&def, user_def, user_def->struct_size);
     if (def.format != RBC_CACHE_PC2 && def.format != RBC_CACHE_MDD &&
         def.format != RBC_CACHE_OBJ_SEQUENCE)
@@ -199,6 +205,11 @@ RBC_API rbc_result RBC_CALL rbc_cache_create(const rbc_cache_def *user_def, rbc_
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: path is empty", fn);
     if (def.point_count == 0)
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: point_count is 0", fn);
+    if (def.format == RBC_CACHE_MDD && !(isfinite(def.frame_rate) && def.frame_rate > 0.0f))
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                             "%s: frame_rate %g must be finite and > 0 (frames per second of "
+                             "the MDD's times)",
+                             fn, (double)def.frame_rate);
     if (!isfinite(def.start_frame) || !(isfinite(def.sample_rate) && def.sample_rate > 0.0f))
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                              "%s: start_frame %g and sample_rate %g must be finite, the rate > 0",
@@ -332,7 +343,9 @@ static int finish_mdd(cache *c) {
     FILE *out = in ? fopen(c->tmp_path, "wb") : NULL;
     ok = in && out && put_u32be(out, c->frames) && put_u32be(out, c->def.point_count);
     for (uint32_t k = 0; ok && k < c->frames; ++k)
-        ok = put_f32be(out, c->def.start_frame + (float)k * c->def.sample_rate);
+        /* seconds: Blender's modifier turns them back into frames at the scene's rate */
+        ok = put_f32be(out, (float)(((double)c->def.start_frame +
+                                     (double)k * c->def.sample_rate) / c->def.frame_rate));
     char buf[1 << 16];
     size_t n;
     while (ok && (n = fread(buf, 1, sizeof buf, in)) > 0) ok = fwrite(buf, 1, n, out) == n;

@@ -10,6 +10,7 @@
  * libraries out of the plugin that an engine loads. The cost is a spawn per import
  * (about 17 ms on small files, docs/results/import.md) and a copy of the mesh. */
 #define _GNU_SOURCE /* dladdr, pipe2 */
+#include <ctype.h>
 #include <dlfcn.h>
 #include <errno.h>
 #include <fcntl.h>
@@ -70,13 +71,18 @@ static rbc_mesh_import_def import_def_defaults(void) {
     d.pin_top_tolerance = 1e-4f;
     d.timeout_ms = RBC_IMPORT_DEFAULT_TIMEOUT_MS;
     d.memory_limit_mb = 0;
+    d.keep_file_units = 0;
     return d;
 }
 
 RBC_API rbc_result RBC_CALL rbc_mesh_import_def_init(rbc_mesh_import_def *def,
                                                      uint32_t struct_size) {
     rbc_mesh_import_def d = import_def_defaults();
-    return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_MESH_IMPORT_DEF_SIZE_V1_2,
+    /* Three released sizes: 1.2-1.7, 1.8 and this one. */
+    return rbc_def_init_common(def, struct_size, &d, sizeof d,
+                               struct_size == RBC_MESH_IMPORT_DEF_SIZE_V1_8
+                                   ? RBC_MESH_IMPORT_DEF_SIZE_V1_8
+                                   : RBC_MESH_IMPORT_DEF_SIZE_V1_2,
                                "rbc_mesh_import_def_init",
                                "rbc_mesh_import_def");
 }
@@ -133,6 +139,10 @@ static rbc_result check_def(const char *path, const rbc_mesh_import_def *d) {
             if (!isfinite(d->pin_point[c]))
                 return rbc_import_error(path, RBC_ERR_INVALID_ARGUMENT,
                                         "def->pin_point[%d] is not finite", c);
+    if (d->keep_file_units > 1)
+        return rbc_import_error(path, RBC_ERR_INVALID_ARGUMENT,
+                                "def->keep_file_units is %u; it must be 0 or 1",
+                                d->keep_file_units);
     if (d->pin_top_axis < -1 || d->pin_top_axis > 2)
         return rbc_import_error(path, RBC_ERR_INVALID_ARGUMENT,
                                 "def->pin_top_axis is %d; 0 (x), 1 (y), 2 (z) or -1 (off)",
@@ -202,16 +212,19 @@ static size_t frame_size(const answer_buf *a) {
     size_t need = fixed + w[2];
     if ((int32_t)w[1] != RBC_OK) return need;
     const size_t info_at = need;
-    need += sizeof(uint32_t) + sizeof(rbc_mesh_info) + 5 * sizeof(uint32_t);
+    uint32_t isz, c[RBC_MESH_COUNTS];
+    need += sizeof isz + sizeof(rbc_mesh_info) + sizeof c;
     if (a->n < need) return 0;
-    uint32_t isz, c[5];
     memcpy(&isz, a->p + info_at, sizeof isz);
     if (isz != sizeof(rbc_mesh_info)) return SIZE_MAX;
     memcpy(c, a->p + info_at + sizeof isz + sizeof(rbc_mesh_info), sizeof c);
-    for (int i = 0; i < 5; ++i)
+    for (int i = 0; i < RBC_MESH_COUNTS; ++i)
         if (c[i] > RBC_IMPORT_MAX_ELEMENTS) return SIZE_MAX;
-    return need + sizeof(float) * 3 * (size_t)c[0] +
-           sizeof(uint32_t) * (4 * (size_t)c[1] + 2 * (size_t)c[2] + c[3] + 3 * (size_t)c[4]);
+    rbc_mesh scratch;
+    rbc_mesh_array arr[RBC_MESH_ARRAYS];
+    rbc_mesh_arrays(&scratch, c, arr);
+    for (int i = 0; arr[i].p; ++i) need += arr[i].bytes;
+    return need;
 }
 
 /* Split the complete frame into *m (arrays malloc'd). */
@@ -233,24 +246,16 @@ static rbc_result parse_answer(const answer_buf *a, const char *path, rbc_mesh *
     q += w[2] + sizeof(uint32_t);
     memcpy(&m->info, q, sizeof m->info);
     q += sizeof m->info;
-    uint32_t c[5];
+    uint32_t c[RBC_MESH_COUNTS];
     memcpy(c, q, sizeof c);
     q += sizeof c;
-    m->n = c[0], m->nq = c[1], m->ns = c[2], m->np = c[3], m->nlt = c[4];
-    struct {
-        void **dst;
-        size_t bytes;
-    } arr[] = {
-        {(void **)&m->pos, 3 * sizeof(float) * (size_t)m->n},
-        {(void **)&m->quads, 4 * sizeof(uint32_t) * (size_t)m->nq},
-        {(void **)&m->springs, 2 * sizeof(uint32_t) * (size_t)m->ns},
-        {(void **)&m->pins, sizeof(uint32_t) * (size_t)m->np},
-        {(void **)&m->ltris, 3 * sizeof(uint32_t) * (size_t)m->nlt},
-    };
-    for (size_t i = 0; i < sizeof arr / sizeof arr[0]; ++i) {
-        *arr[i].dst = malloc(arr[i].bytes + 1);
-        if (!*arr[i].dst) return rbc_import_error(path, RBC_ERR_OUT_OF_MEMORY, "out of memory");
-        memcpy(*arr[i].dst, q, arr[i].bytes);
+    rbc_mesh_set_counts(m, c);
+    rbc_mesh_array arr[RBC_MESH_ARRAYS];
+    rbc_mesh_arrays(m, c, arr);
+    for (int i = 0; arr[i].p; ++i) {
+        *arr[i].p = malloc(arr[i].bytes + 1);
+        if (!*arr[i].p) return rbc_import_error(path, RBC_ERR_OUT_OF_MEMORY, "out of memory");
+        memcpy(*arr[i].p, q, arr[i].bytes);
         q += arr[i].bytes;
     }
     /* The helper is ours, but what it sends is checked like input: an index out of
@@ -260,6 +265,21 @@ static rbc_result parse_answer(const answer_buf *a, const char *path, rbc_mesh *
     for (size_t i = 0; i < 2 * (size_t)m->ns; ++i) bad |= m->springs[i] >= m->n;
     for (size_t i = 0; i < m->np; ++i) bad |= m->pins[i] >= m->n;
     for (size_t i = 0; i < 3 * (size_t)m->nlt; ++i) bad |= m->ltris[i] >= m->n;
+    for (size_t k = 0; k < m->nf; ++k) {
+        bad |= m->file_map[k] >= m->n && m->file_map[k] != UINT32_MAX;
+        bad |= m->file_inst[k] >= m->ninst && m->file_inst[k] != UINT32_MAX;
+    }
+    for (size_t i = 0; i < m->ncv; ++i) {
+        bad |= m->cv_file[i] >= m->nf && m->cv_file[i] != UINT32_MAX;
+        bad |= m->cv_mesh[i] >= m->n && m->cv_mesh[i] != UINT32_MAX;
+    }
+    for (size_t f = 0; f < m->nfc; ++f) {
+        bad |= m->fc_start[f] > m->fc_start[f + 1] || m->fc_inst[f] >= m->ninst;
+    }
+    bad |= m->fc_start[m->nfc] != m->nfcorner || (m->nfc && m->fc_start[0] != 0);
+    for (size_t i = 0; i < m->nfcorner; ++i) bad |= m->fc_corner[i] >= m->ncv;
+    for (size_t k = 0; k < m->ninst; ++k) m->inst_name[k][63] = '\0';
+    bad |= m->info.file_vertex_count != m->nf;
     if (bad || m->info.vertex_count != m->n || m->info.quad_count != m->nq)
         return rbc_import_error(path, RBC_ERR_IO, "the import helper sent a malformed mesh");
     return RBC_OK;
@@ -473,12 +493,14 @@ RBC_API rbc_result RBC_CALL rbc_mesh_import(const char *path, const rbc_mesh_imp
     if (user_def) {
         uint32_t size;
         memcpy(&size, user_def, sizeof size);
-        if (size != sizeof def && size != RBC_MESH_IMPORT_DEF_SIZE_V1_2)
+        if (size != sizeof def && size != RBC_MESH_IMPORT_DEF_SIZE_V1_2 &&
+            size != RBC_MESH_IMPORT_DEF_SIZE_V1_8)
             return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                                  "%s: def->struct_size is %u, which matches no released version "
-                                 "(this library knows %zu and the older size %u); set it to "
-                                 "sizeof(rbc_mesh_import_def)",
-                                 fn, size, sizeof def, RBC_MESH_IMPORT_DEF_SIZE_V1_2);
+                                 "(this library knows %zu and the older sizes %u, %u); set it "
+                                 "to sizeof(rbc_mesh_import_def)",
+                                 fn, size, sizeof def, RBC_MESH_IMPORT_DEF_SIZE_V1_2,
+                                 RBC_MESH_IMPORT_DEF_SIZE_V1_8);
         memcpy(&def, user_def, size); /* an older def keeps the newer fields' defaults */
         def.struct_size = sizeof def;
     }
@@ -535,12 +557,14 @@ RBC_API rbc_result RBC_CALL rbc_mesh_get_info(rbc_mesh_id id, rbc_mesh_info *out
     rbc_mesh *m = lookup_mesh(id, fn);
     if (!m) return RBC_ERR_STALE_HANDLE;
     if (!out) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: info is NULL", fn);
-    if (out->struct_size != sizeof(rbc_mesh_info))
+    uint32_t size = out->struct_size;
+    if (size != sizeof(rbc_mesh_info) && size != RBC_MESH_INFO_SIZE_V1_2)
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                              "%s: info->struct_size is %u, which matches no released version "
-                             "(this library knows %zu)",
-                             fn, out->struct_size, sizeof(rbc_mesh_info));
-    *out = m->info;
+                             "(this library knows %zu and the older size %u)",
+                             fn, size, sizeof(rbc_mesh_info), RBC_MESH_INFO_SIZE_V1_2);
+    memcpy(out, &m->info, size);
+    out->struct_size = size;
     return RBC_OK;
 }
 
@@ -642,9 +666,39 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create_from_mesh(rbc_world_id world, rbc_m
     def.quads = m->quads;
     def.spring_count = m->ns;
     def.springs = m->springs;
-    def.pin_count = m->np;
-    def.pins = m->pins;
+    /* The import's pins, and the host's own on top (settings->pins: extra pins, not
+     * a replacement; each checked against the mesh here, naming the index). */
+    uint32_t *pins = NULL;
+    size_t np = m->np;
+    if (settings && def.pin_count) {
+        if (!def.pins)
+            return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                                 "%s: mesh 0x%08x: settings->pin_count is %u but pins is NULL",
+                                 fn, id, def.pin_count);
+        for (uint32_t k = 0; k < def.pin_count; ++k)
+            if (def.pins[k] >= m->n)
+                return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                                     "%s: mesh 0x%08x: settings->pins[%u] is vertex %u; the mesh "
+                                     "has %u vertices",
+                                     fn, id, k, def.pins[k], m->n);
+        uint8_t *seen = calloc((size_t)m->n + 1, 1);
+        pins = malloc(((size_t)m->np + def.pin_count + 1) * sizeof *pins);
+        if (!seen || !pins) {
+            free(seen);
+            free(pins);
+            return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: mesh 0x%08x: out of memory", fn, id);
+        }
+        for (uint32_t k = 0; k < m->np; ++k) seen[m->pins[k]] = 1;
+        for (uint32_t k = 0; k < def.pin_count; ++k) seen[def.pins[k]] = 1;
+        np = 0;
+        for (uint32_t v = 0; v < m->n; ++v)
+            if (seen[v]) pins[np++] = v;
+        free(seen);
+    }
+    def.pin_count = (uint32_t)np;
+    def.pins = pins ? pins : m->pins;
     rbc_result rc = rbc_cloth_create(world, &def, out_cloth);
+    free(pins);
     if (rc) {
         char inner[RBC_ERROR_CAP];
         snprintf(inner, sizeof inner, "%s", rbc_last_error());
@@ -653,3 +707,186 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create_from_mesh(rbc_world_id world, rbc_m
     return rc;
 }
 
+
+/* ------------------------------------------------------------------------- */
+/* The file's own mesh (1.9)                                                 */
+/* ------------------------------------------------------------------------- */
+
+RBC_API rbc_result RBC_CALL rbc_mesh_get_file_map(rbc_mesh_id id, uint32_t *map, size_t capacity,
+                                                  size_t *out_count) {
+    static const char fn[] = "rbc_mesh_get_file_map";
+    rbc_mesh *m = lookup_mesh(id, fn);
+    if (!m) return RBC_ERR_STALE_HANDLE;
+    return copy_out(id, fn, "file map", m->file_map, m->nf, sizeof(uint32_t), map, capacity,
+                    out_count);
+}
+
+/* xyz (3n floats, or NULL for the rest positions) checked for `fn`. */
+static rbc_result check_state(const rbc_mesh *m, const char *fn, const float *xyz,
+                              size_t xyz_count) {
+    if (!xyz) return RBC_OK;
+    if (xyz_count != 3 * (size_t)m->n)
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                             "%s: mesh 0x%08x has %u vertices, so xyz must hold %zu floats; "
+                             "xyz_count is %zu",
+                             fn, m->id, m->n, 3 * (size_t)m->n, xyz_count);
+    for (size_t i = 0; i < xyz_count; ++i)
+        if (!isfinite(xyz[i]))
+            return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                                 "%s: mesh 0x%08x: xyz[%zu] (vertex %zu, coordinate %zu) is not "
+                                 "finite",
+                                 fn, m->id, i, i / 3, i % 3);
+    return RBC_OK;
+}
+
+/* File vertex k of state p (mesh coordinates) back in the file's coordinates. */
+static void to_file(const rbc_mesh *m, const float *p, size_t k, float out[3]) {
+    uint32_t v = m->file_map[k], in = m->file_inst[k];
+    if (v == UINT32_MAX || in == UINT32_MAX) {
+        memcpy(out, &m->file_rest[3 * k], 3 * sizeof(float));
+        return;
+    }
+    const double *a = &m->inst_inv[12 * (size_t)in];
+    const float *x = &p[3 * (size_t)v];
+    for (int r = 0; r < 3; ++r)
+        out[r] = (float)(a[4 * r] * x[0] + a[4 * r + 1] * x[1] + a[4 * r + 2] * x[2] + a[4 * r + 3]);
+}
+
+RBC_API rbc_result RBC_CALL rbc_mesh_to_file_positions(rbc_mesh_id id, const float *xyz,
+                                                       size_t xyz_count, float *out,
+                                                       size_t capacity, size_t *out_count) {
+    static const char fn[] = "rbc_mesh_to_file_positions";
+    rbc_mesh *m = lookup_mesh(id, fn);
+    if (!m) return RBC_ERR_STALE_HANDLE;
+    size_t need = 3 * (size_t)m->nf;
+    if (out) {
+        if (capacity < need)
+            return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                                 "%s: mesh 0x%08x has %u file vertices, %zu floats; capacity is "
+                                 "%zu",
+                                 fn, id, m->nf, need, capacity);
+        rbc_result rc = check_state(m, fn, xyz, xyz_count);
+        if (rc) return rc;
+        const float *p = xyz ? xyz : m->pos;
+        for (size_t k = 0; k < m->nf; ++k) to_file(m, p, k, &out[3 * k]);
+    }
+    if (out_count) *out_count = need;
+    return RBC_OK;
+}
+
+/* An OBJ group name: one token (whitespace would start a second group). */
+static void put_group(FILE *f, const char *name) {
+    fputs("g ", f);
+    if (!*name) fputs("mesh", f);
+    for (const char *c = name; *c; ++c) fputc(isspace((unsigned char)*c) ? '_' : *c, f);
+    fputc('\n', f);
+}
+
+RBC_API rbc_result RBC_CALL rbc_mesh_write_file_obj(rbc_mesh_id id, const float *xyz,
+                                                    size_t xyz_count, rbc_vertex_order order,
+                                                    const char *path) {
+    static const char fn[] = "rbc_mesh_write_file_obj";
+    rbc_mesh *m = lookup_mesh(id, fn);
+    if (!m) return RBC_ERR_STALE_HANDLE;
+    if (order != RBC_ORDER_FILE && order != RBC_ORDER_MESH)
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                             "%s: order %d is not an rbc_vertex_order (RBC_ORDER_FILE 1, "
+                             "RBC_ORDER_MESH 2)",
+                             fn, (int)order);
+    if (!path || !*path) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: path is empty", fn);
+    rbc_result rc = check_state(m, fn, xyz, xyz_count);
+    if (rc) return rc;
+    const float *p = xyz ? xyz : m->pos;
+    const int file = order == RBC_ORDER_FILE;
+    size_t nv = file ? m->nf : m->n;
+    uint32_t *vt = malloc(((size_t)m->ncv + 1) * sizeof *vt); /* corner vertex -> vt/vn index */
+    uint32_t *vn = malloc(((size_t)m->ncv + 1) * sizeof *vn);
+    size_t plen = strlen(path);
+    char *tmp = malloc(plen + 5);
+    if (!vt || !vn || !tmp) {
+        free(vt);
+        free(vn);
+        free(tmp);
+        return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: mesh 0x%08x: out of memory", fn, id);
+    }
+    memcpy(tmp, path, plen);
+    memcpy(tmp + plen, ".tmp", 5);
+    FILE *f = fopen(tmp, "w");
+    if (!f) {
+        rc = rbc_set_error(RBC_ERR_IO, "%s: cannot open %s: %s", fn, tmp, strerror(errno));
+        goto done;
+    }
+    fprintf(f, "# rbcloth: mesh 0x%08x in the %s's vertex order (%zu vertices)\n", id,
+            file ? "file" : "simulation", nv);
+    for (size_t k = 0; k < nv; ++k) {
+        float q[3];
+        if (file) to_file(m, p, k, q);
+        else memcpy(q, &p[3 * k], sizeof q);
+        fprintf(f, "v %.9g %.9g %.9g\n", (double)q[0], (double)q[1], (double)q[2]);
+    }
+    uint32_t nvt = 0, nvn = 0;
+    for (size_t c = 0; c < m->ncv; ++c) {
+        vt[c] = vn[c] = 0;
+        if (m->cv_flags[c] & 1) {
+            fprintf(f, "vt %.9g %.9g\n", (double)m->cv_uv[2 * c], (double)m->cv_uv[2 * c + 1]);
+            vt[c] = ++nvt;
+        }
+    }
+    for (size_t c = 0; c < m->ncv; ++c) {
+        if (!(m->cv_flags[c] & 2)) continue;
+        double n[3] = {m->cv_nrm[3 * c], m->cv_nrm[3 * c + 1], m->cv_nrm[3 * c + 2]};
+        if (!file) {
+            /* normals follow the inverse transpose of the placement's transform */
+            uint32_t fi = m->cv_file[c];
+            uint32_t in = fi != UINT32_MAX ? m->file_inst[fi] : UINT32_MAX;
+            if (in != UINT32_MAX) {
+                const double *a = &m->inst_inv[12 * (size_t)in];
+                double t[3];
+                for (int k = 0; k < 3; ++k) t[k] = a[k] * n[0] + a[4 + k] * n[1] + a[8 + k] * n[2];
+                double len = sqrt(t[0] * t[0] + t[1] * t[1] + t[2] * t[2]);
+                if (len > 0.0)
+                    for (int k = 0; k < 3; ++k) n[k] = t[k] / len;
+            }
+        }
+        fprintf(f, "vn %.9g %.9g %.9g\n", n[0], n[1], n[2]);
+        vn[c] = ++nvn;
+    }
+    uint32_t group = UINT32_MAX;
+    for (size_t fc = 0; fc < m->nfc; ++fc) {
+        const uint32_t *cs = &m->fc_corner[m->fc_start[fc]];
+        size_t k = m->fc_start[fc + 1] - m->fc_start[fc];
+        int ok = 1;
+        for (size_t j = 0; j < k && ok; ++j)
+            ok = (file ? m->cv_file[cs[j]] : m->cv_mesh[cs[j]]) != UINT32_MAX;
+        if (!ok) continue; /* a corner the mesh dropped (a degenerate face's) */
+        if (m->fc_inst[fc] != group) {
+            group = m->fc_inst[fc];
+            put_group(f, m->inst_name[group]);
+        }
+        fputc('f', f);
+        for (size_t j = 0; j < k; ++j) {
+            uint32_t c = cs[j];
+            uint32_t v = (file ? m->cv_file[c] : m->cv_mesh[c]) + 1;
+            if (vt[c] && vn[c]) fprintf(f, " %u/%u/%u", v, vt[c], vn[c]);
+            else if (vt[c]) fprintf(f, " %u/%u", v, vt[c]);
+            else if (vn[c]) fprintf(f, " %u//%u", v, vn[c]);
+            else fprintf(f, " %u", v);
+        }
+        fputc('\n', f);
+    }
+    int bad = ferror(f);
+    bad |= fclose(f) != 0;
+    if (bad) {
+        rc = rbc_set_error(RBC_ERR_IO, "%s: writing %s failed: %s", fn, tmp, strerror(errno));
+        remove(tmp);
+    } else if (rename(tmp, path) != 0) {
+        rc = rbc_set_error(RBC_ERR_IO, "%s: cannot rename %s to %s: %s", fn, tmp, path,
+                           strerror(errno));
+        remove(tmp);
+    }
+done:
+    free(vt);
+    free(vn);
+    free(tmp);
+    return rc;
+}

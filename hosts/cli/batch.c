@@ -75,6 +75,10 @@ typedef struct batch_job {
     uint32_t collider_count;
     rbc_collider_def colliders[MAX_COLLIDERS];
     int out_pc2, out_mdd, out_objseq;
+    /* Mesh jobs: caches and JOB.obj in the file's vertex order and coordinates (1,
+     * "cache_order": "file", the default: they play on the user's own mesh) or in
+     * the simulation's (0, "simulation"). */
+    int file_order;
     double timeout; /* seconds, 0 = none; -1 = not in the manifest: --job-timeout */
     /* The run */
     char *dir, *stem_path, *result_path;
@@ -355,6 +359,18 @@ static int parse_job(parse_ctx *p, const rbc_api_v1 *api, const char *base_dir,
     double scale = 1.0;
     if (get_number(p, label, jo, defaults, "scale", 1e-9, 1e9, &scale)) return -1;
     j->import.scale = (float)scale;
+    static const char *const orders[] = {"simulation", "file", NULL};
+    j->file_order = 1;
+    if (get_name(p, label, jo, defaults, "cache_order", orders, &j->file_order)) return -1;
+    const cJSON *keep = setting(jo, defaults, "keep_file_units");
+    if (keep && !cJSON_IsBool(keep))
+        return fail(p, label, "keep_file_units", "must be true or false");
+    j->import.keep_file_units = keep && cJSON_IsTrue(keep);
+    if (j->scene && (cJSON_GetObjectItemCaseSensitive(jo, "cache_order") ||
+                     cJSON_GetObjectItemCaseSensitive(jo, "keep_file_units")))
+        return fail(p, label, "cache_order",
+                    "cache_order and keep_file_units are for mesh jobs (a scene has no file "
+                    "mesh)");
     if (parse_pins(p, label, setting(jo, defaults, "pins"), &j->import, j->pin_group,
                    sizeof j->pin_group) ||
         parse_colliders(p, api, label, setting(jo, defaults, "colliders"), j))
@@ -521,7 +537,7 @@ static const char *const job_keys[] = {"name",  "mesh",      "scene",       "fra
                                        "threads", "stiffness", "vertex_mass", "damping",
                                        "solver", "energy_guard", "scale",   "pins",
                                        "colliders", "outputs", "timeout", "description",
-                                       NULL};
+                                       "cache_order", "keep_file_units", NULL};
 static const char *const manifest_keys[] = {"jobs", "defaults", "description", NULL};
 
 static int check_keys(const cJSON *obj, const char *const *allowed, const char *source,
@@ -705,6 +721,10 @@ typedef struct job_cloth {
     float *rest;
     uint32_t *quads;
     rbc_cache_id caches[3];
+    /* A mesh job in the file's order: PC2 and MDD frames hold the file's
+     * file_count vertices (rbc_mesh_to_file_positions into file_xyz). */
+    uint32_t file_count;
+    float *file_xyz;
 } job_cloth;
 
 typedef struct job_run {
@@ -744,6 +764,7 @@ static void job_run_free(job_run *r) {
         free(r->cloths[i].stem);
         free(r->cloths[i].rest);
         free(r->cloths[i].quads);
+        free(r->cloths[i].file_xyz);
     }
     free(r->cloths);
     if (r->world) r->api->world_destroy(r->world);
@@ -808,6 +829,14 @@ static int setup_mesh_job(job_run *r) {
     if ((rc = api->mesh_get_positions(r->mesh, c->rest, np, NULL)) != RBC_OK ||
         (rc = api->mesh_get_quads(r->mesh, c->quads, nq, NULL)) != RBC_OK)
         return api_fail(r, rc, "mesh");
+    if (j->file_order) {
+        size_t nf = 0;
+        if ((rc = api->mesh_to_file_positions(r->mesh, NULL, 0, NULL, 0, &nf)) != RBC_OK)
+            return api_fail(r, rc, "mesh");
+        c->file_count = (uint32_t)(nf / 3);
+        c->file_xyz = malloc((nf ? nf : 1) * sizeof *c->file_xyz);
+        if (!c->file_xyz) return oom(r);
+    }
     return 0;
 }
 
@@ -875,7 +904,12 @@ static int start_outputs(job_run *r) {
         if (rc != RBC_OK) return api_fail(r, rc, "topology");
         char *obj = job_file(j, c->stem, ".obj");
         if (!obj) return oom(r);
-        rc = api->write_obj(obj, c->rest, c->vertex_count, c->quads, c->quad_count);
+        /* A mesh job's rest mesh is the file's own (its faces, UVs, normals and
+         * groups), in the order its caches have. */
+        rc = r->mesh ? api->mesh_write_file_obj(r->mesh, NULL, 0,
+                                                j->file_order ? RBC_ORDER_FILE : RBC_ORDER_MESH,
+                                                obj)
+                     : api->write_obj(obj, c->rest, c->vertex_count, c->quads, c->quad_count);
         int bad = rc != RBC_OK ? api_fail(r, rc, "rest mesh") : add_output(r, obj);
         free(obj);
         if (bad) return -1;
@@ -894,9 +928,12 @@ static int start_outputs(job_run *r) {
             char *path = kinds[k].ext ? job_file(j, c->stem, kinds[k].ext) : objseq_prefix(j, c->stem);
             if (!path) return oom(r);
             cd.path = path;
-            cd.point_count = c->vertex_count;
+            /* An OBJ sequence stays in the simulation's order: each frame is a whole
+             * mesh with its own faces, not a cache played on the file's mesh. */
+            cd.point_count = c->file_xyz && kinds[k].ext ? c->file_count : c->vertex_count;
             cd.start_frame = 1.0f; /* sample k = after k + 1 steps; frame 0 is the OBJ */
             cd.sample_rate = 1.0f;
+            cd.frame_rate = (float)(1.0 / j->dt); /* MDD times: frame k at k dt seconds */
             cd.quads = c->quads;
             cd.quad_count = c->quad_count;
             rc = api->cache_create(&cd, &c->caches[k]);
@@ -1070,8 +1107,13 @@ static int simulate(job_run *r, rbc_world_stats *last, double *ms_per_frame) {
         for (uint32_t i = 0; i < r->cloth_count; ++i) {
             job_cloth *c = &r->cloths[i];
             rc = api->cloth_read_positions(world, c->id, xyz, 3 * (size_t)max_n, NULL);
+            if (rc == RBC_OK && c->file_xyz)
+                rc = api->mesh_to_file_positions(r->mesh, xyz, 3 * (size_t)c->vertex_count,
+                                                 c->file_xyz, 3 * (size_t)c->file_count, NULL);
             for (int k = 0; rc == RBC_OK && k < 3; ++k)
-                if (c->caches[k]) rc = api->cache_write_frame(c->caches[k], xyz);
+                if (c->caches[k])
+                    rc = api->cache_write_frame(c->caches[k],
+                                                c->file_xyz && k < 2 ? c->file_xyz : xyz);
             if (rc != RBC_OK) {
                 free(xyz);
                 return api_fail(r, rc, "writing a frame");
@@ -1176,6 +1218,25 @@ static int write_result(job_run *r, const rbc_world_stats *st, double ms_per_fra
             cJSON_AddNumberToObject(o, "leftover_triangles", info.leftover_triangles);
             cJSON_AddNumberToObject(o, "pins", info.pin_count);
             cJSON_AddBoolToObject(o, "bipartite", info.bipartite != 0);
+            /* What a user checks before applying a cache to their own mesh: its
+             * order and vertex count, and the units the import found and applied. */
+            cJSON_AddStringToObject(o, "cache_order", j->file_order ? "file" : "simulation");
+            cJSON_AddNumberToObject(o, "cache_vertices",
+                                    j->file_order ? info.file_vertex_count : info.vertex_count);
+            cJSON_AddStringToObject(o, "file_order",
+                                    info.file_order == RBC_FILE_ORDER_FILE ? "file lists"
+                                                                           : "assimp arrays");
+            cJSON_AddNumberToObject(o, "file_vertices", info.file_vertex_count);
+            cJSON_AddNumberToObject(o, "unmapped_file_vertices", info.unmapped_file_vertices);
+            cJSON *u = cJSON_AddObjectToObject(o, "units");
+            if (u) {
+                if (info.file_unit_metres > 0.0f)
+                    cJSON_AddNumberToObject(u, "file_unit_metres", info.file_unit_metres);
+                else
+                    cJSON_AddNullToObject(u, "file_unit_metres");
+                cJSON_AddNumberToObject(u, "applied_scale", info.applied_scale);
+                cJSON_AddBoolToObject(u, "kept_file_units", j->import.keep_file_units != 0);
+            }
         }
     }
     cJSON_AddNumberToObject(o, "frames", (double)j->frames);
@@ -1373,6 +1434,26 @@ static void progress_clear(void) {
     progress_visible = 0;
 }
 
+/* The report's "caches" cell of a mesh job: the order and vertex count of its
+ * PC2/MDD, and the file's unit with the scale applied (so a user sees at once that
+ * a centimetre FBX became metres). Empty for a scene job. */
+static void cache_summary(const cJSON *result, char *out, size_t cap) {
+    out[0] = '\0';
+    const cJSON *order = cJSON_GetObjectItemCaseSensitive(result, "cache_order");
+    const cJSON *n = cJSON_GetObjectItemCaseSensitive(result, "cache_vertices");
+    const cJSON *u = cJSON_GetObjectItemCaseSensitive(result, "units");
+    if (!cJSON_IsString(order) || !cJSON_IsNumber(n)) return;
+    const cJSON *unit = cJSON_GetObjectItemCaseSensitive(u, "file_unit_metres");
+    const cJSON *scale = cJSON_GetObjectItemCaseSensitive(u, "applied_scale");
+    const cJSON *kept = cJSON_GetObjectItemCaseSensitive(u, "kept_file_units");
+    char unit_text[64] = "no unit declared";
+    if (cJSON_IsNumber(unit))
+        snprintf(unit_text, sizeof unit_text, "file unit %.6g m%s", unit->valuedouble,
+                 cJSON_IsTrue(kept) ? " (kept)" : "");
+    snprintf(out, cap, "%s order, %.0f vertices; %s, scale %.6g", order->valuestring,
+             n->valuedouble, unit_text, cJSON_IsNumber(scale) ? scale->valuedouble : 1.0);
+}
+
 static cJSON *report_entry(const batch_job *j) {
     cJSON *o = j->result ? cJSON_Duplicate(j->result, 1) : cJSON_CreateObject();
     if (!o) return NULL;
@@ -1463,8 +1544,8 @@ static int write_reports(const batch *b, double wall, char *err, size_t err_size
                                 "# rbcloth batch report\n\n%s: %zu jobs, %zu ok, %zu skipped, %zu "
                                 "failed, %zu interrupted, %zu not run; %s\n\n"
                                 "| job | status | mesh | vertices | colors | ms/frame | final Eq. 7 "
-                                "| clamped steps | stability | outputs |\n"
-                                "|---|---|---|---|---|---|---|---|---|---|\n",
+                                "| clamped steps | stability | caches | outputs |\n"
+                                "|---|---|---|---|---|---|---|---|---|---|---|\n",
                                 b->options->manifest_path, b->job_count, counts[JOB_OK],
                                 counts[JOB_SKIPPED], counts[JOB_FAILED], counts[JOB_INTERRUPTED],
                                 counts[JOB_NOT_RUN], how);
@@ -1474,14 +1555,16 @@ static int write_reports(const batch *b, double wall, char *err, size_t err_size
             const char *base = strrchr(src, '/') ? strrchr(src, '/') + 1 : src;
             if (j->result) {
                 const cJSON *st = cJSON_GetObjectItemCaseSensitive(j->result, "stability");
+                char caches[160];
+                cache_summary(j->result, caches, sizeof caches);
                 len += (size_t)snprintf(md + len, cap - len,
-                                        "| %s | %s | %s | %.0f | %.0f | %.3f | %.3g | %.0f | %s | ",
+                                        "| %s | %s | %s | %.0f | %.0f | %.3f | %.3g | %.0f | %s | %s | ",
                                         j->name, status_names[j->status], base,
                                         result_number(j, "vertices"), result_number(j, "colors"),
                                         result_number(j, "ms_per_frame"),
                                         result_number(j, "error_eq7"),
                                         result_number(j, "energy_clamped_steps"),
-                                        cJSON_IsString(st) ? st->valuestring : "");
+                                        cJSON_IsString(st) ? st->valuestring : "", caches);
                 const cJSON *o;
                 int first = 1;
                 const int sized =

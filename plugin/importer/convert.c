@@ -33,6 +33,7 @@
 #include <assimp/config.h>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <ctype.h>
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -42,6 +43,8 @@
 
 #include "convert.h"
 #include "errors.h"
+#include "file_vertices.h"
+#include "obj_vertices.h"
 #include "topology.h"
 
 #define RBC_PI 3.14159265358979323846
@@ -74,6 +77,7 @@ typedef struct instance {
     int pin_all;       /* the placement is the pin group's: pin all its vertices */
     double m[12];      /* rows 1..3 of the 4x4 affine transform */
     uint32_t base;     /* first source vertex */
+    char name[64];     /* the placing node's name ("" for a mesh no node places) */
 } instance;
 
 typedef struct build {
@@ -83,6 +87,8 @@ typedef struct build {
     /* source vertices (all placements), then welded vertices */
     size_t nsrc;
     float *src_pos;       /* [3 nsrc] transformed and scaled */
+    float *src_raw;       /* [3 nsrc] as assimp read them (the file's coordinates) */
+    uint32_t *src_inst;   /* [nsrc] the placement (instance) of each */
     uint8_t *src_red;     /* [nsrc] pinned by color */
     uint8_t *src_bad;     /* [nsrc] non-finite position */
     uint32_t *weld_map;   /* [nsrc] -> welded index */
@@ -93,10 +99,17 @@ typedef struct build {
     uint32_t tris_from_ngon_pending;
     instance *inst;
     size_t ninst, cap_inst;
+    double scale;         /* applied after the node transforms: units times def.scale */
+    uint32_t *remap;      /* [nw] welded vertex -> mesh vertex, UINT32_MAX = dropped */
+    rbc_file_vertices file; /* the file's own vertex lists (or assimp's arrays) */
 } build;
 
 static void build_free(build *b) {
     free(b->src_pos);
+    free(b->src_raw);
+    free(b->src_inst);
+    free(b->remap);
+    rbc_file_vertices_free(&b->file);
     free(b->src_red);
     free(b->src_bad);
     free(b->weld_map);
@@ -209,7 +222,8 @@ static int name_is(const struct aiString *s, const char *name) {
     return s->length == len && memcmp(s->data, name, len) == 0;
 }
 
-static rbc_result add_instance(build *b, uint32_t mesh, const double m[12], int pin_all) {
+static rbc_result add_instance(build *b, uint32_t mesh, const double m[12], int pin_all,
+                               const char *name) {
     if (b->ninst == b->cap_inst) {
         size_t cap = b->cap_inst ? 2 * b->cap_inst : 16;
         instance *p = realloc(b->inst, cap * sizeof *p);
@@ -222,6 +236,7 @@ static rbc_result add_instance(build *b, uint32_t mesh, const double m[12], int 
     in->pin_all = pin_all;
     memcpy(in->m, m, sizeof in->m);
     in->base = 0;
+    snprintf(in->name, sizeof in->name, "%.63s", name);
     return RBC_OK;
 }
 
@@ -306,7 +321,7 @@ static rbc_result collect_instances(build *b, const struct aiScene *s) {
                                           : 1;
             int group = d->pin_group && (name_is(&s->mMeshes[mi]->mName, d->pin_group) ||
                                          name_is(&nd->mName, d->pin_group));
-            if (take) rc = add_instance(b, mi, m, group);
+            if (take) rc = add_instance(b, mi, m, group, nd->mName.data);
         }
         for (unsigned k = 0; k < nd->mNumChildren && rc == RBC_OK; ++k) {
             if (!nd->mChildren || !nd->mChildren[k]) continue;
@@ -332,7 +347,7 @@ static rbc_result collect_instances(build *b, const struct aiScene *s) {
                                       : 1;
         static const double id[12] = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0};
         int group = d->pin_group && name_is(&s->mMeshes[mi]->mName, d->pin_group);
-        if (take) rc = add_instance(b, mi, id, group);
+        if (take) rc = add_instance(b, mi, id, group, "");
     }
     free(stack);
     free(placed);
@@ -375,10 +390,12 @@ static rbc_result collect_vertices(build *b, const struct aiScene *s) {
     b->info.source_vertex_count = (uint32_t)total;
     b->nsrc = total;
     b->src_pos = malloc((3 * total + 1) * sizeof(float));
+    b->src_raw = malloc((3 * total + 1) * sizeof(float));
+    b->src_inst = malloc((total + 1) * sizeof(uint32_t));
     b->src_red = calloc(total + 1, 1);
     b->src_bad = calloc(total + 1, 1);
-    if (!b->src_pos || !b->src_red || !b->src_bad) return oom(b);
-    const double scale = b->def.scale;
+    if (!b->src_pos || !b->src_raw || !b->src_inst || !b->src_red || !b->src_bad) return oom(b);
+    const double scale = b->scale;
     const float thr = b->def.pin_color_threshold;
     for (size_t k = 0; k < b->ninst; ++k) {
         const instance *in = &b->inst[k];
@@ -389,6 +406,8 @@ static rbc_result collect_vertices(build *b, const struct aiScene *s) {
             size_t i = in->base + (size_t)v;
             const struct aiVector3D *p = &me->mVertices[v];
             double x = p->x, y = p->y, z = p->z;
+            b->src_raw[3 * i] = p->x, b->src_raw[3 * i + 1] = p->y, b->src_raw[3 * i + 2] = p->z;
+            b->src_inst[i] = (uint32_t)k;
             for (int r = 0; r < 3; ++r) {
                 double val = in->m[4 * r] * x + in->m[4 * r + 1] * y + in->m[4 * r + 2] * z +
                              in->m[4 * r + 3];
@@ -925,7 +944,7 @@ static rbc_result finish(build *b, rbc_mesh *out) {
         out->springs[2 * k + 1] = remap[(uint32_t)se[k]];
     }
     free(se);
-    free(remap);
+    b->remap = remap;
 
     /* Bounds and pins. */
     const rbc_mesh_import_def *d = &b->def;
@@ -999,6 +1018,399 @@ static rbc_result finish(build *b, rbc_mesh *out) {
     return RBC_OK;
 }
 
+
+/* ------------------------------------------------------------------------- */
+/* 0b. Checks assimp's own processing would hide                             */
+/* ------------------------------------------------------------------------- */
+
+/* A vertex with a non-finite coordinate that a face uses is refused before
+ * JoinIdenticalVertices runs: it merges such a vertex into another one (the file
+ * would import as a different mesh). */
+static rbc_result check_finite(build *b, const struct aiScene *s) {
+    for (unsigned mi = 0; mi < s->mNumMeshes; ++mi) {
+        const struct aiMesh *me = s->mMeshes[mi];
+        if (!me || !me->mVertices || !me->mFaces) continue;
+        for (unsigned f = 0; f < me->mNumFaces; ++f) {
+            const struct aiFace *fa = &me->mFaces[f];
+            if (!fa->mIndices) continue;
+            for (unsigned j = 0; j < fa->mNumIndices; ++j) {
+                unsigned v = fa->mIndices[j];
+                if (v >= me->mNumVertices) continue; /* add_faces names it */
+                const struct aiVector3D *p = &me->mVertices[v];
+                if (isfinite(p->x) && isfinite(p->y) && isfinite(p->z)) continue;
+                return rbc_import_error(b->path, RBC_ERR_BAD_MESH,
+                                        "non-finite position: mesh %u (\"%.64s\") face %u corner "
+                                        "%u is at (%g, %g, %g) in the file",
+                                        mi, me->mName.data, f, j, (double)p->x, (double)p->y,
+                                        (double)p->z);
+            }
+        }
+    }
+    return RBC_OK;
+}
+
+/* ------------------------------------------------------------------------- */
+/* 0c. The file's vertex order and units                                     */
+/* ------------------------------------------------------------------------- */
+
+/* assimp's vertex arrays, mesh after mesh, before JoinIdenticalVertices: the file's
+ * order for formats whose vertices assimp keeps (glTF accessors, PLY). */
+static rbc_result assimp_order(build *b, const struct aiScene *s) {
+    rbc_file_vertices *fv = &b->file;
+    size_t n = 0;
+    for (unsigned mi = 0; mi < s->mNumMeshes; ++mi)
+        if (s->mMeshes[mi] && s->mMeshes[mi]->mVertices) n += s->mMeshes[mi]->mNumVertices;
+    if (n > RBC_IMPORT_MAX_ELEMENTS)
+        return rbc_import_error(b->path, RBC_ERR_BAD_MESH, "too many vertices: more than %u",
+                                RBC_IMPORT_MAX_ELEMENTS);
+    fv->xyz = malloc((3 * n + 1) * sizeof(double));
+    fv->list_start = malloc((s->mNumMeshes + 1) * sizeof(uint32_t));
+    fv->list_name = calloc(s->mNumMeshes + 1, sizeof(char *));
+    if (!fv->xyz || !fv->list_start || !fv->list_name) return oom(b);
+    size_t k = 0;
+    for (unsigned mi = 0; mi < s->mNumMeshes; ++mi) {
+        const struct aiMesh *me = s->mMeshes[mi];
+        fv->list_start[mi] = (uint32_t)k;
+        fv->list_name[mi] = strdup(me ? me->mName.data : "");
+        fv->list_count = mi + 1;
+        if (!fv->list_name[mi]) return oom(b);
+        if (!me || !me->mVertices) continue;
+        for (unsigned v = 0; v < me->mNumVertices; ++v, ++k) {
+            fv->xyz[3 * k] = me->mVertices[v].x;
+            fv->xyz[3 * k + 1] = me->mVertices[v].y;
+            fv->xyz[3 * k + 2] = me->mVertices[v].z;
+        }
+    }
+    fv->list_start[s->mNumMeshes] = (uint32_t)k;
+    fv->count = (uint32_t)k;
+    b->info.file_order = RBC_FILE_ORDER_ASSIMP;
+    return RBC_OK;
+}
+
+/* The file's own lists where a reader knows the format (OBJ before assimp runs, so
+ * that an index out of range is named here), else assimp's arrays. */
+static rbc_result read_file_lists(build *b, const struct aiScene *s) {
+    char err[400] = "";
+    int r = 0;
+    if (!s) {
+        r = rbc_obj_file_vertices(b->path, &b->file, err, sizeof err);
+        if (r == -2) return rbc_import_error(b->path, RBC_ERR_BAD_MESH, "%s", err);
+    } else {
+        if (b->file.count || b->file.list_start) return RBC_OK; /* OBJ, read already */
+        r = rbc_fbx_file_vertices(b->path, &b->file, err, sizeof err);
+        if (r == 0) r = rbc_dae_file_vertices(b->path, &b->file, err, sizeof err);
+        if (r == 0) return assimp_order(b, s);
+    }
+    if (r < 0)
+        return rbc_import_error(b->path, RBC_ERR_IO, "reading the file's vertex lists: %s", err);
+    if (r > 0) b->info.file_order = RBC_FILE_ORDER_FILE;
+    return RBC_OK;
+}
+
+/* A double from assimp's metadata (FBX stores UnitScaleFactor as a double, some
+ * exporters as a float or an integer). */
+static int meta_number(const struct aiScene *s, const char *key, double *out) {
+    const struct aiMetadata *m = s->mMetaData;
+    for (unsigned i = 0; m && m->mKeys && m->mValues && i < m->mNumProperties; ++i) {
+        if (strcmp(m->mKeys[i].data, key) != 0 || !m->mValues[i].mData) continue;
+        switch (m->mValues[i].mType) {
+        case AI_DOUBLE: *out = *(const double *)m->mValues[i].mData; return 1;
+        case AI_FLOAT: *out = *(const float *)m->mValues[i].mData; return 1;
+        case AI_INT32: *out = *(const int32_t *)m->mValues[i].mData; return 1;
+        default: return 0;
+        }
+    }
+    return 0;
+}
+
+static int has_ext(const char *path, const char *ext) {
+    size_t n = strlen(path), e = strlen(ext);
+    if (n < e) return 0;
+    for (size_t i = 0; i < e; ++i)
+        if (tolower((unsigned char)path[n - e + i]) != ext[i]) return 0;
+    return 1;
+}
+
+/* The factor from the file's coordinates (after its node transforms) to metres and
+ * `scale`. assimp scales a Collada scene's root node by <unit meter> itself (so
+ * keeping the file's units divides it out again) and leaves an FBX's
+ * UnitScaleFactor (centimetres per unit) in the metadata. */
+static void file_units(build *b, const struct aiScene *s) {
+    double declared = 0.0, by_assimp = 1.0, fbx = 0.0;
+    if (b->info.file_order == RBC_FILE_ORDER_FILE && b->file.unit_metres > 0.0 &&
+        isfinite(b->file.unit_metres))
+        declared = b->file.unit_metres;
+    if (meta_number(s, "UnitScaleFactor", &fbx) && fbx > 0.0 && isfinite(fbx)) {
+        declared = fbx / 100.0;
+    } else if (declared > 0.0) {
+        by_assimp = declared; /* Collada: assimp applied it on the root node */
+    } else if (has_ext(b->path, ".gltf") || has_ext(b->path, ".glb")) {
+        declared = 1.0; /* glTF 2.0 is metres by definition */
+    }
+    double unit = declared > 0.0 ? declared : 1.0;
+    int keep = b->def.keep_file_units != 0;
+    b->scale = (double)b->def.scale * (keep ? 1.0 / by_assimp : unit / by_assimp);
+    b->info.file_unit_metres = (float)declared;
+    b->info.applied_scale = (float)((double)b->def.scale * (keep ? 1.0 : unit));
+    b->info.file_units_kept = (uint32_t)(keep && declared > 0.0 && declared != 1.0);
+}
+
+/* ------------------------------------------------------------------------- */
+/* 8. The file's vertices mapped to the mesh's                               */
+/* ------------------------------------------------------------------------- */
+
+/* Points in cells of side h, sorted by cell, for "the nearest point within h". */
+typedef struct grid_entry {
+    int64_t c[3];
+    uint32_t idx;
+} grid_entry;
+
+typedef struct point_grid {
+    grid_entry *e;
+    size_t n;
+    double inv;
+} point_grid;
+
+static int cmp_cell(const int64_t *a, const int64_t *b) {
+    for (int k = 0; k < 3; ++k)
+        if (a[k] != b[k]) return a[k] < b[k] ? -1 : 1;
+    return 0;
+}
+
+static int cmp_grid_entry(const void *x, const void *y) {
+    const grid_entry *a = x, *b = y;
+    int c = cmp_cell(a->c, b->c);
+    return c ? c : (a->idx < b->idx ? -1 : a->idx > b->idx);
+}
+
+static void cell_of(const double p[3], double inv, int64_t c[3]) {
+    for (int k = 0; k < 3; ++k) {
+        double q = floor(p[k] * inv);
+        if (q > 4e18) q = 4e18;
+        if (q < -4e18) q = -4e18;
+        c[k] = (int64_t)q;
+    }
+}
+
+static int grid_build(point_grid *g, const double *xyz, size_t n, double h) {
+    g->n = n;
+    g->inv = 1.0 / h;
+    g->e = malloc((n + 1) * sizeof *g->e);
+    if (!g->e) return 0;
+    for (size_t i = 0; i < n; ++i) {
+        cell_of(xyz + 3 * i, g->inv, g->e[i].c);
+        g->e[i].idx = (uint32_t)i;
+    }
+    qsort(g->e, n, sizeof *g->e, cmp_grid_entry);
+    return 1;
+}
+
+/* The first entry of cell c, or g->n. */
+static size_t grid_first(const point_grid *g, const int64_t c[3]) {
+    size_t lo = 0, hi = g->n;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (cmp_cell(g->e[mid].c, c) < 0) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo;
+}
+
+/* The point nearest p within h (per coordinate) among `xyz`; among equally near
+ * ones the one `prefer` marks, then the lowest index. UINT32_MAX if none. */
+static uint32_t grid_nearest(const point_grid *g, const double *xyz, const double p[3], double h,
+                             const uint8_t *prefer) {
+    int64_t c[3];
+    cell_of(p, g->inv, c);
+    uint32_t best = UINT32_MAX;
+    double best_d = INFINITY;
+    int best_pref = 0;
+    for (int dx = -1; dx <= 1; ++dx)
+        for (int dy = -1; dy <= 1; ++dy)
+            for (int dz = -1; dz <= 1; ++dz) {
+                int64_t q[3] = {c[0] + dx, c[1] + dy, c[2] + dz};
+                for (size_t i = grid_first(g, q); i < g->n && !cmp_cell(g->e[i].c, q); ++i) {
+                    uint32_t k = g->e[i].idx;
+                    const double *o = xyz + 3 * (size_t)k;
+                    double ex = fabs(o[0] - p[0]), ey = fabs(o[1] - p[1]), ez = fabs(o[2] - p[2]);
+                    if (ex > h || ey > h || ez > h) continue;
+                    double d = ex * ex + ey * ey + ez * ez;
+                    int pref = prefer ? prefer[k] : 0;
+                    if (d < best_d || (d == best_d && (pref > best_pref ||
+                                                       (pref == best_pref && k < best)))) {
+                        best = k;
+                        best_d = d;
+                        best_pref = pref;
+                    }
+                }
+            }
+    return best;
+}
+
+/* Rows 1..3 of the inverse of the affine map scale * m; 0 if it is singular. */
+static int affine_inverse(const double m[12], double scale, double out[12]) {
+    double a[9];
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) a[3 * r + c] = scale * m[4 * r + c];
+    double t[3] = {scale * m[3], scale * m[7], scale * m[11]};
+    double co[9] = {a[4] * a[8] - a[5] * a[7], a[5] * a[6] - a[3] * a[8], a[3] * a[7] - a[4] * a[6],
+                    a[2] * a[7] - a[1] * a[8], a[0] * a[8] - a[2] * a[6], a[1] * a[6] - a[0] * a[7],
+                    a[1] * a[5] - a[2] * a[4], a[2] * a[3] - a[0] * a[5], a[0] * a[4] - a[1] * a[3]};
+    double det = a[0] * co[0] + a[1] * co[1] + a[2] * co[2];
+    double norm = 0.0;
+    for (int i = 0; i < 9; ++i) norm = fmax(norm, fabs(a[i]));
+    if (!(fabs(det) > 1e-12 * norm * norm * norm) || !isfinite(det)) return 0;
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) out[4 * r + c] = co[3 * c + r] / det; /* adjugate */
+        out[4 * r + 3] = -(out[4 * r] * t[0] + out[4 * r + 1] * t[1] + out[4 * r + 2] * t[2]);
+    }
+    return 1;
+}
+
+/* Each file vertex finds the source vertex at its place in the file's coordinates
+ * (within a few float roundings: the file's text is parsed by assimp and by our
+ * readers), preferring one the mesh keeps; each source vertex finds its file
+ * vertex, for the faces of rbc_mesh_write_file_obj. */
+static rbc_result map_file_vertices(build *b, rbc_mesh *out) {
+    const rbc_file_vertices *fv = &b->file;
+    size_t nf = fv->count, ns = b->nsrc;
+    double *sx = malloc((3 * ns + 1) * sizeof *sx);
+    double *fx = malloc((3 * nf + 1) * sizeof *fx);
+    uint8_t *kept = calloc(ns + 1, 1);
+    out->nf = (uint32_t)nf;
+    out->ninst = (uint32_t)b->ninst;
+    out->file_map = malloc((nf + 1) * sizeof(uint32_t));
+    out->file_inst = malloc((nf + 1) * sizeof(uint32_t));
+    out->file_rest = malloc((3 * nf + 1) * sizeof(float));
+    out->inst_inv = malloc((12 * b->ninst + 1) * sizeof(double));
+    out->ncv = (uint32_t)ns;
+    out->cv_file = malloc((ns + 1) * sizeof(uint32_t));
+    out->cv_mesh = malloc((ns + 1) * sizeof(uint32_t));
+    rbc_result rc = RBC_OK;
+    point_grid g = {0}, gf = {0};
+    if (!sx || !fx || !kept || !out->file_map || !out->file_inst || !out->file_rest ||
+        !out->inst_inv || !out->cv_file || !out->cv_mesh) {
+        rc = oom(b);
+        goto done;
+    }
+    uint8_t *inst_ok = (uint8_t *)kept; /* reused below after the grids are built */
+    double big = 0.0;
+    for (size_t i = 0; i < ns; ++i) {
+        uint32_t w = b->weld_map[i];
+        uint32_t v = b->remap && w < b->nw ? b->remap[w] : UINT32_MAX;
+        out->cv_mesh[i] = v;
+        kept[i] = v != UINT32_MAX;
+        for (int c = 0; c < 3; ++c) {
+            sx[3 * i + c] = b->src_raw[3 * i + c];
+            if (isfinite(sx[3 * i + c])) big = fmax(big, fabs(sx[3 * i + c]));
+        }
+    }
+    for (size_t k = 0; k < nf; ++k)
+        for (int c = 0; c < 3; ++c) {
+            /* as float, the precision assimp reads the file with */
+            float f = (float)fv->xyz[3 * k + c];
+            fx[3 * k + c] = f;
+            out->file_rest[3 * k + c] = f;
+            if (isfinite(f)) big = fmax(big, fabs((double)f));
+        }
+    /* 8 float roundings of the largest coordinate: two parses of one decimal number
+     * differ by one at most, distinct vertices far more in any mesh worth simulating. */
+    double h = big > 0.0 ? big * 8.0 * 0x1p-24 : 0x1p-126;
+    if (!grid_build(&g, sx, ns, h) || !grid_build(&gf, fx, nf, h)) {
+        rc = oom(b);
+        goto done;
+    }
+    uint32_t unmapped = 0;
+    for (size_t k = 0; k < nf; ++k) {
+        uint32_t s = grid_nearest(&g, sx, fx + 3 * k, h, kept);
+        uint32_t v = s == UINT32_MAX ? UINT32_MAX : out->cv_mesh[s];
+        out->file_map[k] = v;
+        out->file_inst[k] = v == UINT32_MAX ? UINT32_MAX : b->src_inst[s];
+        unmapped += v == UINT32_MAX;
+    }
+    for (size_t i = 0; i < ns; ++i) out->cv_file[i] = grid_nearest(&gf, fx, sx + 3 * i, h, NULL);
+    memset(inst_ok, 0, b->ninst < ns + 1 ? b->ninst : ns + 1);
+    for (size_t k = 0; k < b->ninst; ++k) {
+        if (!affine_inverse(b->inst[k].m, b->scale, out->inst_inv + 12 * k)) {
+            /* a placement that flattens its mesh cannot be undone: its vertices keep
+             * their place in the file */
+            for (size_t j = 0; j < nf; ++j)
+                if (out->file_inst[j] == k) out->file_inst[j] = UINT32_MAX;
+        }
+    }
+    b->info.file_vertex_count = (uint32_t)nf;
+    b->info.unmapped_file_vertices = unmapped;
+done:
+    free(g.e);
+    free(gf.e);
+    free(sx);
+    free(fx);
+    free(kept);
+    return rc;
+}
+
+/* The faces of the placements taken, their corner vertices' UVs and normals and
+ * the placements' names: what rbc_mesh_write_file_obj writes. */
+static rbc_result file_faces(build *b, const struct aiScene *s, rbc_mesh *out) {
+    size_t ns = b->nsrc, nfc = 0, ncorner = 0;
+    for (size_t k = 0; k < b->ninst; ++k) {
+        const struct aiMesh *me = s->mMeshes[b->inst[k].mesh];
+        for (unsigned f = 0; me->mFaces && f < me->mNumFaces; ++f)
+            if (me->mFaces[f].mNumIndices >= 3) {
+                ++nfc;
+                ncorner += me->mFaces[f].mNumIndices;
+            }
+    }
+    if (nfc > RBC_IMPORT_MAX_ELEMENTS || ncorner > RBC_IMPORT_MAX_ELEMENTS)
+        return rbc_import_error(b->path, RBC_ERR_BAD_MESH, "too many faces: more than %u",
+                                RBC_IMPORT_MAX_ELEMENTS);
+    out->cv_uv = malloc((2 * ns + 1) * sizeof(float));
+    out->cv_nrm = malloc((3 * ns + 1) * sizeof(float));
+    out->cv_flags = calloc(ns + 1, 1);
+    out->nfc = (uint32_t)nfc;
+    out->nfcorner = (uint32_t)ncorner;
+    out->fc_start = malloc((nfc + 1) * sizeof(uint32_t));
+    out->fc_corner = malloc((ncorner + 1) * sizeof(uint32_t));
+    out->fc_inst = malloc((nfc + 1) * sizeof(uint32_t));
+    out->inst_name = calloc(b->ninst + 1, sizeof *out->inst_name);
+    if (!out->cv_uv || !out->cv_nrm || !out->cv_flags || !out->fc_start || !out->fc_corner ||
+        !out->fc_inst || !out->inst_name)
+        return oom(b);
+    size_t f_at = 0, c_at = 0;
+    for (size_t k = 0; k < b->ninst; ++k) {
+        const instance *in = &b->inst[k];
+        const struct aiMesh *me = s->mMeshes[in->mesh];
+        snprintf(out->inst_name[k], sizeof out->inst_name[k], "%.63s",
+                 in->name[0] ? in->name : me->mName.data);
+        const struct aiVector3D *uv = me->mTextureCoords[0];
+        for (unsigned v = 0; v < me->mNumVertices && me->mVertices; ++v) {
+            size_t i = in->base + (size_t)v;
+            if (uv) {
+                out->cv_uv[2 * i] = uv[v].x;
+                out->cv_uv[2 * i + 1] = uv[v].y;
+                out->cv_flags[i] |= 1;
+            }
+            if (me->mNormals) {
+                out->cv_nrm[3 * i] = me->mNormals[v].x;
+                out->cv_nrm[3 * i + 1] = me->mNormals[v].y;
+                out->cv_nrm[3 * i + 2] = me->mNormals[v].z;
+                if (isfinite(out->cv_nrm[3 * i]) && isfinite(out->cv_nrm[3 * i + 1]) &&
+                    isfinite(out->cv_nrm[3 * i + 2]))
+                    out->cv_flags[i] |= 2;
+            }
+        }
+        for (unsigned f = 0; me->mFaces && f < me->mNumFaces; ++f) {
+            const struct aiFace *fa = &me->mFaces[f];
+            if (fa->mNumIndices < 3) continue;
+            out->fc_start[f_at] = (uint32_t)c_at;
+            out->fc_inst[f_at++] = (uint32_t)k;
+            for (unsigned j = 0; j < fa->mNumIndices; ++j)
+                out->fc_corner[c_at++] = in->base + fa->mIndices[j]; /* checked by add_faces */
+        }
+    }
+    out->fc_start[nfc] = (uint32_t)c_at;
+    return RBC_OK;
+}
 
 rbc_result rbc_import_convert(const char *path, const rbc_mesh_import_def *def, rbc_mesh *m) {
     build b;
@@ -1075,6 +1487,12 @@ rbc_result rbc_import_convert(const char *path, const rbc_mesh_import_def *def, 
         return rbc_import_error(b.path, RBC_ERR_IO,
                                 "assimp could not read the file: a PLY header without end_header "
                                 "(refused here: assimp 5.2.5 loops forever on it)");
+    /* An OBJ's "v" list, and its indices checked, before assimp reads it. */
+    rc = read_file_lists(&b, NULL);
+    if (rc) {
+        build_free(&b);
+        return rc;
+    }
 
     /* 1. assimp, keeping polygons. No logger is attached, so assimp's DefaultLogger
      * is its NullLogger: nothing is printed. Skeleton-only files are not turned into
@@ -1083,8 +1501,8 @@ rbc_result rbc_import_convert(const char *path, const rbc_mesh_import_def *def, 
     if (!props) return oom(&b);
     aiSetImportPropertyInteger(props, AI_CONFIG_IMPORT_NO_SKELETON_MESHES, 1);
     char aierr[512] = "";
-    const struct aiScene *scene = aiImportFileExWithProperties(
-        path, aiProcess_JoinIdenticalVertices | aiProcess_ValidateDataStructure, NULL, props);
+    const struct aiScene *scene =
+        aiImportFileExWithProperties(path, aiProcess_ValidateDataStructure, NULL, props);
     if (!scene) {
         const char *e = aiGetErrorString();
         snprintf(aierr, sizeof aierr, "%s", e && *e ? e : "(no message)");
@@ -1094,6 +1512,7 @@ rbc_result rbc_import_convert(const char *path, const rbc_mesh_import_def *def, 
         /* Messages end in a newline at times; keep one line. */
         for (char *p = aierr; *p; ++p)
             if (*p == '\n' || *p == '\r') *p = ' ';
+        build_free(&b);
         if (strstr(aierr, "No suitable reader found"))
             return rbc_import_error(b.path, RBC_ERR_UNSUPPORTED,
                                     "no assimp reader for this format: %s", aierr);
@@ -1103,12 +1522,27 @@ rbc_result rbc_import_convert(const char *path, const rbc_mesh_import_def *def, 
         rc = rbc_import_error(b.path, RBC_ERR_BAD_MESH,
                               "no mesh in the file: assimp read an incomplete scene (animation or "
                               "skeleton only)");
+    /* Before JoinIdenticalVertices: the check it would defeat, and assimp's own
+     * vertex arrays (the file's order for glTF, PLY). */
+    if (!rc) rc = check_finite(&b, scene);
+    if (!rc) rc = read_file_lists(&b, scene);
+    if (!rc) {
+        file_units(&b, scene);
+        scene = aiApplyPostProcessing(scene, aiProcess_JoinIdenticalVertices);
+        if (!scene) {
+            build_free(&b);
+            return rbc_import_error(b.path, RBC_ERR_IO,
+                                    "assimp could not join identical vertices");
+        }
+    }
     if (!rc) rc = collect_instances(&b, scene);
     if (!rc) rc = collect_vertices(&b, scene);
     if (!rc) rc = weld(&b);
     if (!rc) rc = add_faces(&b, scene);
+    if (!rc) rc = file_faces(&b, scene, m);
     aiReleaseImport(scene);
     if (!rc) rc = finish(&b, m);
+    if (!rc) rc = map_file_vertices(&b, m);
     if (rc) {
         rbc_import_mesh_free(m);
         build_free(&b);

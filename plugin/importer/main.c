@@ -173,13 +173,12 @@ static int answer(int fd, rbc_result code, const char *message, const rbc_mesh *
     if (code == RBC_OK) {
         put_u32(&o, (uint32_t)sizeof m->info);
         put(&o, &m->info, sizeof m->info);
-        uint32_t counts[5] = {m->n, m->nq, m->ns, m->np, m->nlt};
+        uint32_t counts[RBC_MESH_COUNTS];
+        rbc_mesh_get_counts(m, counts);
         put(&o, counts, sizeof counts);
-        put(&o, m->pos, 3 * (size_t)m->n * sizeof(float));
-        put(&o, m->quads, 4 * (size_t)m->nq * sizeof(uint32_t));
-        put(&o, m->springs, 2 * (size_t)m->ns * sizeof(uint32_t));
-        put(&o, m->pins, (size_t)m->np * sizeof(uint32_t));
-        put(&o, m->ltris, 3 * (size_t)m->nlt * sizeof(uint32_t));
+        rbc_mesh_array arr[RBC_MESH_ARRAYS];
+        rbc_mesh_arrays((rbc_mesh *)m, counts, arr);
+        for (int i = 0; arr[i].p; ++i) put(&o, *arr[i].p, arr[i].bytes);
     }
     int rc;
     if (o.failed) {

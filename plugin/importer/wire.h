@@ -12,9 +12,9 @@
  *   'M'  an allocation failed in the helper (sent once; no body). A crash or an
  *        error that follows it is reported as running out of memory.
  *   'R'  the result: u32 RBC_WIRE_ANSWER, i32 code, u32 message length and the
- *        message; with code 0 then u32 sizeof(rbc_mesh_info), the info, u32 n, nq,
- *        ns, np, nlt and the arrays pos[3n] (float), quads[4nq], springs[2ns],
- *        pins[np], ltris[3nlt] (u32). The helper exits after it. */
+ *        message; with code 0 then u32 sizeof(rbc_mesh_info), the info, the
+ *        RBC_MESH_COUNTS u32 counts and the arrays they size, in the order of
+ *        rbc_mesh_arrays (importer/convert.h). The helper exits after it. */
 #ifndef RBC_IMPORTER_WIRE_H
 #define RBC_IMPORTER_WIRE_H
 #include <errno.h>
@@ -25,7 +25,7 @@
 #include <unistd.h>
 
 #define RBC_WIRE_REQUEST 0x31514252u /* "RBQ1" */
-#define RBC_WIRE_ANSWER 0x31414252u  /* "RBA1" */
+#define RBC_WIRE_ANSWER 0x32414252u  /* "RBA2": the 1.9 mesh (file map, faces) */
 #define RBC_WIRE_NULL 0xffffffffu
 #define RBC_WIRE_MAX_STRING (1u << 16)
 #define RBC_WIRE_FD 3

@@ -13,6 +13,7 @@
 #include <errno.h>
 #include <float.h>
 #include <stdint.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -102,15 +103,17 @@ static void check_pc2(const char *path, const float *frames, uint32_t points, ui
     free(b);
 }
 
-/* MDD: frames, points, times[frames], positions; big-endian. */
+/* MDD: frames, points, times[frames] in seconds at `fps` (what Blender's Mesh Cache
+ * modifier plays in its TIME mode), positions; big-endian. */
 static void check_mdd(const char *path, const float *frames, uint32_t points, uint32_t count,
-                      float start, float rate) {
+                      float start, float rate, float fps) {
     unsigned char *b = read_sized(path, 8 + 4 * (size_t)count + (size_t)count * points * 12);
     if (!b) return;
     CHECK_EQ(be32(b), count);
     CHECK_EQ(be32(b + 4), points);
     for (uint32_t k = 0; k < count; ++k)
-        CHECK_EQ(be32(b + 8 + 4 * k), bits(start + (float)k * rate));
+        CHECK_EQ(be32(b + 8 + 4 * k),
+                 bits((float)(((double)start + (double)k * rate) / (double)fps)));
     check_floats(b + 8 + 4 * (size_t)count, be32, frames, (size_t)count * points * 3);
     free(b);
 }
@@ -158,8 +161,10 @@ static char *objseq_frame(const char *prefix, uint32_t k) {
 /* Write frames with one format; RBC_OK expected all the way. */
 static void write_cache(rbc_cache_format format, const char *path, const float *frames,
                         uint32_t points, uint32_t count, const uint32_t *quads,
-                        uint32_t quad_count, float start, float rate) {
+                        uint32_t quad_count, float start, float rate, float fps) {
     rbc_cache_def d = rbc_cache_def_default();
+    CHECK_EQ(d.frame_rate, 24.0f); /* Blender's default scene rate */
+    if (fps > 0.0f) d.frame_rate = fps;
     d.format = format;
     d.path = path;
     d.point_count = points;
@@ -185,11 +190,15 @@ static void check_all_formats(const char *stem, const float *frames, uint32_t po
     snprintf(name, sizeof name, "%s.mdd", stem);
     const char *mdd = path_in(name);
     const char *seq = path_in(stem);
-    write_cache(RBC_CACHE_PC2, pc2, frames, points, count, NULL, 0, 1.0f, 1.0f);
+    write_cache(RBC_CACHE_PC2, pc2, frames, points, count, NULL, 0, 1.0f, 1.0f, 0.0f);
     check_pc2(pc2, frames, points, count, 1.0f, 1.0f);
-    write_cache(RBC_CACHE_MDD, mdd, frames, points, count, NULL, 0, 0.5f, 0.25f);
-    check_mdd(mdd, frames, points, count, 0.5f, 0.25f);
-    write_cache(RBC_CACHE_OBJ_SEQUENCE, seq, frames, points, count, quads, quad_count, 0, 1);
+    write_cache(RBC_CACHE_MDD, mdd, frames, points, count, NULL, 0, 0.5f, 0.25f, 0.0f);
+    check_mdd(mdd, frames, points, count, 0.5f, 0.25f, 24.0f);
+    snprintf(name, sizeof name, "%s_30fps.mdd", stem);
+    const char *mdd30 = path_in(name);
+    write_cache(RBC_CACHE_MDD, mdd30, frames, points, count, NULL, 0, 1.0f, 1.0f, 30.0f);
+    check_mdd(mdd30, frames, points, count, 1.0f, 1.0f, 30.0f);
+    write_cache(RBC_CACHE_OBJ_SEQUENCE, seq, frames, points, count, quads, quad_count, 0, 1, 0);
     for (uint32_t f = 0; f < count; ++f)
         check_obj(objseq_frame(seq, f), frames + 3 * (size_t)points * f, points, quads,
                   quad_count);
@@ -286,6 +295,18 @@ static void test_bad_input(void) {
     CHECK(strstr(rbc_last_error(), "quad 0 corner 3 is vertex 9") != NULL);
     d.quads = NULL;
     CHECK_EQ(rbc_cache_create(&d, &c), RBC_ERR_INVALID_ARGUMENT);
+    /* An MDD needs a frame rate to store seconds: 0, negative, NaN, inf refused. */
+    const float bad_fps[4] = {0.0f, -24.0f, NAN, INFINITY};
+    for (int k = 0; k < 4; ++k) {
+        rbc_cache_def u = rbc_cache_def_default();
+        u.format = RBC_CACHE_MDD;
+        u.path = path_in("badfps.mdd");
+        u.point_count = 4;
+        u.frame_rate = bad_fps[k];
+        CHECK_EQ(rbc_cache_create(&u, &c), RBC_ERR_INVALID_ARGUMENT);
+        CHECK(strstr(rbc_last_error(), "frame_rate") != NULL);
+        CHECK_EQ(c, 0);
+    }
     CHECK_EQ(count_tmp_files(), 0);
     CHECK(!exists(path_in("bad.pc2")) && !exists(path_in("badseq_0001.obj")));
 
@@ -298,6 +319,18 @@ static void test_bad_input(void) {
     CHECK_EQ(rbc_cache_write_frame(c, xyz), RBC_OK);
     CHECK_EQ(rbc_cache_finish(c), RBC_OK);
     check_pc2(path_in("old.pc2"), xyz, 4, 1, 0.0f, 1.0f);
+    /* A 1.2-1.8-sized def (no frame_rate) writes MDD times in seconds at 24 fps. */
+    rbc_cache_def v12 = rbc_cache_def_default();
+    v12.struct_size = RBC_CACHE_DEF_SIZE_V1_2;
+    v12.format = RBC_CACHE_MDD;
+    v12.path = path_in("v12.mdd");
+    v12.point_count = 4;
+    v12.start_frame = 1.0f;
+    v12.frame_rate = -1.0f; /* beyond its size: must not be read */
+    CHECK_EQ(rbc_cache_create(&v12, &c), RBC_OK);
+    CHECK_EQ(rbc_cache_write_frame(c, xyz), RBC_OK);
+    CHECK_EQ(rbc_cache_finish(c), RBC_OK);
+    check_mdd(path_in("v12.mdd"), xyz, 4, 1, 1.0f, 1.0f, 24.0f);
 
     /* Abandoned caches of every format: no destination, no temporary file. */
     for (int f = RBC_CACHE_PC2; f <= RBC_CACHE_OBJ_SEQUENCE; ++f) {

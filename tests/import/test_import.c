@@ -468,10 +468,31 @@ static void test_bad_input(void) {
     /* A cut PLY header: assimp 5.2.5 alone loops forever on it; refused before. */
     expect_refused(write_file("cut.ply", "ply\nformat binary_little_endian 1.0\n\x01\x02"),
                    NULL, RBC_ERR_IO, "without end_header");
+    /* Indices out of range: named by line, element and corner before assimp (whose
+     * own message is only "OBJ: vertex index out of range"). */
     expect_refused(write_file("garbage.obj", "\x01\x02\x03 f 9 9 9\nf -5 2\n"), NULL,
-                   RBC_ERR_IO, "assimp could not read");
+                   RBC_ERR_BAD_MESH,
+                   "line 2, face 0 (0-based), corner 0: vertex index -5 is out of range (0 "
+                   "\"v\" lines come before it)");
     expect_refused(write_file("outofrange.obj", "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 99\n"),
-                   NULL, RBC_ERR_IO, "assimp could not read");
+                   NULL, RBC_ERR_BAD_MESH,
+                   "line 4, face 0 (0-based), corner 2: vertex index 99 is out of range (the "
+                   "file has 3 \"v\" lines)");
+    expect_refused(write_file("outofrange_vt.obj",
+                              "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\n# a comment\n"
+                              "f 1/1 2/1 3/1 4/2\n"),
+                   NULL, RBC_ERR_BAD_MESH,
+                   "line 7, face 0 (0-based), corner 3: texture coordinate index 2 is out of "
+                   "range (the file has 1 \"vt\" lines)");
+    expect_refused(write_file("outofrange_cont.obj",
+                              "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\nf 1 2 \\\n 3 0\n"),
+                   NULL, RBC_ERR_BAD_MESH,
+                   "line 5, face 1 (0-based), corner 3: \"0\" is not a vertex index");
+    /* A non-finite vertex its only face uses: refused, not merged away by assimp's
+     * JoinIdenticalVertices (which made it a 3-vertex mesh before 1.9). */
+    expect_refused(write_file("nan_vertex.obj",
+                              "v 0 0 0\nv 1 0 0\nv 1 0 nan\nv 0 0 1\nf 1 2 3 4\n"),
+                   NULL, RBC_ERR_BAD_MESH, "face 0 corner 2 is at (1, 0, nan) in the file");
     expect_refused(write_file("truncated.ply",
                               "ply\nformat ascii 1.0\nelement vertex 100\nproperty float x\n"
                               "property float y\nproperty float z\nelement face 1\n"

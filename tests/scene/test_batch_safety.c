@@ -298,6 +298,25 @@ static void test_job_timeout(void) {
     const char *typo[] = {"batch", fmt("%s/%s", g_out, "typo.json"), "--out", c.out, NULL};
     CHECK_EQ(run_cli(NULL, c.log, typo, 30), 1);
     CHECK(log_contains(c.log, "jobs[0].timout: unknown key; did you mean \"timeout\"?"));
+    /* The round-trip keys (issue 19): values checked, and only for mesh jobs. */
+    static const struct {
+        const char *job, *says;
+    } keys[] = {
+        {"\"mesh\": \"m.obj\", \"cache_order\": \"files\"",
+         "jobs[0 (x)].cache_order: must be one of: simulation file"},
+        {"\"mesh\": \"m.obj\", \"keep_file_units\": 1",
+         "jobs[0 (x)].keep_file_units: must be true or false"},
+        {"\"scene\": \"default\", \"cache_order\": \"file\"",
+         "jobs[0 (x)].cache_order: cache_order and keep_file_units are for mesh jobs"},
+    };
+    for (size_t k = 0; k < sizeof keys / sizeof keys[0]; ++k) {
+        char json[512];
+        snprintf(json, sizeof json, "{\"jobs\": [{\"name\": \"x\", %s}]}\n", keys[k].job);
+        write_text(fmt("%s/%s", g_out, "keys.json"), json);
+        const char *run[] = {"batch", fmt("%s/%s", g_out, "keys.json"), "--out", c.out, NULL};
+        CHECK_EQ(run_cli(NULL, c.log, run, 30), 1);
+        CHECK(log_contains(c.log, keys[k].says));
+    }
     const char *bad[] = {"batch", c.manifest, "--job-timeout", "-1", NULL};
     CHECK_EQ(run_cli(NULL, c.log, bad, 30), 2);
     CHECK(log_contains(c.log, "--job-timeout needs a number of seconds"));

@@ -1,0 +1,66 @@
+/* test_old_sizes.c -- every RBC_*_SIZE_V1_n macro is a size some released header's
+ * sizeof gave. An older host passes its sizeof as struct_size; the macro names that
+ * size for the library to accept, as the offset of the first field appended after
+ * it. A field appended into the old layout's trailing padding (a float after a
+ * 4-byte field in a struct holding pointers) makes the macro smaller than that
+ * sizeof: the library would then refuse old hosts, or worse, read their padding as
+ * the new field. An old sizeof is a multiple of the old layout's alignment: 8 on
+ * LP64 where its fields before the offset hold a pointer or a 64-bit integer, else 4
+ * (every other field is a 4-byte integer, float or enum). 1.9's rbc_cache_def.
+ * frame_rate first went in at offset 44 of a 48-byte struct; this test fails there. */
+#include <stdalign.h>
+#include <stdio.h>
+
+#include "check.h"
+#include "rbcloth.h"
+
+#define PTR alignof(void *)
+#define U64 alignof(uint64_t)
+#define FOUR ((size_t)4)
+#define LAYOUT(macro, type, align) {#macro, macro, sizeof(type), align}
+
+int main(void) {
+    static const struct {
+        const char *name;
+        uint32_t size;
+        size_t now, align;
+    } layouts[] = {
+        LAYOUT(RBC_SOLVER_DEF_SIZE_V1_1, rbc_solver_def, FOUR),
+        LAYOUT(RBC_SOLVER_DEF_SIZE_V1_2, rbc_solver_def, FOUR),
+        LAYOUT(RBC_WORLD_DEF_SIZE_V1_0, rbc_world_def, PTR),    /* alloc_user */
+        LAYOUT(RBC_WORLD_DEF_SIZE_V1_1, rbc_world_def, PTR),
+        LAYOUT(RBC_CLOTH_DEF_SIZE_V1_0, rbc_cloth_def, PTR),    /* positions */
+        LAYOUT(RBC_CLOTH_DEF_SIZE_V1_1, rbc_cloth_def, PTR),
+        LAYOUT(RBC_COLLIDER_DEF_SIZE_V1_0, rbc_collider_def, FOUR),
+        LAYOUT(RBC_CACHE_DEF_SIZE_V1_0, rbc_cache_def, PTR),    /* path */
+        LAYOUT(RBC_CACHE_DEF_SIZE_V1_2, rbc_cache_def, PTR),
+        LAYOUT(RBC_WORLD_STATS_SIZE_V1_0, rbc_world_stats, U64), /* step_count */
+        LAYOUT(RBC_WORLD_STATS_SIZE_V1_1, rbc_world_stats, U64),
+        LAYOUT(RBC_WORLD_STATS_SIZE_V1_2, rbc_world_stats, U64),
+        LAYOUT(RBC_WORLD_STATS_SIZE_V1_3, rbc_world_stats, U64),
+        LAYOUT(RBC_WORLD_STATS_SIZE_V1_4, rbc_world_stats, U64),
+        LAYOUT(RBC_WORLD_STATS_SIZE_V1_5, rbc_world_stats, U64),
+        LAYOUT(RBC_MESH_IMPORT_DEF_SIZE_V1_2, rbc_mesh_import_def, PTR), /* mesh_name */
+        LAYOUT(RBC_MESH_IMPORT_DEF_SIZE_V1_8, rbc_mesh_import_def, PTR),
+        LAYOUT(RBC_MESH_INFO_SIZE_V1_2, rbc_mesh_info, FOUR),
+        LAYOUT(RBC_API_V1_SIZE_V1_0, rbc_api_v1, PTR), /* struct_size, then pointers */
+        LAYOUT(RBC_API_V1_SIZE_V1_1, rbc_api_v1, PTR),
+        LAYOUT(RBC_API_V1_SIZE_V1_2, rbc_api_v1, PTR),
+        LAYOUT(RBC_API_V1_SIZE_V1_3, rbc_api_v1, PTR),
+        LAYOUT(RBC_API_V1_SIZE_V1_6, rbc_api_v1, PTR),
+        LAYOUT(RBC_API_V1_SIZE_V1_8, rbc_api_v1, PTR),
+    };
+    for (size_t k = 0; k < sizeof layouts / sizeof layouts[0]; ++k) {
+        int whole = layouts[k].size % layouts[k].align == 0;
+        int older = layouts[k].size < layouts[k].now;
+        CHECK(whole);
+        CHECK(older);
+        if (!whole || !older)
+            fprintf(stderr, "  %s is %u: %s (the struct is %zu bytes now, aligned to %zu)\n",
+                    layouts[k].name, layouts[k].size,
+                    !whole ? "no sizeof of an older layout (a field went into its padding)"
+                           : "not smaller than the struct",
+                    layouts[k].now, layouts[k].align);
+    }
+    return check_report("abi_old_sizes");
+}
