@@ -373,3 +373,57 @@ def test_an_older_library_gets_an_older_def_size():
             assert e.value.name == "RBC_ERR_UNSUPPORTED" and "cloth.thickness" in e.value.message
     finally:
         rbcloth.api.table = real
+
+
+@pytest.mark.skipif(not rbcloth.api.has("mesh_get_file_map"), reason="needs ABI 1.9")
+def test_file_map_and_file_positions(tmp_path):
+    """ABI 1.9: the import numbers its vertices in face order, not the file's; the
+    file map, to_file_positions and write_file_obj give states back in the file's
+    order and coordinates (scale 2 undone; powers of two keep every bit)."""
+    p, q = grid(6, 5, 0.1)
+    obj = tmp_path / "g.obj"
+    rbcloth.write_obj(str(obj), p, q)
+    with rbcloth.Mesh(str(obj), scale=2.0) as m:
+        info = m.info()
+        assert (info["file_vertex_count"], info["unmapped_file_vertices"]) == (30, 0)
+        assert info["file_order"] == rbcloth.CONSTANTS["RBC_FILE_ORDER_FILE"]
+        assert info["applied_scale"] == 2.0
+        fm, mp = m.file_map(), m.positions()
+        assert fm.dtype == np.uint32 and sorted(fm) == list(range(30))
+        assert not np.array_equal(fm, np.arange(30))  # a real permutation to undo
+        assert np.array_equal(mp[fm], p * 2)
+        assert np.array_equal(m.to_file_positions(), p)
+        assert np.array_equal(m.to_file_positions(mp), p)
+        with rbcloth.World() as w:
+            c = w.cloth_from_mesh(m, pins=[fm[0], fm[5]])  # file vertices 0 and 5
+            w.step(DT, steps=3)
+            x = c.positions()
+        fx = m.to_file_positions(x)
+        assert np.array_equal(fx, x[fm] / 2)
+        assert np.array_equal(fx[[0, 5]], p[[0, 5]]) and np.all(fx[6:, 1] < 0)
+        m.write_file_obj(str(tmp_path / "state.obj"), x)
+        v = [[float(t) for t in l.split()[1:4]]
+             for l in (tmp_path / "state.obj").read_text().split("\n") if l.startswith("v ")]
+        assert np.array_equal(np.array(v, np.float32), fx)
+        with pytest.raises(rbcloth.Error) as e:
+            m.to_file_positions(mp[:-1])
+        assert e.value.result == rbcloth.CONSTANTS["RBC_ERR_INVALID_ARGUMENT"]
+        with pytest.raises(rbcloth.Error) as e:
+            with rbcloth.World() as w:
+                w.cloth_from_mesh(m, pins=[30])
+        assert "30" in e.value.message
+
+
+@pytest.mark.skipif("frame_rate" not in rbcloth.FIELD_TYPES["rbc_cache_def"],
+                    reason="needs ABI 1.9")
+def test_cache_frame_rate(tmp_path):
+    """A field the header appended (1.9's rbc_cache_def.frame_rate) is set by name
+    with no edit to the binding: MDD times are (start_frame + k) / frame_rate s."""
+    p, _ = grid(2, 2, 0.5)
+    with rbcloth.Cache(str(tmp_path / "t.mdd"), 4, format="mdd", start_frame=1,
+                       frame_rate=30) as c:
+        for _ in range(3):
+            c.write(p)
+    data = (tmp_path / "t.mdd").read_bytes()
+    times = np.frombuffer(data[8:20], ">f4")
+    assert np.array_equal(times, np.float32([1 / 30, 2 / 30, 3 / 30]))

@@ -217,7 +217,7 @@ def _sized(cls, entry, *args, init=True):
             else:
                 s.struct_size = size
                 api(entry, *args, ctypes.byref(s))
-                # rbc_mesh_get_info (1.8) copies its own record over the whole
+                # rbc_mesh_get_info before 1.9 copied its own record over the whole
                 # struct, struct_size included (0): keep the size it was asked for.
                 s.struct_size = size
             return s
@@ -385,9 +385,10 @@ class World:
         self_collision / cloth_collision (booleans, the collision_flags)."""
         return Cloth._create(self, None, positions, quads, springs, pins, masses, fields)
 
-    def cloth_from_mesh(self, mesh, masses=None, **fields):
-        """A cloth from an imported Mesh (rbc_cloth_create_from_mesh)."""
-        return Cloth._create(self, mesh, None, None, None, None, masses, fields)
+    def cloth_from_mesh(self, mesh, pins=None, masses=None, **fields):
+        """A cloth from an imported Mesh (rbc_cloth_create_from_mesh): its geometry
+        and pins, and (ABI 1.9) `pins` pinned besides; the other fields as cloth()."""
+        return Cloth._create(self, mesh, None, None, None, pins, masses, fields)
 
     def collider(self, shape, **fields):
         """A collider (rbc_collider_create): shape "plane", "sphere", "capsule",
@@ -429,19 +430,20 @@ class Cloth:
         if flags:
             fields["collision_flags"] = flags
         keep = []
+        pn = _array(pins, np.uint32, None, "pins", allow_none=True)
+        if pn is not None:
+            d.pin_count, d.pins = len(pn), _ptr(pn, _U32)
+            keep.append(pn)
         if mesh is None:
             p = _array(positions, np.float32, 3, "positions")
             q = _array(quads if quads is not None else np.zeros((0, 4), np.uint32),
                        np.uint32, 4, "quads")
             s = _array(springs, np.uint32, 2, "springs", allow_none=True)
-            pn = _array(pins, np.uint32, None, "pins", allow_none=True)
             d.vertex_count, d.positions = len(p), _ptr(p, _F32)
             d.quad_count, d.quads = len(q), _ptr(q, _U32)
             if s is not None:
                 d.spring_count, d.springs = len(s), _ptr(s, _U32)
-            if pn is not None:
-                d.pin_count, d.pins = len(pn), _ptr(pn, _U32)
-            keep += [p, q, s, pn]
+            keep += [p, q, s]
         m = _array(masses, np.float32, None, "masses", allow_none=True)
         if m is not None:
             d.masses = _ptr(m, _F32)
@@ -620,16 +622,27 @@ class Mesh:
         follows, or 0xFFFFFFFF for none: uint32 (n,). (ABI 1.9)"""
         return self._get("mesh_get_file_map", np.uint32, 1)[:, 0]
 
-    def to_file_positions(self, xyz):
-        """A state of the cloth (float32 (n, 3), the mesh's vertex order) in the
-        file's vertex order and coordinates: float32 (file vertices, 3). (ABI 1.9)"""
-        a = _array(xyz, np.float32, 3, "xyz")
+    def to_file_positions(self, xyz=None):
+        """A state of a cloth made from this mesh (float32 (n, 3) in the mesh's
+        vertex order, as Cloth.positions() gives it; None = the rest positions) in
+        the file's vertex order and coordinates (scale, unit conversion and node
+        transforms undone): float32 (file vertices, 3). (ABI 1.9)"""
+        a = None if xyz is None else _array(xyz, np.float32, 3, "xyz")
+        size = 0 if a is None else a.size
         n = ctypes.c_size_t()
-        api("mesh_to_file_positions", self.id, _ptr(a, _F32), a.size, None, 0, ctypes.byref(n))
+        api("mesh_to_file_positions", self.id, _ptr(a, _F32), size, None, 0, ctypes.byref(n))
         out = np.empty((n.value // 3, 3), np.float32)
-        api("mesh_to_file_positions", self.id, _ptr(a, _F32), a.size, _ptr(out, _F32),
+        api("mesh_to_file_positions", self.id, _ptr(a, _F32), size, _ptr(out, _F32),
             out.size, ctypes.byref(n))
         return out
+
+    def write_file_obj(self, path, xyz=None, order="file"):
+        """A state (as for to_file_positions; None = rest) as an OBJ with the file's
+        own faces, UVs, normals and groups; order "file" (the file's vertices, order
+        and coordinates) or "mesh" (the simulation's). Written atomically. (ABI 1.9)"""
+        a = None if xyz is None else _array(xyz, np.float32, 3, "xyz")
+        api("mesh_write_file_obj", self.id, _ptr(a, _F32), 0 if a is None else a.size,
+            _enum("rbc_vertex_order", order, "order"), os.fsencode(path))
 
 
 class Cache:
