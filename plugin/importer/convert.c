@@ -1023,6 +1023,69 @@ static rbc_result finish(build *b, rbc_mesh *out) {
 /* 0b. Checks assimp's own processing would hide                             */
 /* ------------------------------------------------------------------------- */
 
+/* An ASCII OFF file's face indices: assimp 5.2.5 replaces an index past the vertex
+ * count by the last vertex and reads the file as another mesh. The header is
+ * "[ST][C][N][4][n]OFF", the counts "V F E", V vertex lines, then F faces of "k i1 ..
+ * ik" (colors may follow). Only a clear integer index out of range is reported;
+ * anything this reading does not understand is left to assimp. */
+static rbc_result check_off_indices(build *b, const char *path) {
+    FILE *f = fopen(path, "rb");
+    if (!f) return RBC_OK; /* assimp says why */
+    char line[4096];
+    size_t lineno = 0;
+    long long nv = -1, nf = -1, v = 0, face = 0;
+    int header = 0;
+    rbc_result rc = RBC_OK;
+    while (rc == RBC_OK && fgets(line, sizeof line, f)) {
+        ++lineno;
+        char *hash = strchr(line, '#');
+        if (hash) *hash = '\0';
+        char *p = line;
+        while (*p == ' ' || *p == '\t' || *p == '\r' || *p == '\n') ++p;
+        if (!*p) continue;
+        if (!header) {
+            while (*p == 'S' || *p == 'T' || *p == 'C' || *p == 'N' || *p == '4' || *p == 'n') ++p;
+            if (strncmp(p, "OFF", 3) != 0) break;
+            p += 3;
+            header = 1;
+            while (*p == ' ' || *p == '\t') ++p;
+            if (strncmp(p, "BINARY", 6) == 0) break;
+            if (!*p || *p == '\r' || *p == '\n') continue; /* counts on the next line */
+        }
+        if (nv < 0) {
+            char *e1, *e2;
+            nv = strtoll(p, &e1, 10);
+            nf = e1 != p ? strtoll(e1, &e2, 10) : -1;
+            if (e1 == p || nv < 0 || nf < 0) break;
+            continue;
+        }
+        if (v < nv) {
+            ++v;
+            continue;
+        }
+        if (face >= nf) break;
+        char *e;
+        long long k = strtoll(p, &e, 10);
+        if (e == p || k < 0 || k > 1 << 20) break;
+        p = e;
+        for (long long j = 0; j < k; ++j) {
+            long long idx = strtoll(p, &e, 10);
+            if (e == p) break;
+            p = e;
+            if (idx < 0 || idx >= nv) {
+                rc = rbc_import_error(b->path, RBC_ERR_BAD_MESH,
+                                      "line %zu, face %lld (0-based), corner %lld: vertex index "
+                                      "%lld is out of range (the file has %lld vertices)",
+                                      lineno, face, j, idx, nv);
+                break;
+            }
+        }
+        ++face;
+    }
+    fclose(f);
+    return rc;
+}
+
 /* A vertex with a non-finite coordinate that a face uses is refused before
  * JoinIdenticalVertices runs: it merges such a vertex into another one (the file
  * would import as a different mesh). */
@@ -1099,7 +1162,12 @@ static rbc_result read_file_lists(build *b, const struct aiScene *s) {
         if (b->file.count || b->file.list_start) return RBC_OK; /* OBJ, read already */
         r = rbc_fbx_file_vertices(b->path, &b->file, err, sizeof err);
         if (r == 0) r = rbc_dae_file_vertices(b->path, &b->file, err, sizeof err);
-        if (r == 0) return assimp_order(b, s);
+        /* A file assimp reads but our reader cannot (an FBX or Collada variant it does
+         * not know) still simulates: in assimp's order, which the report says. */
+        if (r <= 0) {
+            rbc_file_vertices_free(&b->file);
+            return assimp_order(b, s);
+        }
     }
     if (r < 0)
         return rbc_import_error(b->path, RBC_ERR_IO, "reading the file's vertex lists: %s", err);
@@ -1186,6 +1254,7 @@ static int cmp_grid_entry(const void *x, const void *y) {
 static void cell_of(const double p[3], double inv, int64_t c[3]) {
     for (int k = 0; k < 3; ++k) {
         double q = floor(p[k] * inv);
+        if (isnan(q)) q = 0.0; /* a loose non-finite vertex: never within h of anything */
         if (q > 4e18) q = 4e18;
         if (q < -4e18) q = -4e18;
         c[k] = (int64_t)q;
@@ -1293,7 +1362,6 @@ static rbc_result map_file_vertices(build *b, rbc_mesh *out) {
         rc = oom(b);
         goto done;
     }
-    uint8_t *inst_ok = (uint8_t *)kept; /* reused below after the grids are built */
     double big = 0.0;
     for (size_t i = 0; i < ns; ++i) {
         uint32_t w = b->weld_map[i];
@@ -1329,7 +1397,6 @@ static rbc_result map_file_vertices(build *b, rbc_mesh *out) {
         unmapped += v == UINT32_MAX;
     }
     for (size_t i = 0; i < ns; ++i) out->cv_file[i] = grid_nearest(&gf, fx, sx + 3 * i, h, NULL);
-    memset(inst_ok, 0, b->ninst < ns + 1 ? b->ninst : ns + 1);
     for (size_t k = 0; k < b->ninst; ++k) {
         if (!affine_inverse(b->inst[k].m, b->scale, out->inst_inv + 12 * k)) {
             /* a placement that flattens its mesh cannot be undone: its vertices keep
@@ -1487,8 +1554,10 @@ rbc_result rbc_import_convert(const char *path, const rbc_mesh_import_def *def, 
         return rbc_import_error(b.path, RBC_ERR_IO,
                                 "assimp could not read the file: a PLY header without end_header "
                                 "(refused here: assimp 5.2.5 loops forever on it)");
-    /* An OBJ's "v" list, and its indices checked, before assimp reads it. */
+    /* An OBJ's "v" list, and its indices checked, before assimp reads it; an OFF's
+     * indices too (assimp would clamp them). */
     rc = read_file_lists(&b, NULL);
+    if (!rc && !is_ply && has_ext(path, ".off")) rc = check_off_indices(&b, path);
     if (rc) {
         build_free(&b);
         return rc;
@@ -1513,6 +1582,14 @@ rbc_result rbc_import_convert(const char *path, const rbc_mesh_import_def *def, 
         for (char *p = aierr; *p; ++p)
             if (*p == '\n' || *p == '\r') *p = ' ';
         build_free(&b);
+        /* assimp's ValidateDataStructure names the face and corner of an index
+         * out of range ("aiMesh::mFaces[0]::mIndices[3] is out of range"): the
+         * mesh is bad, not the file unreadable. */
+        if (strstr(aierr, "Validation failed") && strstr(aierr, "mIndices") &&
+            strstr(aierr, "out of range"))
+            return rbc_import_error(b.path, RBC_ERR_BAD_MESH,
+                                    "a face index is out of range: assimp's check says \"%s\"",
+                                    aierr);
         if (strstr(aierr, "No suitable reader found"))
             return rbc_import_error(b.path, RBC_ERR_UNSUPPORTED,
                                     "no assimp reader for this format: %s", aierr);

@@ -85,6 +85,43 @@ static void read_back(rbc_mesh_id mesh, const rbc_mesh_info *info) {
         }
         free(v);
     }
+
+    /* 1.9: the file's own vertices. The map is file_vertex_count long, each entry a
+     * mesh vertex or UINT32_MAX (as many as the info says); the state goes back
+     * into the file's order; the file's mesh writes as OBJ (or fails with a clean
+     * error), and the file appears only whole. */
+    check(rbc_mesh_get_file_map(mesh, NULL, 0, &n), "rbc_mesh_get_file_map");
+    FUZZ_CHECK(n == info->file_vertex_count, "%zu map entries, the info says %u", n,
+               info->file_vertex_count);
+    uint32_t *map = malloc(n * sizeof *map + 1);
+    FUZZ_CHECK(map != NULL, "out of memory");
+    check(rbc_mesh_get_file_map(mesh, map, n, &n), "rbc_mesh_get_file_map");
+    size_t unmapped = 0;
+    for (size_t i = 0; i < n; i++) {
+        FUZZ_CHECK(map[i] < info->vertex_count || map[i] == UINT32_MAX,
+                   "file vertex %zu maps to %u of %u vertices", i, map[i], info->vertex_count);
+        unmapped += map[i] == UINT32_MAX;
+    }
+    FUZZ_CHECK(unmapped == info->unmapped_file_vertices, "%zu unmapped, the info says %u",
+               unmapped, info->unmapped_file_vertices);
+    free(map);
+    size_t nf = 0;
+    check(rbc_mesh_to_file_positions(mesh, NULL, 0, NULL, 0, &nf), "rbc_mesh_to_file_positions");
+    FUZZ_CHECK(nf == 3 * (size_t)info->file_vertex_count, "%zu file floats", nf);
+    float *fx = malloc(nf * sizeof *fx + 1);
+    FUZZ_CHECK(fx != NULL, "out of memory");
+    check(rbc_mesh_to_file_positions(mesh, NULL, 0, fx, nf, NULL), "rbc_mesh_to_file_positions");
+    free(fx);
+    char obj[128];
+    snprintf(obj, sizeof obj, "%s/file.obj", dir);
+    for (int order = RBC_ORDER_FILE; order <= RBC_ORDER_MESH; ++order) {
+        rbc_result r = rbc_mesh_write_file_obj(mesh, NULL, 0, order, obj);
+        if (r != RBC_OK) fuzz_check_error(r, "rbc_mesh_write_file_obj");
+        struct stat st;
+        FUZZ_CHECK((r == RBC_OK) == (stat(obj, &st) == 0), "write_file_obj %d: file %s",
+                   (int)r, r == RBC_OK ? "missing" : "left behind");
+        remove(obj);
+    }
 }
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size) {

@@ -361,6 +361,29 @@ static void test_pins_from_mesh(void) {
     CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
 }
 
+/* A non-finite vertex no face uses is not refused (only used ones are): it maps to
+ * no mesh vertex and keeps its place in the file. */
+static void test_loose_nan(void) {
+    const char *path = write_file("loose_nan.obj", "v 0 0 0\nv 1 0 0\nv nan 0 inf\nv 1 1 0\n"
+                                                   "v 0 1 0\nf 1 2 4 5\n");
+    rbc_mesh_id m = 0;
+    CHECK_EQ(rbc_mesh_import(path, NULL, &m), RBC_OK);
+    if (!m) return;
+    rbc_mesh_info i = info_of(m);
+    CHECK_EQ(i.vertex_count, 4);
+    CHECK_EQ(i.file_vertex_count, 5);
+    CHECK_EQ(i.unmapped_file_vertices, 1);
+    uint32_t map[5];
+    CHECK_EQ(rbc_mesh_get_file_map(m, map, 5, NULL), RBC_OK);
+    CHECK_EQ(map[2], UINT32_MAX);
+    float out[15];
+    CHECK_EQ(rbc_mesh_to_file_positions(m, NULL, 0, out, 15, NULL), RBC_OK);
+    CHECK(isnan(out[6]) && out[7] == 0.0f && isinf(out[8]));
+    CHECK_EQ(out[9], 1.0f);
+    CHECK_EQ(out[10], 1.0f);
+    CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
+}
+
 int main(void) {
     snprintf(g_dir, sizeof g_dir, "%s/rbc_order_XXXXXX", getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp");
     if (!mkdtemp(g_dir)) {
@@ -370,6 +393,7 @@ int main(void) {
     test_obj_order();
     test_dae_units();
     test_pins_from_mesh();
+    test_loose_nan();
     char cmd[400];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_dir);
     if (system(cmd) != 0) fprintf(stderr, "could not remove %s\n", g_dir);

@@ -488,6 +488,19 @@ static void test_bad_input(void) {
                               "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\nf 1 2 \\\n 3 0\n"),
                    NULL, RBC_ERR_BAD_MESH,
                    "line 5, face 1 (0-based), corner 3: \"0\" is not a vertex index");
+    /* PLY: assimp's own check names the face and corner; it is the mesh that is bad. */
+    expect_refused(write_file("outofrange.ply",
+                              "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\n"
+                              "property float y\nproperty float z\nelement face 1\n"
+                              "property list uchar int vertex_indices\nend_header\n0 0 0\n"
+                              "1 0 0\n1 1 0\n0 1 0\n4 0 1 2 99\n"),
+                   NULL, RBC_ERR_BAD_MESH, "aiMesh::mFaces[0]::mIndices[3] is out of range");
+    /* OFF: assimp 5.2.5 would replace 99 by the last vertex and import a square. */
+    expect_refused(write_file("outofrange.off", "OFF\n# four corners\n4 1 0\n0 0 0\n1 0 0\n"
+                                                "1 1 0\n0 1 0\n4 0 1 2 99\n"),
+                   NULL, RBC_ERR_BAD_MESH,
+                   "line 8, face 0 (0-based), corner 3: vertex index 99 is out of range (the "
+                   "file has 4 vertices)");
     /* A non-finite vertex its only face uses: refused, not merged away by assimp's
      * JoinIdenticalVertices (which made it a 3-vertex mesh before 1.9). */
     expect_refused(write_file("nan_vertex.obj",
