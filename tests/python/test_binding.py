@@ -427,3 +427,28 @@ def test_cache_frame_rate(tmp_path):
     data = (tmp_path / "t.mdd").read_bytes()
     times = np.frombuffer(data[8:20], ">f4")
     assert np.array_equal(times, np.float32([1 / 30, 2 / 30, 3 / 30]))
+
+
+def test_masses():
+    """Per-vertex masses: equal masses step exactly as vertex_mass does; a heavier
+    cloth with the same springs sags further; a masses array of the wrong length is
+    refused in Python (C would read past its end), a non-positive mass by C."""
+    p, q = grid(8, 8, 0.05)
+    n = len(p)
+    with rbcloth.World() as a, rbcloth.World() as b, rbcloth.World() as c:
+        ca = a.cloth(p, q, pins=[0, 7], masses=np.full(n, 2e-4, np.float32))
+        cb = b.cloth(p, q, pins=[0, 7], vertex_mass=2e-4)
+        cc = c.cloth(p, q, pins=[0, 7], masses=np.full(n, 2e-2, np.float32))
+        for w in (a, b, c):
+            w.step(DT, steps=20)
+        assert np.array_equal(ca.positions(), cb.positions())
+        assert cc.positions()[:, 1].min() < ca.positions()[:, 1].min()
+        with pytest.raises(ValueError):
+            a.cloth(p, q, masses=np.full(n - 1, 1e-4, np.float32))
+        with pytest.raises(TypeError):
+            a.cloth(p, q, masses=np.full(n, 1e-4))
+        bad = np.full(n, 1e-4, np.float32)
+        bad[5] = 0
+        with pytest.raises(rbcloth.Error) as e:
+            a.cloth(p, q, masses=bad)
+        assert "5" in e.value.message

@@ -446,6 +446,11 @@ class Cloth:
             keep += [p, q, s]
         m = _array(masses, np.float32, None, "masses", allow_none=True)
         if m is not None:
+            # C reads vertex_count floats from `masses`: a shorter array would be
+            # read past its end, so the count is checked here.
+            n = d.vertex_count if mesh is None else mesh.info()["vertex_count"]
+            if len(m) != n:
+                raise ValueError("masses: %d values, the cloth has %d vertices" % (len(m), n))
             d.masses = _ptr(m, _F32)
             keep.append(m)
         _set_fields(d, fields, "cloth")
