@@ -10,19 +10,27 @@ set -euo pipefail
 # libxml2-dev: the import helper reads a Collada file's own vertex order itself
 # (plugin/importer/file_vertices_dae.c), which assimp does not keep; zlib1g-dev also
 # serves its binary FBX reader's compressed arrays.
+# python3: the build generates the Python binding's ctypes module from abi/rbcloth.h
+# (hosts/python/gen_abi.py, standard library only) and zips the Blender add-on.
 build_pkgs=(cmake make gcc libc6-dev pkg-config libcjson-dev libsuitesparse-dev binutils
-            libassimp-dev zlib1g-dev libpng-dev libxml2-dev)
+            libassimp-dev zlib1g-dev libpng-dev libxml2-dev python3)
 # slurm-wlm, munge: tests/slurm starts a one-node Slurm on localhost to run
 # samples/slurm/ (about 12 s to install on bookworm; the test skips without them).
 # chromium: tests/viewer loads the player page in headless Chromium (software WebGL)
 # to check that it draws and plays. blender: tests/blender brings a run's cache into
 # Blender with the README's settings.
+# python3-numpy, python3-pytest: the Python binding (hosts/python) and its tests
+# (tests/python) run with Debian's /usr/bin/python3, never a python3 on PATH.
+# python3-venv, python3-pip, python3-setuptools, python3-wheel: python_pip_install
+# pip-installs the binding into a venv offline (--no-build-isolation: setuptools'
+# build backend needs wheel for bdist_wheel, and no index is reached for either).
 # clang-14, libclang-rt-14-dev, llvm-14: `make check-sanitizers` (which .ci/run
 # calls after `make test`; tests/README.md): ThreadSanitizer and libFuzzer need clang (libclang-rt-14-dev has libFuzzer and
 # the sanitizer runtimes), llvm-14 the llvm-symbolizer that puts names on their stacks.
 # gcc's own ASan/UBSan runtimes (libasan8, libubsan1) come with gcc.
 test_pkgs=(abigail-tools assimp-testmodels valgrind slurm-wlm munge chromium blender
-           clang-14 libclang-rt-14-dev llvm-14)
+           clang-14 libclang-rt-14-dev llvm-14 python3-numpy python3-pytest python3-venv
+           python3-pip python3-setuptools python3-wheel)
 if [ "${1:-}" = build ]; then
   pkgs=("${build_pkgs[@]}")
 else
