@@ -1227,82 +1227,79 @@ static void file_units(build *b, const struct aiScene *s) {
 /* 8. The file's vertices mapped to the mesh's                               */
 /* ------------------------------------------------------------------------- */
 
-/* Points in cells of side h, sorted by cell, for "the nearest point within h". */
-typedef struct grid_entry {
-    int64_t c[3];
-    uint32_t idx;
-} grid_entry;
-
+/* Points hashed by cells of side 16h, for "the nearest point within h": a query
+ * looks only in the cells its box of half-side h touches, 1.4 on average and at most
+ * 8 (a hash probe each; a cell of side 2h took 8 nearly always, and sorting the cells
+ * and searching them took most of a 1M-vertex import's time). h is a few float
+ * roundings, so a cell still holds one vertex, or the copies at one place. */
 typedef struct point_grid {
-    grid_entry *e;
-    size_t n;
-    double inv;
+    int64_t *keys;  /* [3 cap] */
+    uint32_t *head; /* [cap] first point of the cell, UINT32_MAX = empty slot */
+    uint32_t *next; /* [n] next point of the same cell */
+    size_t mask;
+    double inv;     /* 1 / (16h) */
 } point_grid;
 
-static int cmp_cell(const int64_t *a, const int64_t *b) {
-    for (int k = 0; k < 3; ++k)
-        if (a[k] != b[k]) return a[k] < b[k] ? -1 : 1;
-    return 0;
+static void grid_free(point_grid *g) {
+    free(g->keys);
+    free(g->head);
+    free(g->next);
 }
 
-static int cmp_grid_entry(const void *x, const void *y) {
-    const grid_entry *a = x, *b = y;
-    int c = cmp_cell(a->c, b->c);
-    return c ? c : (a->idx < b->idx ? -1 : a->idx > b->idx);
-}
-
-static void cell_of(const double p[3], double inv, int64_t c[3]) {
-    for (int k = 0; k < 3; ++k) {
-        double q = floor(p[k] * inv);
-        if (isnan(q)) q = 0.0; /* a loose non-finite vertex: never within h of anything */
-        if (q > 4e18) q = 4e18;
-        if (q < -4e18) q = -4e18;
-        c[k] = (int64_t)q;
-    }
+static int64_t cell_coord(double x, double inv) {
+    double t = x * inv;
+    if (isnan(t)) return 0; /* a loose non-finite vertex: never within h of anything */
+    if (t > 4e18) return (int64_t)4e18;
+    if (t < -4e18) return (int64_t)-4e18;
+    int64_t q = (int64_t)t; /* floor without libm's call (no SSE4.1 in the baseline) */
+    return q - ((double)q > t);
 }
 
 static int grid_build(point_grid *g, const double *xyz, size_t n, double h) {
-    g->n = n;
-    g->inv = 1.0 / h;
-    g->e = malloc((n + 1) * sizeof *g->e);
-    if (!g->e) return 0;
-    for (size_t i = 0; i < n; ++i) {
-        cell_of(xyz + 3 * i, g->inv, g->e[i].c);
-        g->e[i].idx = (uint32_t)i;
+    memset(g, 0, sizeof *g);
+    size_t cap = 16;
+    while (cap < 2 * n) cap *= 2;
+    g->mask = cap - 1;
+    g->inv = 1.0 / (16.0 * h);
+    g->keys = malloc(3 * cap * sizeof *g->keys);
+    g->head = malloc(cap * sizeof *g->head);
+    g->next = malloc((n + 1) * sizeof *g->next);
+    if (!g->keys || !g->head || !g->next) return 0;
+    memset(g->head, 0xFF, cap * sizeof *g->head);
+    cell_table t = {g->keys, g->head, g->mask};
+    for (size_t i = n; i-- > 0;) { /* backwards: each cell's chain in index order */
+        int64_t key[3];
+        for (int c = 0; c < 3; ++c) key[c] = cell_coord(xyz[3 * i + c], g->inv);
+        size_t slot = cell_slot(&t, key);
+        if (g->head[slot] == UINT32_MAX) memcpy(&g->keys[3 * slot], key, sizeof key);
+        g->next[i] = g->head[slot];
+        g->head[slot] = (uint32_t)i;
     }
-    qsort(g->e, n, sizeof *g->e, cmp_grid_entry);
     return 1;
-}
-
-/* The first entry of cell c, or g->n. */
-static size_t grid_first(const point_grid *g, const int64_t c[3]) {
-    size_t lo = 0, hi = g->n;
-    while (lo < hi) {
-        size_t mid = lo + (hi - lo) / 2;
-        if (cmp_cell(g->e[mid].c, c) < 0) lo = mid + 1;
-        else hi = mid;
-    }
-    return lo;
 }
 
 /* The point nearest p within h (per coordinate) among `xyz`; among equally near
  * ones the one `prefer` marks, then the lowest index. UINT32_MAX if none. */
 static uint32_t grid_nearest(const point_grid *g, const double *xyz, const double p[3], double h,
                              const uint8_t *prefer) {
-    int64_t c[3];
-    cell_of(p, g->inv, c);
+    int64_t lo[3], hi[3];
+    for (int c = 0; c < 3; ++c) {
+        lo[c] = cell_coord(p[c] - h, g->inv);
+        hi[c] = cell_coord(p[c] + h, g->inv);
+        if (hi[c] - lo[c] > 1) hi[c] = lo[c] + 1; /* cells are wider than the box */
+    }
+    cell_table t = {g->keys, g->head, g->mask};
     uint32_t best = UINT32_MAX;
     double best_d = INFINITY;
     int best_pref = 0;
-    for (int dx = -1; dx <= 1; ++dx)
-        for (int dy = -1; dy <= 1; ++dy)
-            for (int dz = -1; dz <= 1; ++dz) {
-                int64_t q[3] = {c[0] + dx, c[1] + dy, c[2] + dz};
-                for (size_t i = grid_first(g, q); i < g->n && !cmp_cell(g->e[i].c, q); ++i) {
-                    uint32_t k = g->e[i].idx;
+    for (int64_t x = lo[0]; x <= hi[0]; ++x)
+        for (int64_t y = lo[1]; y <= hi[1]; ++y)
+            for (int64_t z = lo[2]; z <= hi[2]; ++z) {
+                const int64_t key[3] = {x, y, z};
+                for (uint32_t k = g->head[cell_slot(&t, key)]; k != UINT32_MAX; k = g->next[k]) {
                     const double *o = xyz + 3 * (size_t)k;
                     double ex = fabs(o[0] - p[0]), ey = fabs(o[1] - p[1]), ez = fabs(o[2] - p[2]);
-                    if (ex > h || ey > h || ez > h) continue;
+                    if (!(ex <= h && ey <= h && ez <= h)) continue;
                     double d = ex * ex + ey * ey + ez * ez;
                     int pref = prefer ? prefer[k] : 0;
                     if (d < best_d || (d == best_d && (pref > best_pref ||
@@ -1357,6 +1354,7 @@ static rbc_result map_file_vertices(build *b, rbc_mesh *out) {
     out->cv_mesh = malloc((ns + 1) * sizeof(uint32_t));
     rbc_result rc = RBC_OK;
     point_grid g = {0}, gf = {0};
+    uint32_t *file_of = NULL; /* welded vertex -> the first file vertex found for it */
     if (!sx || !fx || !kept || !out->file_map || !out->file_inst || !out->file_rest ||
         !out->inst_inv || !out->cv_file || !out->cv_mesh) {
         rc = oom(b);
@@ -1384,10 +1382,12 @@ static rbc_result map_file_vertices(build *b, rbc_mesh *out) {
     /* 8 float roundings of the largest coordinate: two parses of one decimal number
      * differ by one at most, distinct vertices far more in any mesh worth simulating. */
     double h = big > 0.0 ? big * 8.0 * 0x1p-24 : 0x1p-126;
-    if (!grid_build(&g, sx, ns, h) || !grid_build(&gf, fx, nf, h)) {
+    file_of = malloc(((size_t)b->nw + 1) * sizeof *file_of);
+    if (!file_of || !grid_build(&g, sx, ns, h)) {
         rc = oom(b);
         goto done;
     }
+    memset(file_of, 0xFF, ((size_t)b->nw + 1) * sizeof *file_of);
     uint32_t unmapped = 0;
     for (size_t k = 0; k < nf; ++k) {
         uint32_t s = grid_nearest(&g, sx, fx + 3 * k, h, kept);
@@ -1395,8 +1395,27 @@ static rbc_result map_file_vertices(build *b, rbc_mesh *out) {
         out->file_map[k] = v;
         out->file_inst[k] = v == UINT32_MAX ? UINT32_MAX : b->src_inst[s];
         unmapped += v == UINT32_MAX;
+        if (s != UINT32_MAX && file_of[b->weld_map[s]] == UINT32_MAX)
+            file_of[b->weld_map[s]] = (uint32_t)k;
     }
-    for (size_t i = 0; i < ns; ++i) out->cv_file[i] = grid_nearest(&gf, fx, sx + 3 * i, h, NULL);
+    /* The other way: a source vertex's file vertex is, nearly always, the one found
+     * for its welded vertex (the copies at one place weld); only what that does not
+     * settle (welding off, or a weld_distance wider than h) is searched for. */
+    size_t left = 0;
+    for (size_t i = 0; i < ns; ++i) {
+        uint32_t k = file_of[b->weld_map[i]];
+        int near = k != UINT32_MAX && fabs(fx[3 * (size_t)k] - sx[3 * i]) <= h &&
+                   fabs(fx[3 * (size_t)k + 1] - sx[3 * i + 1]) <= h &&
+                   fabs(fx[3 * (size_t)k + 2] - sx[3 * i + 2]) <= h;
+        out->cv_file[i] = near ? k : UINT32_MAX;
+        left += !near;
+    }
+    if (left && !grid_build(&gf, fx, nf, h)) {
+        rc = oom(b);
+        goto done;
+    }
+    for (size_t i = 0; i < ns && left; ++i)
+        if (out->cv_file[i] == UINT32_MAX) out->cv_file[i] = grid_nearest(&gf, fx, sx + 3 * i, h, NULL);
     for (size_t k = 0; k < b->ninst; ++k) {
         if (!affine_inverse(b->inst[k].m, b->scale, out->inst_inv + 12 * k)) {
             /* a placement that flattens its mesh cannot be undone: its vertices keep
@@ -1408,8 +1427,9 @@ static rbc_result map_file_vertices(build *b, rbc_mesh *out) {
     b->info.file_vertex_count = (uint32_t)nf;
     b->info.unmapped_file_vertices = unmapped;
 done:
-    free(g.e);
-    free(gf.e);
+    grid_free(&g);
+    grid_free(&gf);
+    free(file_of);
     free(sx);
     free(fx);
     free(kept);

@@ -30,7 +30,7 @@ static int read_line(FILE *f, char **buf, size_t *cap, size_t *lineno, size_t *f
     int any = 0;
     *first_line = *lineno + 1;
     for (;;) {
-        int c = getc(f);
+        int c = getc_unlocked(f); /* one thread reads the file */
         if (c == EOF) break;
         any = 1;
         if (n + 2 > *cap) {

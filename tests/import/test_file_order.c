@@ -91,6 +91,21 @@ static size_t count_lines(const char *path, const char *tag, float (*v)[3], size
     return n;
 }
 
+/* The vertex index of every face corner of an OBJ, in order (at most cap). */
+static size_t face_vertices(const char *path, char *out, size_t cap) {
+    FILE *f = fopen(path, "r");
+    if (!f) return 0;
+    size_t n = 0;
+    char line[1024];
+    while (fgets(line, sizeof line, f)) {
+        if (strncmp(line, "f ", 2) != 0) continue;
+        for (char *t = strtok(line + 2, " \n"); t; t = strtok(NULL, " \n"))
+            if (n < cap) out[n++] = (char)atoi(t);
+    }
+    fclose(f);
+    return n;
+}
+
 /* Distinct "vt" lines of an OBJ (exact text). */
 static size_t distinct_vt(const char *path) {
     FILE *f = fopen(path, "r");
@@ -196,6 +211,25 @@ static void test_obj_order(void) {
                 for (int c = 0; c < 3; ++c) CHECK_EQ(bpos[3 * bmap[k] + c], pos[3 * map[k] + c]);
         }
         CHECK_EQ(rbc_mesh_destroy(back), RBC_OK);
+    }
+    /* Welding off: each corner vertex is its own mesh vertex, so the faces' file
+     * vertices are searched for one by one (not taken from the welded vertex): the
+     * same faces. */
+    {
+        rbc_mesh_import_def nw = rbc_mesh_import_def_default();
+        nw.weld = 0;
+        rbc_mesh_id u = 0;
+        CHECK_EQ(rbc_mesh_import(path, &nw, &u), RBC_OK);
+        char a[600], b2[600];
+        snprintf(a, sizeof a, "%s/weld1.obj", g_dir);
+        snprintf(b2, sizeof b2, "%s/weld0.obj", g_dir);
+        CHECK_EQ(rbc_mesh_write_file_obj(m, NULL, 0, RBC_ORDER_FILE, a), RBC_OK);
+        if (u) CHECK_EQ(rbc_mesh_write_file_obj(u, NULL, 0, RBC_ORDER_FILE, b2), RBC_OK);
+        char fa[64], fb[64];
+        CHECK_EQ(face_vertices(a, fa, sizeof fa), 24);
+        CHECK_EQ(face_vertices(b2, fb, sizeof fb), 24);
+        CHECK(memcmp(fa, fb, 24) == 0);
+        if (u) CHECK_EQ(rbc_mesh_destroy(u), RBC_OK);
     }
     /* The simulation's order: 12 "v" lines, the mesh's positions. */
     snprintf(obj, sizeof obj, "%s/scrambled_mesh.obj", g_dir);
