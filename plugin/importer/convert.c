@@ -1348,7 +1348,7 @@ static rbc_result map_file_vertices(build *b, rbc_mesh *out) {
     out->file_map = malloc((nf + 1) * sizeof(uint32_t));
     out->file_inst = malloc((nf + 1) * sizeof(uint32_t));
     out->file_rest = malloc((3 * nf + 1) * sizeof(float));
-    out->inst_inv = malloc((12 * b->ninst + 1) * sizeof(double));
+    out->inst_inv = calloc(12 * b->ninst + 1, sizeof(double)); /* a singular one stays 0 */
     out->ncv = (uint32_t)ns;
     out->cv_file = malloc((ns + 1) * sizeof(uint32_t));
     out->cv_mesh = malloc((ns + 1) * sizeof(uint32_t));
@@ -1451,8 +1451,9 @@ static rbc_result file_faces(build *b, const struct aiScene *s, rbc_mesh *out) {
     if (nfc > RBC_IMPORT_MAX_ELEMENTS || ncorner > RBC_IMPORT_MAX_ELEMENTS)
         return rbc_import_error(b->path, RBC_ERR_BAD_MESH, "too many faces: more than %u",
                                 RBC_IMPORT_MAX_ELEMENTS);
-    out->cv_uv = malloc((2 * ns + 1) * sizeof(float));
-    out->cv_nrm = malloc((3 * ns + 1) * sizeof(float));
+    /* zeroed: a corner vertex without a UV or normal still travels to the plugin */
+    out->cv_uv = calloc(2 * ns + 1, sizeof(float));
+    out->cv_nrm = calloc(3 * ns + 1, sizeof(float));
     out->cv_flags = calloc(ns + 1, 1);
     out->nfc = (uint32_t)nfc;
     out->nfcorner = (uint32_t)ncorner;
