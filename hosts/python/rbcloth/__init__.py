@@ -289,7 +289,32 @@ def solver_def(preset=None, **fields):
 
 # --- objects ------------------------------------------------------------------
 
-class World:
+class _Owned:
+    """A library object this one owns by its id: destroyed by close() (again is
+    harmless), at the end of a `with` block, or when collected."""
+
+    _destroy = None  # the function table entry that destroys it
+    id = 0
+
+    def close(self):
+        if self.id:
+            oid, self.id = self.id, 0
+            api(self._destroy, oid)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __del__(self):
+        try:
+            self.close()
+        except Exception:  # noqa: BLE001 (interpreter shutdown)
+            pass
+
+
+class World(_Owned):
     """A world: rbc_world_create. Keyword arguments are rbc_world_def fields
     (gravity, substeps, substep_rate, nonlinear_iterations, linear_iterations,
     backend "auto"/"cpu"/"cuda", thread_count, strain_warning, ...); the solve is
@@ -321,23 +346,7 @@ class World:
         api("world_create", ctypes.byref(d), ctypes.byref(wid))
         self.id = wid.value
 
-    def close(self):
-        """Destroy the world (and everything in it); again is harmless."""
-        if self.id:
-            wid, self.id = self.id, 0
-            api("world_destroy", wid)
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
-    def __del__(self):
-        try:
-            self.close()
-        except Exception:  # noqa: BLE001 (interpreter shutdown)
-            pass
+    _destroy = "world_destroy"  # close(): the world and everything in it
 
     def step(self, dt, steps=1):
         """rbc_world_step(dt) `steps` times (dt rounded to float32, as C would)."""
@@ -560,7 +569,7 @@ class Collider:
         api("collider_destroy", self.world.id, self.id)
 
 
-class Mesh:
+class Mesh(_Owned):
     """A mesh read from a file (rbc_mesh_import, assimp in the rbcloth-import
     helper). Keyword arguments are rbc_mesh_import_def fields (scale, weld,
     weld_distance, pair_triangles, ngons "split"/"refuse", pin_top_axis,
@@ -578,22 +587,7 @@ class Mesh:
         api("mesh_import", os.fsencode(path), ctypes.byref(d), ctypes.byref(mid))
         self.id = mid.value
 
-    def close(self):
-        if self.id:
-            mid, self.id = self.id, 0
-            api("mesh_destroy", mid)
-
-    def __enter__(self):
-        return self
-
-    def __exit__(self, *exc):
-        self.close()
-
-    def __del__(self):
-        try:
-            self.close()
-        except Exception:  # noqa: BLE001
-            pass
+    _destroy = "mesh_destroy"
 
     def info(self):
         """rbc_mesh_get_info as a dict of rbc_mesh_info fields."""
