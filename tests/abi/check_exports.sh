@@ -8,8 +8,10 @@
 #   _init, _fini          the ELF DT_INIT/DT_FINI entry points (crti.o/crtn.o)
 #   __bss_start, _edata,  section boundary markers ld defines when they are
 #   _end                  not hidden (older binutils export them from .so files)
+#   RBCLOTH_1             the version node's own definition (plugin/exports.map)
 # Nothing else is tolerated: a leaked internal (core_*, cJSON_*, a static
-# library's symbols) fails the test.
+# library's symbols) fails the test. Every rbc_ symbol must carry the version node
+# of ABI major 1, rbc_x@@RBCLOTH_1: a host linked against it binds to that major.
 set -euo pipefail
 so=${1:?usage: check_exports.sh path/to/librbcloth.so path/to/rbcloth.h}
 header=${2:?usage: check_exports.sh path/to/librbcloth.so path/to/rbcloth.h}
@@ -23,13 +25,20 @@ syms=$(nm -D --defined-only "$so" | awk 'NF >= 2 { print $NF }' | sed 's/@.*//' 
 [ -n "$syms" ] || { echo "FAIL: nm lists no defined dynamic symbols in $so" >&2; exit 1; }
 
 fail=0
-allowed='^(_init|_fini|__bss_start|_edata|_end)$'
+allowed='^(_init|_fini|__bss_start|_edata|_end|RBCLOTH_1)$'
 while IFS= read -r s; do
   [[ "$s" == rbc_* ]] && continue
   if [[ "$s" =~ $allowed ]]; then continue; fi
   echo "FAIL: exported symbol without rbc_ prefix: $s" >&2
   fail=1
 done <<< "$syms"
+
+unversioned=$(nm -D --defined-only "$so" | awk 'NF >= 2 { print $NF }' | grep '^rbc_' |
+              grep -v '@@RBCLOTH_1$' || true)
+if [ -n "$unversioned" ]; then
+  echo "FAIL: rbc_ symbols without the version node RBCLOTH_1: $(echo $unversioned)" >&2
+  fail=1
+fi
 
 # Every function of the header: "RBC_API <type> RBC_CALL name(".
 want=$(tr '\n' ' ' < "$header" | grep -o 'RBC_API[^;(]*RBC_CALL[[:space:]]*rbc_[A-Za-z0-9_]*[[:space:]]*(' |
