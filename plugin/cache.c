@@ -131,11 +131,7 @@ RBC_API rbc_result RBC_CALL rbc_cache_def_init(rbc_cache_def *def, uint32_t stru
     d.quads = NULL;
     d.quad_count = 0;
     d.frame_rate = 24.0f;
-    /* Three released sizes: 1.0-1.1, 1.2-1.8 and this one. */
-    return rbc_def_init_common(def, struct_size, &d, sizeof d,
-                               struct_size == RBC_CACHE_DEF_SIZE_V1_2 ? RBC_CACHE_DEF_SIZE_V1_2
-                                                                      : RBC_CACHE_DEF_SIZE_V1_0,
-                               "rbc_cache_def_init", "rbc_cache_def");
+    return rbc_def_init_common(def, struct_size, &d, &rbc_sizes_cache_def, "rbc_cache_def_init");
 }
 
 /* The PC2 header: char[12] "POINTCACHE2\0", int32 version 1, int32 points,
@@ -182,14 +178,8 @@ RBC_API rbc_result RBC_CALL rbc_cache_create(const rbc_cache_def *user_def, rbc_
     if (!out) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: out_cache is NULL", fn);
     *out = 0;
     if (!user_def) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: def is NULL", fn);
-    if (user_def->struct_size != sizeof(rbc_cache_def) &&
-        user_def->struct_size != RBC_CACHE_DEF_SIZE_V1_0 &&
-        user_def->struct_size != RBC_CACHE_DEF_SIZE_V1_2)
-        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
-                             "%s: rbc_cache_def->struct_size is %u, which matches no released "
-                             "version (this library knows %zu and the older sizes %u, %u)",
-                             fn, user_def->struct_size, sizeof(rbc_cache_def),
-                             RBC_CACHE_DEF_SIZE_V1_0, RBC_CACHE_DEF_SIZE_V1_2);
+    if (!rbc_size_known(&rbc_sizes_cache_def, user_def->struct_size))
+        return rbc_size_refused(&rbc_sizes_cache_def, user_def->struct_size, fn, "def");
     /* Fields the host's struct does not have take their defaults. */
     rbc_cache_def def;
     memset(&def, 0, sizeof def);

@@ -30,8 +30,8 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create(rbc_world_id wid, const rbc_cloth_d
     rbc_result rc = rbc_plugin_create_begin(wid, fn, out_cloth, "out_cloth", &w);
     if (rc) return rc;
     rbc_cloth_def def = rbc_plugin_cloth_def_defaults();
-    if ((rc = rbc_plugin_world_read_def(w, &def, sizeof def, RBC_CLOTH_DEF_SIZE_V1_0,
-                                        RBC_CLOTH_DEF_SIZE_V1_1, user_def, fn, "rbc_cloth_def")))
+    if ((rc = rbc_plugin_world_read_def(w, &def, &rbc_sizes_cloth_def, user_def, fn,
+                                        "rbc_cloth_def")))
         return rc;
     if (!(isfinite(def.shear_stiffness) && def.shear_stiffness >= 0.0f) ||
         !(isfinite(def.bend_stiffness) && def.bend_stiffness >= 0.0f))

@@ -47,8 +47,8 @@ RBC_API rbc_result RBC_CALL rbc_collider_create(rbc_world_id wid, const rbc_coll
     rbc_result rc = rbc_plugin_create_begin(wid, fn, out, "out_collider", &w);
     if (rc) return rc;
     rbc_collider_def def = rbc_plugin_collider_def_defaults();
-    if ((rc = rbc_plugin_world_read_def(w, &def, sizeof def, RBC_COLLIDER_DEF_SIZE_V1_0, 0,
-                                        user_def, fn, "rbc_collider_def")))
+    if ((rc = rbc_plugin_world_read_def(w, &def, &rbc_sizes_collider_def, user_def, fn,
+                                        "rbc_collider_def")))
         return rc;
     if (def.shape < RBC_SHAPE_PLANE || def.shape > RBC_SHAPE_TRIANGLE_MESH)
         return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT,

@@ -1,9 +1,11 @@
 /* defs.c -- the ABI's defs: their defaults, the *_def_init functions, the solver
  * presets, and what reads and checks a host's def for the other files (a def of any
- * released size, rbc_plugin_read_def2; a solver def into core settings,
+ * released size, rbc_plugin_read_def, with the sizes each struct accepts in one table
+ * per struct, rbc_sizes_*; a solver def into core settings,
  * rbc_plugin_solver_settings_from). A def's defaults are here once, so that
  * rbc_*_def_init and a create given a def of an older size fill the same fields. */
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "errors.h"
@@ -14,21 +16,62 @@
 /* Reading a host's def                                                      */
 /* ------------------------------------------------------------------------- */
 
-/* Copy a def of a released size into a defaults-filled struct: the current size, or
- * the ABI 1.0 size `old_size` (0 if the struct had no other release), whose missing
- * fields keep their defaults. */
-rbc_result rbc_plugin_read_def2(void *dst, size_t dst_size, size_t old_size, size_t old_size2,
-                                const void *src, const char *fn, const char *what) {
+const rbc_struct_sizes rbc_sizes_world_def = {
+    "rbc_world_def", 3, {sizeof(rbc_world_def), RBC_WORLD_DEF_SIZE_V1_1, RBC_WORLD_DEF_SIZE_V1_0}};
+const rbc_struct_sizes rbc_sizes_cloth_def = {
+    "rbc_cloth_def", 3, {sizeof(rbc_cloth_def), RBC_CLOTH_DEF_SIZE_V1_1, RBC_CLOTH_DEF_SIZE_V1_0}};
+const rbc_struct_sizes rbc_sizes_collider_def = {
+    "rbc_collider_def", 2, {sizeof(rbc_collider_def), RBC_COLLIDER_DEF_SIZE_V1_0}};
+const rbc_struct_sizes rbc_sizes_solver_def = {
+    "rbc_solver_def", 3,
+    {sizeof(rbc_solver_def), RBC_SOLVER_DEF_SIZE_V1_2, RBC_SOLVER_DEF_SIZE_V1_1}};
+const rbc_struct_sizes rbc_sizes_cache_def = {
+    "rbc_cache_def", 3, {sizeof(rbc_cache_def), RBC_CACHE_DEF_SIZE_V1_2, RBC_CACHE_DEF_SIZE_V1_0}};
+const rbc_struct_sizes rbc_sizes_import_def = {
+    "rbc_mesh_import_def", 3,
+    {sizeof(rbc_mesh_import_def), RBC_MESH_IMPORT_DEF_SIZE_V1_8, RBC_MESH_IMPORT_DEF_SIZE_V1_2}};
+const rbc_struct_sizes rbc_sizes_mesh_info = {
+    "rbc_mesh_info", 2, {sizeof(rbc_mesh_info), RBC_MESH_INFO_SIZE_V1_2}};
+const rbc_struct_sizes rbc_sizes_world_stats = {
+    "rbc_world_stats", 7,
+    {sizeof(rbc_world_stats), RBC_WORLD_STATS_SIZE_V1_5, RBC_WORLD_STATS_SIZE_V1_4,
+     RBC_WORLD_STATS_SIZE_V1_3, RBC_WORLD_STATS_SIZE_V1_2, RBC_WORLD_STATS_SIZE_V1_1,
+     RBC_WORLD_STATS_SIZE_V1_0}};
+
+int rbc_size_known(const rbc_struct_sizes *s, uint32_t size) {
+    for (uint32_t k = 0; k < s->count; ++k)
+        if (size == s->size[k]) return 1;
+    return 0;
+}
+
+void rbc_size_message(const rbc_struct_sizes *s, uint32_t size, const char *fn,
+                      const char *where, char *buf, size_t cap) {
+    int n = snprintf(buf, cap,
+                     "%s: %s->struct_size is %u, which matches no released version of %s "
+                     "(this library accepts %u, its own",
+                     fn, where, size, s->name, s->size[0]);
+    for (uint32_t k = 1; k < s->count && n > 0 && (size_t)n < cap; ++k)
+        n += snprintf(buf + n, cap - (size_t)n, "%s%u", k == 1 ? ", and the older sizes " : ", ",
+                      s->size[k]);
+    if (n > 0 && (size_t)n < cap)
+        snprintf(buf + n, cap - (size_t)n, "); set it to sizeof(%s)", s->name);
+}
+
+rbc_result rbc_size_refused(const rbc_struct_sizes *s, uint32_t size, const char *fn,
+                            const char *where) {
+    char msg[512];
+    rbc_size_message(s, size, fn, where, msg, sizeof msg);
+    return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s", msg);
+}
+
+/* Copy a def of a released size into a defaults-filled struct of s's current size;
+ * the fields an older size lacks keep their defaults. */
+rbc_result rbc_plugin_read_def(void *dst, const rbc_struct_sizes *s, const void *src,
+                               const char *fn, const char *what) {
     if (!src) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: %s is NULL", fn, what);
     uint32_t size;
     memcpy(&size, src, sizeof size);
-    if (size != dst_size && (old_size == 0 || size != old_size) &&
-        (old_size2 == 0 || size != old_size2))
-        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
-                             "%s: %s->struct_size is %u, which matches no released version "
-                             "(this library knows %zu and the older sizes %zu, %zu); set it "
-                             "to sizeof(%s)",
-                             fn, what, size, dst_size, old_size, old_size2, what);
+    if (!rbc_size_known(s, size)) return rbc_size_refused(s, size, fn, what);
     memcpy(dst, src, size);
     return RBC_OK;
 }
@@ -75,14 +118,9 @@ rbc_collider_def rbc_plugin_collider_def_defaults(void) {
 
 /* Write the first struct_size bytes of the defaults into a host's def. */
 rbc_result rbc_def_init_common(void *def, uint32_t struct_size, const void *defaults,
-                               size_t released_size, size_t old_size, const char *fn,
-                               const char *what) {
+                               const rbc_struct_sizes *s, const char *fn) {
     if (!def) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: def is NULL", fn);
-    if (struct_size != released_size && (old_size == 0 || struct_size != old_size))
-        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
-                             "%s: struct_size is %u, which matches no released version of %s "
-                             "(this library knows %zu and the older size %zu)",
-                             fn, struct_size, what, released_size, old_size);
+    if (!rbc_size_known(s, struct_size)) return rbc_size_refused(s, struct_size, fn, "def");
     memcpy(def, defaults, struct_size);
     memcpy(def, &struct_size, sizeof struct_size);
     return RBC_OK;
@@ -91,30 +129,18 @@ rbc_result rbc_def_init_common(void *def, uint32_t struct_size, const void *defa
 RBC_API rbc_result RBC_CALL rbc_world_def_init(rbc_world_def *def, uint32_t struct_size) {
     rbc_world_def d = rbc_plugin_world_def_defaults();
     if (struct_size != sizeof d) d.substeps = 1; /* what the 1.0-1.5 headers document */
-    /* Three released sizes: 1.0, 1.1-1.5 and this one. */
-    if (struct_size == RBC_WORLD_DEF_SIZE_V1_1)
-        return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_WORLD_DEF_SIZE_V1_1,
-                                   "rbc_world_def_init", "rbc_world_def");
-    return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_WORLD_DEF_SIZE_V1_0,
-                               "rbc_world_def_init",
-                               "rbc_world_def");
+    return rbc_def_init_common(def, struct_size, &d, &rbc_sizes_world_def, "rbc_world_def_init");
 }
 
 RBC_API rbc_result RBC_CALL rbc_cloth_def_init(rbc_cloth_def *def, uint32_t struct_size) {
     rbc_cloth_def d = rbc_plugin_cloth_def_defaults();
-    /* Three released sizes: 1.0, 1.1-1.2 and this one. */
-    if (struct_size == RBC_CLOTH_DEF_SIZE_V1_1)
-        return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_CLOTH_DEF_SIZE_V1_1,
-                                   "rbc_cloth_def_init", "rbc_cloth_def");
-    return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_CLOTH_DEF_SIZE_V1_0,
-                               "rbc_cloth_def_init",
-                               "rbc_cloth_def");
+    return rbc_def_init_common(def, struct_size, &d, &rbc_sizes_cloth_def, "rbc_cloth_def_init");
 }
 
 RBC_API rbc_result RBC_CALL rbc_collider_def_init(rbc_collider_def *def, uint32_t struct_size) {
     rbc_collider_def d = rbc_plugin_collider_def_defaults();
-    return rbc_def_init_common(def, struct_size, &d, sizeof d, RBC_COLLIDER_DEF_SIZE_V1_0,
-                               "rbc_collider_def_init", "rbc_collider_def");
+    return rbc_def_init_common(def, struct_size, &d, &rbc_sizes_collider_def,
+                               "rbc_collider_def_init");
 }
 
 /* ------------------------------------------------------------------------- */
@@ -155,14 +181,9 @@ rbc_solver_def rbc_plugin_solver_def_cloth(void) {
     return d;
 }
 
-/* Three released sizes: 1.1, 1.2-1.3 and this one. */
 static rbc_result solver_def_fill(rbc_solver_def *def, uint32_t struct_size,
                                   const rbc_solver_def *d, const char *fn) {
-    if (struct_size == RBC_SOLVER_DEF_SIZE_V1_2)
-        return rbc_def_init_common(def, struct_size, d, sizeof *d, RBC_SOLVER_DEF_SIZE_V1_2, fn,
-                                   "rbc_solver_def");
-    return rbc_def_init_common(def, struct_size, d, sizeof *d, RBC_SOLVER_DEF_SIZE_V1_1, fn,
-                               "rbc_solver_def");
+    return rbc_def_init_common(def, struct_size, d, &rbc_sizes_solver_def, fn);
 }
 
 RBC_API rbc_result RBC_CALL rbc_solver_def_init(rbc_solver_def *def, uint32_t struct_size) {

@@ -78,13 +78,8 @@ static rbc_mesh_import_def import_def_defaults(void) {
 RBC_API rbc_result RBC_CALL rbc_mesh_import_def_init(rbc_mesh_import_def *def,
                                                      uint32_t struct_size) {
     rbc_mesh_import_def d = import_def_defaults();
-    /* Three released sizes: 1.2-1.7, 1.8 and this one. */
-    return rbc_def_init_common(def, struct_size, &d, sizeof d,
-                               struct_size == RBC_MESH_IMPORT_DEF_SIZE_V1_8
-                                   ? RBC_MESH_IMPORT_DEF_SIZE_V1_8
-                                   : RBC_MESH_IMPORT_DEF_SIZE_V1_2,
-                               "rbc_mesh_import_def_init",
-                               "rbc_mesh_import_def");
+    return rbc_def_init_common(def, struct_size, &d, &rbc_sizes_import_def,
+                               "rbc_mesh_import_def_init");
 }
 
 static rbc_result check_def(const char *path, const rbc_mesh_import_def *d) {
@@ -493,14 +488,8 @@ RBC_API rbc_result RBC_CALL rbc_mesh_import(const char *path, const rbc_mesh_imp
     if (user_def) {
         uint32_t size;
         memcpy(&size, user_def, sizeof size);
-        if (size != sizeof def && size != RBC_MESH_IMPORT_DEF_SIZE_V1_2 &&
-            size != RBC_MESH_IMPORT_DEF_SIZE_V1_8)
-            return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
-                                 "%s: def->struct_size is %u, which matches no released version "
-                                 "(this library knows %zu and the older sizes %u, %u); set it "
-                                 "to sizeof(rbc_mesh_import_def)",
-                                 fn, size, sizeof def, RBC_MESH_IMPORT_DEF_SIZE_V1_2,
-                                 RBC_MESH_IMPORT_DEF_SIZE_V1_8);
+        if (!rbc_size_known(&rbc_sizes_import_def, size))
+            return rbc_size_refused(&rbc_sizes_import_def, size, fn, "def");
         memcpy(&def, user_def, size); /* an older def keeps the newer fields' defaults */
         def.struct_size = sizeof def;
     }
@@ -558,11 +547,8 @@ RBC_API rbc_result RBC_CALL rbc_mesh_get_info(rbc_mesh_id id, rbc_mesh_info *out
     if (!m) return RBC_ERR_STALE_HANDLE;
     if (!out) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: info is NULL", fn);
     uint32_t size = out->struct_size;
-    if (size != sizeof(rbc_mesh_info) && size != RBC_MESH_INFO_SIZE_V1_2)
-        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
-                             "%s: info->struct_size is %u, which matches no released version "
-                             "(this library knows %zu and the older size %u)",
-                             fn, size, sizeof(rbc_mesh_info), RBC_MESH_INFO_SIZE_V1_2);
+    if (!rbc_size_known(&rbc_sizes_mesh_info, size))
+        return rbc_size_refused(&rbc_sizes_mesh_info, size, fn, "info");
     memcpy(out, &m->info, size);
     out->struct_size = size;
     return RBC_OK;
@@ -650,13 +636,8 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create_from_mesh(rbc_world_id world, rbc_m
     if (settings) {
         uint32_t size;
         memcpy(&size, settings, sizeof size);
-        if (size != sizeof def && size != RBC_CLOTH_DEF_SIZE_V1_0 &&
-            size != RBC_CLOTH_DEF_SIZE_V1_1)
-            return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
-                                 "%s: settings->struct_size is %u, which matches no released "
-                                 "version (this library knows %zu and the older sizes %u, %u)",
-                                 fn, size, sizeof def, RBC_CLOTH_DEF_SIZE_V1_0,
-                                 RBC_CLOTH_DEF_SIZE_V1_1);
+        if (!rbc_size_known(&rbc_sizes_cloth_def, size))
+            return rbc_size_refused(&rbc_sizes_cloth_def, size, fn, "settings");
         memcpy(&def, settings, size);
         def.struct_size = sizeof def;
     }

@@ -60,10 +60,9 @@ rbc_result rbc_plugin_create_begin(rbc_world_id wid, const char *fn, uint32_t *o
     return RBC_OK;
 }
 
-rbc_result rbc_plugin_world_read_def(rbc_world *w, void *dst, size_t dst_size, size_t old_size,
-                                     size_t old_size2, const void *src, const char *fn,
-                                     const char *what) {
-    rbc_result rc = rbc_plugin_read_def2(dst, dst_size, old_size, old_size2, src, fn, what);
+rbc_result rbc_plugin_world_read_def(rbc_world *w, void *dst, const rbc_struct_sizes *s,
+                                     const void *src, const char *fn, const char *what) {
+    rbc_result rc = rbc_plugin_read_def(dst, s, src, fn, what);
     if (rc) rbc_plugin_world_log(w, RBC_LOG_ERROR, rbc_last_error());
     return rc;
 }
@@ -110,8 +109,7 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     if (!out_world) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: out_world is NULL", fn);
     *out_world = 0;
     rbc_world_def def = rbc_plugin_world_def_defaults();
-    rbc_result rc = rbc_plugin_read_def2(&def, sizeof def, RBC_WORLD_DEF_SIZE_V1_0,
-                                         RBC_WORLD_DEF_SIZE_V1_1, user_def, fn, "rbc_world_def");
+    rbc_result rc = rbc_plugin_read_def(&def, &rbc_sizes_world_def, user_def, fn, "rbc_world_def");
     if (rc) return rc;
     /* A host built against a 1.0-1.5 header was promised the paper's fixed counts
      * when it leaves the solver NULL, and no strain warning; a 1.6 host gets the
@@ -161,9 +159,8 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     rbc_solver_def sdef =
         def_v16 && !def.solver ? rbc_plugin_solver_def_cloth() : rbc_plugin_solver_def_defaults();
     rbc_solver_settings settings;
-    if (def.solver && (rc = rbc_plugin_read_def2(&sdef, sizeof sdef, RBC_SOLVER_DEF_SIZE_V1_1,
-                                                 RBC_SOLVER_DEF_SIZE_V1_2, def.solver, fn,
-                                                 "rbc_world_def.solver")))
+    if (def.solver && (rc = rbc_plugin_read_def(&sdef, &rbc_sizes_solver_def, def.solver, fn,
+                                                "rbc_world_def.solver")))
         return rc;
     if ((rc = rbc_plugin_solver_settings_from(NULL, fn, &sdef, &settings))) return rc;
 
@@ -378,28 +375,12 @@ RBC_API rbc_result RBC_CALL rbc_world_set_gravity(rbc_world_id id, const float g
     return RBC_OK;
 }
 
-static int stats_size_known(uint32_t size) {
-    return size == sizeof(rbc_world_stats) || size == RBC_WORLD_STATS_SIZE_V1_5 ||
-           size == RBC_WORLD_STATS_SIZE_V1_4 || size == RBC_WORLD_STATS_SIZE_V1_3 ||
-           size == RBC_WORLD_STATS_SIZE_V1_2 || size == RBC_WORLD_STATS_SIZE_V1_1 ||
-           size == RBC_WORLD_STATS_SIZE_V1_0;
-}
-
-#define STATS_SIZES_MESSAGE                                                                \
-    "%s: stats->struct_size is %u, which matches no released version (this library knows " \
-    "%zu, the 1.5 size %u, the 1.4 size %u, the 1.3 size %u, the 1.2 size %u, the 1.1 size " \
-    "%u and the 1.0 size %u)"
-#define STATS_SIZES_ARGS(fn, size)                                                          \
-    fn, size, sizeof(rbc_world_stats), RBC_WORLD_STATS_SIZE_V1_5, RBC_WORLD_STATS_SIZE_V1_4, \
-        RBC_WORLD_STATS_SIZE_V1_3, RBC_WORLD_STATS_SIZE_V1_2, RBC_WORLD_STATS_SIZE_V1_1,     \
-        RBC_WORLD_STATS_SIZE_V1_0
 
 RBC_API rbc_result RBC_CALL rbc_world_stats_init(rbc_world_stats *stats, uint32_t struct_size) {
     static const char fn[] = "rbc_world_stats_init";
     if (!stats) return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: stats is NULL", fn);
-    if (!stats_size_known(struct_size))
-        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, STATS_SIZES_MESSAGE,
-                             STATS_SIZES_ARGS(fn, struct_size));
+    if (!rbc_size_known(&rbc_sizes_world_stats, struct_size))
+        return rbc_size_refused(&rbc_sizes_world_stats, struct_size, fn, "stats");
     memset(stats, 0, struct_size);
     stats->struct_size = struct_size;
     return RBC_OK;
@@ -411,9 +392,11 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
     rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
     if (rc) return rc;
     if (!out) return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: stats is NULL", fn);
-    if (!stats_size_known(out->struct_size))
-        return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT, STATS_SIZES_MESSAGE,
-                                      STATS_SIZES_ARGS(fn, out->struct_size));
+    if (!rbc_size_known(&rbc_sizes_world_stats, out->struct_size)) {
+        char msg[512];
+        rbc_size_message(&rbc_sizes_world_stats, out->struct_size, fn, "stats", msg, sizeof msg);
+        return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s", msg);
+    }
     rbc_solver *s = &w->solver;
     double res_num = 0.0, res_den = 0.0;
     /* 1.2 and later hold the energy fields and skip_measures. */
@@ -535,8 +518,8 @@ RBC_API rbc_result RBC_CALL rbc_world_set_solver(rbc_world_id id, const rbc_solv
     rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
     if (rc) return rc;
     rbc_solver_def def = rbc_plugin_solver_def_defaults();
-    if ((rc = rbc_plugin_world_read_def(w, &def, sizeof def, RBC_SOLVER_DEF_SIZE_V1_1,
-                                        RBC_SOLVER_DEF_SIZE_V1_2, user_def, fn, "rbc_solver_def")))
+    if ((rc = rbc_plugin_world_read_def(w, &def, &rbc_sizes_solver_def, user_def, fn,
+                                        "rbc_solver_def")))
         return rc;
     rbc_solver_settings st;
     if ((rc = rbc_plugin_solver_settings_from(w, fn, &def, &st))) return rc;
@@ -551,15 +534,11 @@ RBC_API rbc_result RBC_CALL rbc_world_get_solver(rbc_world_id id, rbc_solver_def
     rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
     if (rc) return rc;
     if (!out) return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: def is NULL", fn);
-    if (out->struct_size != sizeof(rbc_solver_def) &&
-        out->struct_size != RBC_SOLVER_DEF_SIZE_V1_2 &&
-        out->struct_size != RBC_SOLVER_DEF_SIZE_V1_1)
-        return rbc_plugin_world_error(
-            w, RBC_ERR_INVALID_ARGUMENT,
-            "%s: def->struct_size is %u, which matches no released version "
-            "(this library knows %zu, the 1.2 size %u and the 1.1 size %u)",
-            fn, out->struct_size, sizeof(rbc_solver_def), RBC_SOLVER_DEF_SIZE_V1_2,
-            RBC_SOLVER_DEF_SIZE_V1_1);
+    if (!rbc_size_known(&rbc_sizes_solver_def, out->struct_size)) {
+        char msg[512];
+        rbc_size_message(&rbc_sizes_solver_def, out->struct_size, fn, "def", msg, sizeof msg);
+        return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s", msg);
+    }
     const rbc_solver_settings *st = &w->solver.settings;
     rbc_solver_def d = rbc_plugin_solver_def_defaults();
     d.solver = st->kind;

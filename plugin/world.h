@@ -9,6 +9,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "errors.h"
 #include "rbcloth.h"
 #include "registry.h"
 #include "solver.h"
@@ -48,10 +49,9 @@ rbc_result rbc_plugin_lookup_world(rbc_world_id id, const char *fn, rbc_world **
  * no id. */
 rbc_result rbc_plugin_create_begin(rbc_world_id wid, const char *fn, uint32_t *out,
                                    const char *out_name, rbc_world **w);
-/* rbc_plugin_read_def2 in a call on world w: a refused def also goes to its log hook. */
-rbc_result rbc_plugin_world_read_def(rbc_world *w, void *dst, size_t dst_size, size_t old_size,
-                                     size_t old_size2, const void *src, const char *fn,
-                                     const char *what);
+/* rbc_plugin_read_def in a call on world w: a refused def also goes to its log hook. */
+rbc_result rbc_plugin_world_read_def(rbc_world *w, void *dst, const rbc_struct_sizes *s,
+                                     const void *src, const char *fn, const char *what);
 
 /* collider.c */
 
@@ -62,11 +62,10 @@ rbc_result rbc_plugin_lookup_collider(rbc_world_id wid, rbc_collider_id cid, con
 
 /* defs.c */
 
-/* Copy a def of a released size into a defaults-filled struct: the current size, or
- * an older released size `old_size` / `old_size2` (0: none), whose missing fields
- * keep their defaults. */
-rbc_result rbc_plugin_read_def2(void *dst, size_t dst_size, size_t old_size, size_t old_size2,
-                                const void *src, const char *fn, const char *what);
+/* Copy a def of a size s accepts into a defaults-filled struct of its current size;
+ * the fields an older size lacks keep their defaults. */
+rbc_result rbc_plugin_read_def(void *dst, const rbc_struct_sizes *s, const void *src,
+                               const char *fn, const char *what);
 /* The field defaults of each def, as rbc_*_def_init gives them. */
 rbc_world_def rbc_plugin_world_def_defaults(void);
 rbc_cloth_def rbc_plugin_cloth_def_defaults(void);

@@ -7,9 +7,12 @@
  * the new field. An old sizeof is a multiple of the old layout's alignment: 8 on
  * LP64 where its fields before the offset hold a pointer or a 64-bit integer, else 4
  * (every other field is a 4-byte integer, float or enum). 1.9's rbc_cache_def.
- * frame_rate first went in at offset 44 of a 48-byte struct; this test fails there. */
+ * frame_rate first went in at offset 44 of a 48-byte struct; this test fails there.
+ * Then: each *_init refuses a size no release had with a message that lists every
+ * size it accepts, and accepts each of them. */
 #include <stdalign.h>
 #include <stdio.h>
+#include <string.h>
 
 #include "check.h"
 #include "rbcloth.h"
@@ -61,6 +64,48 @@ int main(void) {
                     !whole ? "no sizeof of an older layout (a field went into its padding)"
                            : "not smaller than the struct",
                     layouts[k].now, layouts[k].align);
+    }
+    /* Every struct-size refusal lists every size the library accepts (one table per
+     * struct in plugin/defs.c feeds the checks and the messages alike). */
+    static const struct {
+        const char *name;
+        rbc_result (RBC_CALL *init)(void *, uint32_t);
+        uint32_t sizes[8];
+    } inits[] = {
+        {"rbc_world_def_init", (rbc_result (RBC_CALL *)(void *, uint32_t))rbc_world_def_init,
+         {sizeof(rbc_world_def), RBC_WORLD_DEF_SIZE_V1_1, RBC_WORLD_DEF_SIZE_V1_0}},
+        {"rbc_cloth_def_init", (rbc_result (RBC_CALL *)(void *, uint32_t))rbc_cloth_def_init,
+         {sizeof(rbc_cloth_def), RBC_CLOTH_DEF_SIZE_V1_1, RBC_CLOTH_DEF_SIZE_V1_0}},
+        {"rbc_collider_def_init",
+         (rbc_result (RBC_CALL *)(void *, uint32_t))rbc_collider_def_init,
+         {sizeof(rbc_collider_def), RBC_COLLIDER_DEF_SIZE_V1_0}},
+        {"rbc_solver_def_init", (rbc_result (RBC_CALL *)(void *, uint32_t))rbc_solver_def_init,
+         {sizeof(rbc_solver_def), RBC_SOLVER_DEF_SIZE_V1_2, RBC_SOLVER_DEF_SIZE_V1_1}},
+        {"rbc_cache_def_init", (rbc_result (RBC_CALL *)(void *, uint32_t))rbc_cache_def_init,
+         {sizeof(rbc_cache_def), RBC_CACHE_DEF_SIZE_V1_2, RBC_CACHE_DEF_SIZE_V1_0}},
+        {"rbc_mesh_import_def_init",
+         (rbc_result (RBC_CALL *)(void *, uint32_t))rbc_mesh_import_def_init,
+         {sizeof(rbc_mesh_import_def), RBC_MESH_IMPORT_DEF_SIZE_V1_8,
+          RBC_MESH_IMPORT_DEF_SIZE_V1_2}},
+        {"rbc_world_stats_init", (rbc_result (RBC_CALL *)(void *, uint32_t))rbc_world_stats_init,
+         {sizeof(rbc_world_stats), RBC_WORLD_STATS_SIZE_V1_5, RBC_WORLD_STATS_SIZE_V1_4,
+          RBC_WORLD_STATS_SIZE_V1_3, RBC_WORLD_STATS_SIZE_V1_2, RBC_WORLD_STATS_SIZE_V1_1,
+          RBC_WORLD_STATS_SIZE_V1_0}},
+    };
+    static unsigned char buf[4096];
+    for (size_t k = 0; k < sizeof inits / sizeof inits[0]; ++k) {
+        CHECK_EQ(inits[k].init(buf, 3), RBC_ERR_INVALID_ARGUMENT);
+        const char *msg = rbc_last_error();
+        for (int j = 0; j < 8 && inits[k].sizes[j]; ++j) {
+            char num[16], end[16]; /* a size is followed by "," or ")" in the list */
+            snprintf(num, sizeof num, " %u,", inits[k].sizes[j]);
+            snprintf(end, sizeof end, " %u)", inits[k].sizes[j]);
+            int listed = strstr(msg, num) != NULL || strstr(msg, end) != NULL;
+            CHECK(listed);
+            if (!listed) fprintf(stderr, "  %s: \"%s\" lacks%s\n", inits[k].name, msg, num);
+            /* and each listed size is accepted */
+            CHECK_EQ(inits[k].init(buf, inits[k].sizes[j]), RBC_OK);
+        }
     }
     return check_report("abi_old_sizes");
 }
