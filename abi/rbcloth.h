@@ -874,12 +874,24 @@ typedef struct rbc_world_stats {
 
 /// RBC_ABI_VERSION of the loaded library: (major << 16) | minor.
 RBC_API uint32_t RBC_CALL rbc_abi_version(void);
-/// Release version of the library, e.g. "0.1.0".
+/// The three functions below return borrowed strings (UTF-8, NUL-terminated): the
+/// library owns them (static text, or the calling thread's error buffer) and the
+/// host must never free them. Declare them as pointers, not as owned strings:
+///   C# (Mono, .NET): `[DllImport("rbcloth")] static extern IntPtr rbc_last_error();`
+///       and `Marshal.PtrToStringUTF8(p)` (or PtrToStringAnsi on Mono 6.8). A
+///       `string` return type makes the marshaller free the pointer: Mono aborts
+///       with "free(): invalid pointer" on the first call.
+///   Python ctypes: `restype = ctypes.c_char_p` (ctypes copies into bytes, frees
+///       nothing); cffi: `ffi.string(lib.rbc_last_error())`.
+///   Rust: `fn rbc_last_error() -> *const c_char`, then
+///       `CStr::from_ptr(p).to_string_lossy().into_owned()` to keep a copy.
+/// Release version of the library, e.g. "0.1.0". Borrowed, static.
 RBC_API const char *RBC_CALL rbc_version_string(void);
 /// Name of a result code, e.g. "RBC_ERR_BAD_MESH"; "unknown result" otherwise.
+/// Borrowed, static.
 RBC_API const char *RBC_CALL rbc_result_string(rbc_result result);
-/// Message of the last error on the calling thread ("" if none yet). Valid until
-/// the next failing call on this thread.
+/// Message of the last error on the calling thread ("" if none yet). Borrowed: valid
+/// until the next failing call on this thread; copy it to keep it.
 RBC_API const char *RBC_CALL rbc_last_error(void);
 
 /// Fill a def with the defaults documented on its fields. `struct_size` is
@@ -1521,6 +1533,63 @@ static inline rbc_mesh_import_def rbc_mesh_import_def_default(void) {
     rbc_mesh_import_def d;
     rbc_mesh_import_def_init(&d, (uint32_t)sizeof d);
     return d;
+}
+
+/// The structs that carry a struct_size, for rbc_struct_size_for. (1.9)
+typedef int32_t rbc_struct_kind;
+enum {
+    RBC_STRUCT_WORLD_DEF = 1,
+    RBC_STRUCT_CLOTH_DEF = 2,
+    RBC_STRUCT_COLLIDER_DEF = 3,
+    RBC_STRUCT_SOLVER_DEF = 4,
+    RBC_STRUCT_CACHE_DEF = 5,
+    RBC_STRUCT_MESH_IMPORT_DEF = 6,
+    RBC_STRUCT_MESH_INFO = 7,
+    RBC_STRUCT_WORLD_STATS = 8,
+    RBC_STRUCT_KIND_FORCE32 = 0x7FFFFFFF
+};
+
+/// A host built against this header that loaded an older library: the struct_size
+/// to give a `kind` struct for the library whose rbc_abi_version() is
+/// `library_version`, the largest size that minor accepts (this header's sizeof for
+/// a library as new as the header or newer); 0 for another major, or a minor
+/// before the struct existed. Fields past that size must stay at their defaults:
+/// the library never reads or writes them. (Header-only; 1.9.)
+///     rbc_world_stats st;
+///     rbc_world_stats_init(&st, rbc_struct_size_for(RBC_STRUCT_WORLD_STATS,
+///                                                   rbc_abi_version()));
+static inline uint32_t rbc_struct_size_for(rbc_struct_kind kind, uint32_t library_version) {
+    const uint32_t minor = library_version & 0xFFFFu;
+    if ((library_version >> 16) != RBC_ABI_VERSION_MAJOR) return 0;
+    switch (kind) {
+    case RBC_STRUCT_WORLD_DEF:
+        return minor >= 6 ? (uint32_t)sizeof(rbc_world_def)
+               : minor >= 1 ? RBC_WORLD_DEF_SIZE_V1_1 : RBC_WORLD_DEF_SIZE_V1_0;
+    case RBC_STRUCT_CLOTH_DEF:
+        return minor >= 3 ? (uint32_t)sizeof(rbc_cloth_def)
+               : minor >= 1 ? RBC_CLOTH_DEF_SIZE_V1_1 : RBC_CLOTH_DEF_SIZE_V1_0;
+    case RBC_STRUCT_COLLIDER_DEF:
+        return minor >= 3 ? (uint32_t)sizeof(rbc_collider_def) : RBC_COLLIDER_DEF_SIZE_V1_0;
+    case RBC_STRUCT_SOLVER_DEF:
+        return minor >= 4 ? (uint32_t)sizeof(rbc_solver_def)
+               : minor >= 2 ? RBC_SOLVER_DEF_SIZE_V1_2 : minor >= 1 ? RBC_SOLVER_DEF_SIZE_V1_1 : 0;
+    case RBC_STRUCT_CACHE_DEF:
+        return minor >= 9 ? (uint32_t)sizeof(rbc_cache_def)
+               : minor >= 2 ? RBC_CACHE_DEF_SIZE_V1_2 : RBC_CACHE_DEF_SIZE_V1_0;
+    case RBC_STRUCT_MESH_IMPORT_DEF:
+        return minor >= 9 ? (uint32_t)sizeof(rbc_mesh_import_def)
+               : minor >= 8 ? RBC_MESH_IMPORT_DEF_SIZE_V1_8
+               : minor >= 2 ? RBC_MESH_IMPORT_DEF_SIZE_V1_2 : 0;
+    case RBC_STRUCT_MESH_INFO:
+        return minor >= 9 ? (uint32_t)sizeof(rbc_mesh_info) : minor >= 2 ? RBC_MESH_INFO_SIZE_V1_2 : 0;
+    case RBC_STRUCT_WORLD_STATS:
+        return minor >= 6 ? (uint32_t)sizeof(rbc_world_stats)
+               : minor == 5 ? RBC_WORLD_STATS_SIZE_V1_5 : minor == 4 ? RBC_WORLD_STATS_SIZE_V1_4
+               : minor == 3 ? RBC_WORLD_STATS_SIZE_V1_3 : minor == 2 ? RBC_WORLD_STATS_SIZE_V1_2
+               : minor == 1 ? RBC_WORLD_STATS_SIZE_V1_1 : RBC_WORLD_STATS_SIZE_V1_0;
+    default:
+        return 0;
+    }
 }
 
 #ifdef __cplusplus

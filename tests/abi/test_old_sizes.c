@@ -107,5 +107,34 @@ int main(void) {
             CHECK_EQ(inits[k].init(buf, inits[k].sizes[j]), RBC_OK);
         }
     }
+    /* rbc_struct_size_for: for every minor up to this header's, the size it gives is
+     * one the library accepts (this library accepts every released size), the
+     * header's own sizeof for this minor, and it grows with the minor; another major
+     * and an unknown kind give 0. */
+    for (rbc_struct_kind kind = RBC_STRUCT_WORLD_DEF; kind <= RBC_STRUCT_WORLD_STATS; ++kind) {
+        uint32_t prev = 0;
+        for (uint32_t minor = 0; minor <= RBC_ABI_VERSION_MINOR; ++minor) {
+            uint32_t size = rbc_struct_size_for(kind, (1u << 16) | minor);
+            CHECK(size >= prev);
+            prev = size;
+            if (!size) continue; /* the struct came later */
+            /* inits[] holds the kinds in enum order, without the mesh info (no init) */
+            if (kind == RBC_STRUCT_MESH_INFO) {
+                CHECK(size == sizeof(rbc_mesh_info) || size == RBC_MESH_INFO_SIZE_V1_2);
+                continue;
+            }
+            size_t i = (size_t)kind - 1 - (kind > RBC_STRUCT_MESH_INFO);
+            rbc_result r = inits[i].init(buf, size);
+            CHECK_EQ(r, RBC_OK);
+            if (r) fprintf(stderr, "  %s refuses %u, the size for 1.%u\n", inits[i].name, size, minor);
+        }
+        CHECK_EQ(rbc_struct_size_for(kind, 2u << 16), 0);
+    }
+    CHECK_EQ(rbc_struct_size_for(RBC_STRUCT_WORLD_STATS, RBC_ABI_VERSION), sizeof(rbc_world_stats));
+    CHECK_EQ(rbc_struct_size_for(RBC_STRUCT_CACHE_DEF, RBC_ABI_VERSION), sizeof(rbc_cache_def));
+    CHECK_EQ(rbc_struct_size_for(RBC_STRUCT_CACHE_DEF, (1u << 16) | 8), RBC_CACHE_DEF_SIZE_V1_2);
+    CHECK_EQ(rbc_struct_size_for(RBC_STRUCT_WORLD_STATS, (1u << 16) | 4), RBC_WORLD_STATS_SIZE_V1_4);
+    CHECK_EQ(rbc_struct_size_for(RBC_STRUCT_SOLVER_DEF, 1u << 16), 0);
+    CHECK_EQ(rbc_struct_size_for(99, RBC_ABI_VERSION), 0);
     return check_report("abi_old_sizes");
 }
