@@ -28,7 +28,9 @@ build_pkgs=(cmake make gcc libc6-dev pkg-config libcjson-dev libsuitesparse-dev 
 # calls after `make test`; tests/README.md): ThreadSanitizer and libFuzzer need clang (libclang-rt-14-dev has libFuzzer and
 # the sanitizer runtimes), llvm-14 the llvm-symbolizer that puts names on their stacks.
 # gcc's own ASan/UBSan runtimes (libasan8, libubsan1) come with gcc.
+# mono-mcs, mono-runtime: tests/mono runs a C# host (Mono 6.8) against the library.
 test_pkgs=(abigail-tools assimp-testmodels valgrind slurm-wlm munge chromium blender
+           mono-mcs mono-runtime
            clang-14 libclang-rt-14-dev llvm-14 python3-numpy python3-pytest python3-venv
            python3-pip python3-setuptools python3-wheel)
 if [ "${1:-}" = build ]; then

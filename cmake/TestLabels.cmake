@@ -17,7 +17,8 @@
 #             wrote; excluded from the sanitizer builds (nothing of ours is
 #             instrumented there beyond a PNG checker, and they add minutes)
 #   fuzz      replays of the fuzz targets' seeds and regression inputs (tests/fuzz)
-#   external  browser, blender, slurm and valgrind together
+#   mono      Debian's Mono running a C# host of ours (tests/mono)
+#   external  browser, blender, slurm, mono and valgrind together
 set(RBC_LABEL_LONG_REGEX
   "^(scene_funnel|scene_four_layers|scene_caches_thread_independent|abi_contact|abi_layer_order|core_clothcontact|import_sweep|bench_scenes_quick|bench_accuracy_quick|bench_stability_quick|cli_run_funnel|cli_batch_kill_trials|install_subdirectory)"
   CACHE INTERNAL "")
@@ -27,6 +28,7 @@ set(RBC_LABEL_THREADS_REGEX
 set(RBC_LABEL_VALGRIND_REGEX "valgrind" CACHE INTERNAL "")
 set(RBC_LABEL_BLENDER_REGEX "^(blender_|import_file_vertices_blender_live$)" CACHE INTERNAL "")
 set(RBC_LABEL_SLURM_REGEX "^slurm_" CACHE INTERNAL "")
+set(RBC_LABEL_MONO_REGEX "^mono_" CACHE INTERNAL "")
 
 function(rbc_label_tests folder)
   get_property(tests DIRECTORY PROPERTY TESTS)
@@ -38,7 +40,7 @@ function(rbc_label_tests folder)
       list(APPEND labels browser)
       set(external 1)
     endif()
-    foreach(kind VALGRIND BLENDER SLURM)
+    foreach(kind VALGRIND BLENDER SLURM MONO)
       if(t MATCHES "${RBC_LABEL_${kind}_REGEX}")
         string(TOLOWER ${kind} l)
         list(APPEND labels ${l})
