@@ -721,10 +721,12 @@ typedef struct job_cloth {
     float *rest;
     uint32_t *quads;
     rbc_cache_id caches[3];
-    /* A mesh job in the file's order: PC2 and MDD frames hold the file's
-     * file_count vertices (rbc_mesh_to_file_positions into file_xyz). */
+    /* A mesh job in the file's order: the caches marked in file_order[] (PC2, MDD)
+     * hold the file's file_count vertices (rbc_mesh_to_file_positions into
+     * file_xyz); an OBJ sequence stays in the simulation's. */
     uint32_t file_count;
     float *file_xyz;
+    uint8_t file_order[3];
 } job_cloth;
 
 typedef struct job_run {
@@ -930,7 +932,8 @@ static int start_outputs(job_run *r) {
             cd.path = path;
             /* An OBJ sequence stays in the simulation's order: each frame is a whole
              * mesh with its own faces, not a cache played on the file's mesh. */
-            cd.point_count = c->file_xyz && kinds[k].ext ? c->file_count : c->vertex_count;
+            c->file_order[k] = c->file_xyz && kinds[k].format != RBC_CACHE_OBJ_SEQUENCE;
+            cd.point_count = c->file_order[k] ? c->file_count : c->vertex_count;
             cd.start_frame = 1.0f; /* sample k = after k + 1 steps; frame 0 is the OBJ */
             cd.sample_rate = 1.0f;
             cd.frame_rate = (float)(1.0 / j->dt); /* MDD times: frame k at k dt seconds */
@@ -1112,8 +1115,7 @@ static int simulate(job_run *r, rbc_world_stats *last, double *ms_per_frame) {
                                                  c->file_xyz, 3 * (size_t)c->file_count, NULL);
             for (int k = 0; rc == RBC_OK && k < 3; ++k)
                 if (c->caches[k])
-                    rc = api->cache_write_frame(c->caches[k],
-                                                c->file_xyz && k < 2 ? c->file_xyz : xyz);
+                    rc = api->cache_write_frame(c->caches[k], c->file_order[k] ? c->file_xyz : xyz);
             if (rc != RBC_OK) {
                 free(xyz);
                 return api_fail(r, rc, "writing a frame");

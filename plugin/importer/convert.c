@@ -1150,28 +1150,32 @@ static rbc_result assimp_order(build *b, const struct aiScene *s) {
     return RBC_OK;
 }
 
-/* The file's own lists where a reader knows the format (OBJ before assimp runs, so
- * that an index out of range is named here), else assimp's arrays. */
-static rbc_result read_file_lists(build *b, const struct aiScene *s) {
+/* An OBJ's "v" lines, read before assimp runs so that an index out of range is
+ * named here; nothing for another format. */
+static rbc_result read_obj_lists(build *b) {
     char err[400] = "";
-    int r = 0;
-    if (!s) {
-        r = rbc_obj_file_vertices(b->path, &b->file, err, sizeof err);
-        if (r == -2) return rbc_import_error(b->path, RBC_ERR_BAD_MESH, "%s", err);
-    } else {
-        if (b->file.count || b->file.list_start) return RBC_OK; /* OBJ, read already */
-        r = rbc_fbx_file_vertices(b->path, &b->file, err, sizeof err);
-        if (r == 0) r = rbc_dae_file_vertices(b->path, &b->file, err, sizeof err);
-        /* A file assimp reads but our reader cannot (an FBX or Collada variant it does
-         * not know) still simulates: in assimp's order, which the report says. */
-        if (r <= 0) {
-            rbc_file_vertices_free(&b->file);
-            return assimp_order(b, s);
-        }
-    }
+    int r = rbc_obj_file_vertices(b->path, &b->file, err, sizeof err);
+    if (r == -2) return rbc_import_error(b->path, RBC_ERR_BAD_MESH, "%s", err);
     if (r < 0)
         return rbc_import_error(b->path, RBC_ERR_IO, "reading the file's vertex lists: %s", err);
     if (r > 0) b->info.file_order = RBC_FILE_ORDER_FILE;
+    return RBC_OK;
+}
+
+/* After assimp: the OBJ's lists if read, else an FBX's or Collada file's, else
+ * assimp's arrays. A file assimp reads but our reader cannot (an FBX or Collada
+ * variant it does not know) still simulates, in assimp's order, which the report
+ * says. */
+static rbc_result read_file_lists(build *b, const struct aiScene *s) {
+    if (b->info.file_order == RBC_FILE_ORDER_FILE) return RBC_OK;
+    char err[400] = "";
+    int r = rbc_fbx_file_vertices(b->path, &b->file, err, sizeof err);
+    if (r == 0) r = rbc_dae_file_vertices(b->path, &b->file, err, sizeof err);
+    if (r <= 0) {
+        rbc_file_vertices_free(&b->file);
+        return assimp_order(b, s);
+    }
+    b->info.file_order = RBC_FILE_ORDER_FILE;
     return RBC_OK;
 }
 
@@ -1191,14 +1195,6 @@ static int meta_number(const struct aiScene *s, const char *key, double *out) {
     return 0;
 }
 
-static int has_ext(const char *path, const char *ext) {
-    size_t n = strlen(path), e = strlen(ext);
-    if (n < e) return 0;
-    for (size_t i = 0; i < e; ++i)
-        if (tolower((unsigned char)path[n - e + i]) != ext[i]) return 0;
-    return 1;
-}
-
 /* The factor from the file's coordinates (after its node transforms) to metres and
  * `scale`. assimp scales a Collada scene's root node by <unit meter> itself (so
  * keeping the file's units divides it out again) and leaves an FBX's
@@ -1212,7 +1208,7 @@ static void file_units(build *b, const struct aiScene *s) {
         declared = fbx / 100.0;
     } else if (declared > 0.0) {
         by_assimp = declared; /* Collada: assimp applied it on the root node */
-    } else if (has_ext(b->path, ".gltf") || has_ext(b->path, ".glb")) {
+    } else if (rbc_path_has_ext(b->path, ".gltf") || rbc_path_has_ext(b->path, ".glb")) {
         declared = 1.0; /* glTF 2.0 is metres by definition */
     }
     double unit = declared > 0.0 ? declared : 1.0;
@@ -1577,8 +1573,8 @@ rbc_result rbc_import_convert(const char *path, const rbc_mesh_import_def *def, 
                                 "(refused here: assimp 5.2.5 loops forever on it)");
     /* An OBJ's "v" list, and its indices checked, before assimp reads it; an OFF's
      * indices too (assimp would clamp them). */
-    rc = read_file_lists(&b, NULL);
-    if (!rc && !is_ply && has_ext(path, ".off")) rc = check_off_indices(&b, path);
+    rc = read_obj_lists(&b);
+    if (!rc && !is_ply && rbc_path_has_ext(path, ".off")) rc = check_off_indices(&b, path);
     if (rc) {
         build_free(&b);
         return rc;

@@ -18,10 +18,12 @@
 
 #include "obj_vertices.h"
 
-int rbc_is_obj_path(const char *path) {
-    size_t n = strlen(path);
-    return n >= 4 && path[n - 4] == '.' && tolower((unsigned char)path[n - 3]) == 'o' &&
-           tolower((unsigned char)path[n - 2]) == 'b' && tolower((unsigned char)path[n - 1]) == 'j';
+int rbc_path_has_ext(const char *path, const char *ext) {
+    size_t n = strlen(path), e = strlen(ext);
+    if (n < e) return 0;
+    for (size_t i = 0; i < e; ++i)
+        if (tolower((unsigned char)path[n - e + i]) != ext[i]) return 0;
+    return 1;
 }
 
 /* One logical line (continuations joined) into *buf; 0 at the end of the file. */
@@ -119,7 +121,7 @@ static int check_corner(const char *tok, size_t len, const counts *sofar, const 
 int rbc_obj_file_vertices(const char *path, rbc_file_vertices *out, char *err, size_t errcap) {
     memset(out, 0, sizeof *out);
     out->up_axis = -1;
-    if (!rbc_is_obj_path(path)) return 0;
+    if (!rbc_path_has_ext(path, ".obj")) return 0;
     FILE *f = fopen(path, "rb");
     if (!f) {
         snprintf(err, errcap, "cannot open the file: %s", strerror(errno));

@@ -418,12 +418,47 @@ static void test_loose_nan(void) {
     CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
 }
 
+/* PLY has no reader of ours: assimp's vertex arrays stand for the file's order
+ * (RBC_FILE_ORDER_ASSIMP), which for PLY is the vertex element's. A 3 x 3 grid
+ * whose element lists the vertices in reverse of their use in faces comes back, in
+ * the file's order, as the file's lines exactly. */
+static void test_ply_order(void) {
+    char text[2048], *p = text;
+    p += sprintf(p, "ply\nformat ascii 1.0\nelement vertex 9\nproperty float x\n"
+                    "property float y\nproperty float z\nelement face 4\n"
+                    "property list uchar int vertex_indices\nend_header\n");
+    float file_v[9][3];
+    for (int k = 0; k < 9; ++k) { /* file vertex k is grid vertex 8 - k */
+        int g = 8 - k;
+        file_v[k][0] = (float)(g % 3), file_v[k][1] = 0.5f * (float)(g / 3), file_v[k][2] = 0.0f;
+        p += sprintf(p, "%g %g 0\n", (double)file_v[k][0], (double)file_v[k][1]);
+    }
+    for (int j = 0; j < 2; ++j)
+        for (int i = 0; i < 2; ++i) {
+            int g[4] = {i + 3 * j, i + 1 + 3 * j, i + 4 + 3 * j, i + 3 + 3 * j};
+            p += sprintf(p, "4 %d %d %d %d\n", 8 - g[0], 8 - g[1], 8 - g[2], 8 - g[3]);
+        }
+    rbc_mesh_id m = 0;
+    CHECK_EQ(rbc_mesh_import(write_file("reversed.ply", text), NULL, &m), RBC_OK);
+    if (!m) return;
+    rbc_mesh_info i = info_of(m);
+    CHECK_EQ(i.file_order, RBC_FILE_ORDER_ASSIMP);
+    CHECK_EQ(i.file_vertex_count, 9);
+    CHECK_EQ(i.unmapped_file_vertices, 0);
+    float out[27];
+    CHECK_EQ(rbc_mesh_to_file_positions(m, NULL, 0, out, 27, NULL), RBC_OK);
+    for (int k = 0; k < 9; ++k)
+        for (int c = 0; c < 3; ++c) CHECK_EQ(out[3 * k + c], file_v[k][c]);
+    CHECK_EQ(rbc_mesh_destroy(m), RBC_OK);
+}
+
 int main(void) {
     text_file_tempdir(g_dir, sizeof g_dir, "rbc_order");
     test_obj_order();
     test_dae_units();
     test_pins_from_mesh();
     test_loose_nan();
+    test_ply_order();
     text_file_remove_tree(g_dir);
     return check_report("import_file_order");
 }
