@@ -247,7 +247,14 @@ enum {
     /// factorisation happens in the first step with a new h or pin set: that step
     /// allocates (CHOLMOD's factor too, through the world's allocator hooks) and
     /// takes longer (about 13 ms at 10K particles, 1.4 s at 250K on one core); keep
-    /// dt constant to pay it once.
+    /// dt constant to pay it once. The library does not link CHOLMOD: the first
+    /// def that names this solver (rbc_world_create, rbc_world_set_solver) loads
+    /// libcholmod.so.3 (Debian's libcholmod3; $RBC_CHOLMOD_LIBRARY names another
+    /// file of CHOLMOD 3) and its libraries, once per process; where it cannot,
+    /// that call fails with RBC_ERR_BACKEND_UNAVAILABLE, naming the file and why,
+    /// and changes nothing. The loader's and those libraries' own start-up
+    /// allocations are malloc's, not the world's hooks. Builds without CHOLMOD
+    /// (Windows) refuse it the same way.
     RBC_SOLVER_DIRECT = 7,
     RBC_SOLVER_FORCE32 = 0x7FFFFFFF
 };
@@ -1286,7 +1293,9 @@ RBC_API rbc_result RBC_CALL rbc_mesh_import_def_init(rbc_mesh_import_def *def,
 /// unused vertices dropped, pins. *out_mesh receives its id.
 /// Errors (nothing is created): RBC_ERR_IO the file cannot be opened or assimp
 /// cannot parse it (assimp's message is quoted); RBC_ERR_UNSUPPORTED no assimp
-/// reader for the format; RBC_ERR_BAD_MESH no face to simulate, a non-finite
+/// reader for the format, or no import in this install (the helper is not found,
+/// and the message lists where it looked; Windows builds have none);
+/// RBC_ERR_BAD_MESH no face to simulate, a non-finite
 /// position, an n-gon with RBC_NGON_REFUSE (the message names the file, mesh and
 /// face or vertex); RBC_ERR_INVALID_ARGUMENT a bad def or a mesh_index/mesh_name
 /// that selects nothing; RBC_ERR_CAPACITY 4096 meshes exist. Nothing is printed

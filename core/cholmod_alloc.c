@@ -29,7 +29,6 @@ _Static_assert(sizeof(block) <= HEADER, "the header must fit in 64 bytes");
 /* The allocator of this thread's CHOLMOD call, or NULL. */
 static _Thread_local const rbc_allocator *current;
 
-static pthread_once_t install_once = PTHREAD_ONCE_INIT;
 static int installed;
 
 /* Live blocks of the wrappers, by header address. Only our own headers are ever
@@ -131,8 +130,7 @@ static void *ss_realloc(void *p, size_t size) {
     return q;
 }
 
-static void install(void) {
-    struct SuiteSparse_config_struct *c = &SuiteSparse_config;
+void rbc_cholmod_alloc_install(struct SuiteSparse_config_struct *c) {
     if (c->malloc_func != malloc || c->calloc_func != calloc || c->realloc_func != realloc ||
         c->free_func != free)
         return; /* the host's own allocator: leave it */
@@ -148,22 +146,21 @@ static void install(void) {
     installed = 1;
 }
 
-/* When the library is unloaded (a host's dlclose of the plugin; or at exit), put
- * SuiteSparse's defaults back, so that a SuiteSparse that stays loaded (the host
- * uses it too) is not left calling unmapped code. Only with no block of an
- * allocator alive: every world destroyed, as a host must before unloading. The
- * plugin's finalizer runs before its dependencies' (libsuitesparseconfig) are
- * unmapped. */
-__attribute__((destructor)) static void uninstall(void) {
-    if (!installed) return;
+/* Called by cholmod_load.c's finalizer when the plugin is unloaded, before it
+ * closes CHOLMOD: put SuiteSparse's defaults back, so that a SuiteSparse that stays
+ * loaded (the host uses it too) is not left calling unmapped code. Only with no
+ * block of an allocator alive: every world destroyed, as a host must before
+ * unloading. */
+int rbc_cholmod_alloc_release(struct SuiteSparse_config_struct *c) {
+    if (!installed) return 1;
     pthread_mutex_lock(&registry_lock);
     int empty = 1;
     for (size_t k = 0; k < BUCKETS && empty; ++k) empty = registry[k] == NULL;
     pthread_mutex_unlock(&registry_lock);
-    struct SuiteSparse_config_struct *c = &SuiteSparse_config;
-    if (!empty || c->malloc_func != ss_malloc || c->calloc_func != ss_calloc ||
+    if (!empty) return 0;
+    if (c->malloc_func != ss_malloc || c->calloc_func != ss_calloc ||
         c->realloc_func != ss_realloc || c->free_func != ss_free)
-        return;
+        return 1; /* the host replaced them after us: theirs now, and none is ours */
     /* malloc first, free last: the reverse of install. */
     volatile struct SuiteSparse_config_struct *v = c;
     v->malloc_func = malloc;
@@ -171,10 +168,10 @@ __attribute__((destructor)) static void uninstall(void) {
     v->realloc_func = realloc;
     v->free_func = free;
     installed = 0;
+    return 1;
 }
 
 const rbc_allocator *rbc_cholmod_enter(const rbc_allocator *a) {
-    pthread_once(&install_once, install);
     const rbc_allocator *previous = current;
     current = a;
     return previous;
@@ -183,6 +180,5 @@ const rbc_allocator *rbc_cholmod_enter(const rbc_allocator *a) {
 void rbc_cholmod_leave(const rbc_allocator *previous) { current = previous; }
 
 int rbc_cholmod_hooks_installed(void) {
-    pthread_once(&install_once, install);
     return installed;
 }

@@ -3,8 +3,8 @@
  *
  * SuiteSparse 5 allocates through the process-global SuiteSparse_config
  * (malloc_func, calloc_func, realloc_func, free_func), and its free gets no size.
- * The first rbc_cholmod_enter points those four at wrappers (once per process,
- * pthread_once) that allocate the size asked plus a 64-byte header through the
+ * When CHOLMOD is loaded (cholmod_load.c, once per process) those four are
+ * pointed at wrappers that allocate the size asked plus a 64-byte header through the
  * calling thread's current allocator, set by rbc_cholmod_enter; the header keeps
  * the size and a copy of the allocator, so a block is freed with its allocator and
  * size from any thread. The user part of a block is 64-byte aligned.
@@ -27,19 +27,31 @@
  *     its own). malloc's blocks include those SuiteSparse got before the wrappers
  *     were installed (a host that used it earlier); they go to free and realloc.
  *   - When the library is unloaded with no world's block alive, SuiteSparse's
- *     defaults are put back.
+ *     defaults are put back (rbc_cholmod_alloc_release).
+ *   - SuiteSparse_config is the one of the CHOLMOD that cholmod_load.c loaded;
+ *     without CHOLMOD nothing is installed and nothing needs to be.
  */
 #ifndef RBC_CORE_CHOLMOD_ALLOC_H
 #define RBC_CORE_CHOLMOD_ALLOC_H
 #include "alloc.h"
 
-/* Make *a the allocator of this thread's SuiteSparse allocations (installing the
- * wrappers on first use) until rbc_cholmod_leave with the value returned (the
+/* Point SuiteSparse_config *c (the loaded CHOLMOD's) at the wrappers, unless the
+ * host has changed any of its four functions. Once, by cholmod_load.c. */
+struct SuiteSparse_config_struct;
+void rbc_cholmod_alloc_install(struct SuiteSparse_config_struct *c);
+
+/* Make *a the allocator of this thread's SuiteSparse allocations until rbc_cholmod_leave with the value returned (the
  * previous one: scopes nest). *a must stay valid until then. */
 const rbc_allocator *rbc_cholmod_enter(const rbc_allocator *a);
 void rbc_cholmod_leave(const rbc_allocator *previous);
 
-/* 1 if the wrappers are installed (after the first rbc_cholmod_enter), 0 if the host
- * had set SuiteSparse_config itself. */
+/* 1 if the wrappers are installed (CHOLMOD loaded, rbc_cholmod_get), 0 if the host
+ * had set SuiteSparse_config itself or CHOLMOD is not loaded. */
 int rbc_cholmod_hooks_installed(void);
+
+/* Put SuiteSparse_config *c back to malloc's functions if the wrappers are
+ * installed and no block of theirs is alive; 1 if none of the wrappers is left in
+ * it (or they never were), 0 if blocks are alive and the wrappers stay. For the
+ * unloading plugin only (cholmod_load.c). */
+int rbc_cholmod_alloc_release(struct SuiteSparse_config_struct *c);
 #endif

@@ -28,16 +28,18 @@
  */
 #include "report.h"
 #include "direct.h"
+#include "../abi/rbcloth.h"
+
+#if RBC_WITH_CHOLMOD
 #include "cholmod_alloc.h"
+#include "cholmod_load.h"
 
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
-#include <suitesparse/cholmod.h>
-
-#include "../abi/rbcloth.h"
 
 struct rbc_direct {
+    const rbc_cholmod_api *api; /* CHOLMOD, loaded (cholmod_load.h) */
     rbc_allocator alloc;
     uint32_t n;                 /* particles */
     uint32_t nf;                /* free particles = order of A */
@@ -61,8 +63,8 @@ void rbc_direct_destroy(rbc_direct *d) {
     rbc_allocator a = d->alloc; /* d is freed below: the scope uses a copy */
     if (d->started) {
         const rbc_allocator *prev = rbc_cholmod_enter(&a);
-        cholmod_free_factor(&d->L, &d->cm);
-        cholmod_finish(&d->cm);
+        d->api->free_factor(&d->L, &d->cm);
+        d->api->finish(&d->cm);
         rbc_cholmod_leave(prev);
     }
     rbc_mem_free(&a, d->free_idx, rbc_mul_size(d->n, sizeof(int32_t)));
@@ -127,6 +129,8 @@ int32_t rbc_direct_create(rbc_direct **out, const rbc_topology *t, const uint8_t
                           float h, const rbc_allocator *a, char *err, size_t errlen) {
     /* Every CHOLMOD call of create, its failure paths' destroy included, allocates
      * through a (see the top of this file). */
+    *out = NULL;
+    if (!rbc_cholmod_get(err, errlen)) return RBC_ERR_BACKEND_UNAVAILABLE; /* loads it */
     const rbc_allocator *prev = rbc_cholmod_enter(a);
     int32_t rc = direct_create(out, t, pinned, h, a, err, errlen);
     rbc_cholmod_leave(prev);
@@ -136,6 +140,7 @@ int32_t rbc_direct_create(rbc_direct **out, const rbc_topology *t, const uint8_t
 static int32_t direct_create(rbc_direct **out, const rbc_topology *t, const uint8_t *pinned,
                              float h, const rbc_allocator *a, char *err, size_t errlen) {
     *out = NULL;
+    const rbc_cholmod_api *api = rbc_cholmod_get(err, errlen);
     if (!(isfinite(h) && h > 0.0f && isfinite(1.0f / (h * h))))
         return rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                     "direct solver: h = %g s; it must be finite and > 0 with 1/h^2 finite",
@@ -149,6 +154,7 @@ static int32_t direct_create(rbc_direct **out, const rbc_topology *t, const uint
 
     rbc_direct *d = rbc_mem_alloc(a, sizeof *d);
     if (!d) return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "direct solver: out of memory");
+    d->api = api;
     d->alloc = *a;
     d->n = n;
     d->nf = nf;
@@ -179,7 +185,7 @@ static int32_t direct_create(rbc_direct **out, const rbc_topology *t, const uint
         return RBC_OK;
     }
 
-    cholmod_start(&d->cm);
+    d->api->start(&d->cm);
     d->started = 1;
     d->cm.print = 0;             /* never print (also silences cholmod_error) */
     d->cm.error_handler = NULL;  /* failures are read from cm.status */
@@ -201,7 +207,7 @@ static int32_t direct_create(rbc_direct **out, const rbc_topology *t, const uint
             nnz += (g >= 0 && (uint32_t)g > f) ? 1u : 0u;
         }
     }
-    cholmod_sparse *A = cholmod_allocate_sparse(nf, nf, nnz, 1, 1, -1, CHOLMOD_REAL, &d->cm);
+    cholmod_sparse *A = d->api->allocate_sparse(nf, nf, nnz, 1, 1, -1, CHOLMOD_REAL, &d->cm);
     if (!A) {
         int32_t rc = cholmod_fail(d, t, "assembly", h, err, errlen);
         rbc_direct_destroy(d);
@@ -226,7 +232,7 @@ static int32_t direct_create(rbc_direct **out, const rbc_topology *t, const uint
             }
         }
         if (!isfinite(sum)) {
-            cholmod_free_sparse(&A, &d->cm);
+            d->api->free_sparse(&A, &d->cm);
             int32_t rc = rbc_fail(err, errlen, RBC_ERR_INVALID_ARGUMENT,
                               "direct solver: vertex %u: m/h^2 + sum of stiffness = %g is not "
                               "finite (m = %g kg, h = %g s)",
@@ -241,10 +247,10 @@ static int32_t direct_create(rbc_direct **out, const rbc_topology *t, const uint
     }
     Ap[nf] = (int)q;
 
-    d->L = cholmod_analyze(A, &d->cm);
+    d->L = d->api->analyze(A, &d->cm);
     int ok = d->L != NULL && d->cm.status == CHOLMOD_OK;
-    if (ok) ok = cholmod_factorize(A, d->L, &d->cm) && d->cm.status == CHOLMOD_OK;
-    cholmod_free_sparse(&A, &d->cm);
+    if (ok) ok = d->api->factorize(A, d->L, &d->cm) && d->cm.status == CHOLMOD_OK;
+    d->api->free_sparse(&A, &d->cm);
     if (!ok) {
         int32_t rc = cholmod_fail(d, t, d->L ? "factorisation" : "analysis", h, err, errlen);
         rbc_direct_destroy(d);
@@ -278,7 +284,7 @@ static int32_t direct_create(rbc_direct **out, const rbc_topology *t, const uint
                     "direct solver: CHOLMOD returned a factor of an unexpected layout");
     }
     /* Analysis/factorisation scratch (Flag, Head, Iwork) is not used by the solve. */
-    cholmod_free_work(&d->cm);
+    d->api->free_work(&d->cm);
     d->cholmod_bytes = d->cm.memory_inuse;
     *out = d;
     return RBC_OK;
@@ -423,3 +429,44 @@ void rbc_direct_solve(rbc_direct *d, const rbc_topology *t, const uint8_t *pinne
         qz[i] = (float)v[3 * k + 2];
     }
 }
+
+int rbc_direct_available(char *err, size_t errlen) { return rbc_cholmod_get(err, errlen) != NULL; }
+
+#else /* !RBC_WITH_CHOLMOD: a build without the direct solver (Windows, or chosen) */
+
+#include "report.h"
+
+struct rbc_direct {
+    int unused;
+};
+
+static const char no_cholmod[] =
+    "RBC_SOLVER_DIRECT is not in this build of rbcloth (configured without CHOLMOD, "
+    "RBC_WITH_CHOLMOD=OFF); every other solver is";
+
+int rbc_direct_available(char *err, size_t errlen) {
+    rbc_fail(err, errlen, RBC_ERR_BACKEND_UNAVAILABLE, "%s", no_cholmod);
+    return 0;
+}
+
+int32_t rbc_direct_create(rbc_direct **out, const rbc_topology *t, const uint8_t *pinned,
+                          float h, const rbc_allocator *a, char *err, size_t errlen) {
+    (void)t, (void)pinned, (void)h, (void)a;
+    *out = NULL;
+    return rbc_fail(err, errlen, RBC_ERR_BACKEND_UNAVAILABLE, "%s", no_cholmod);
+}
+
+/* Unreachable: no rbc_direct is ever made. */
+void rbc_direct_solve(rbc_direct *d, const rbc_topology *t, const uint8_t *pinned, const float *w,
+                      const float *const y[3], const float *dx, const float *dy, const float *dz,
+                      float *const p[3]) {
+    (void)d, (void)t, (void)pinned, (void)w, (void)y, (void)dx, (void)dy, (void)dz, (void)p;
+}
+
+void rbc_direct_destroy(rbc_direct *d) { (void)d; }
+
+size_t rbc_direct_bytes(const rbc_direct *d) {
+    (void)d;
+    return 0;
+}
+#endif

@@ -41,7 +41,7 @@ typedef struct rbc_direct rbc_direct;
  * m_i/h^2 is formed exactly as the RBGS path forms w (float mass * (1.0f/(h*h)), see
  * rbc_direct_weight), so the direct and iterative paths solve the same system.
  * Returns RBC_OK (0) or a negative rbc_result with a message in err:
- * RBC_ERR_INVALID_ARGUMENT (h not finite and > 0, or m_i/h^2 overflowing),
+ * RBC_ERR_BACKEND_UNAVAILABLE (no CHOLMOD: rbc_direct_available), RBC_ERR_INVALID_ARGUMENT (h not finite and > 0, or m_i/h^2 overflowing),
  * RBC_ERR_OUT_OF_MEMORY (also for a factor beyond CHOLMOD's 32-bit indices), or
  * RBC_ERR_UNSTABLE if the factorisation fails (not positive definite: the message
  * names the vertex). On error *out is NULL.
@@ -64,6 +64,12 @@ void rbc_direct_solve(rbc_direct *d, const rbc_topology *t, const uint8_t *pinne
 
 /* NULL is a no-op. */
 void rbc_direct_destroy(rbc_direct *d);
+
+/* 1 if this build and process can make a factor: CHOLMOD is loaded (on the first
+ * call, cholmod_load.h). 0 with the reason in err (RBC_ERR_BACKEND_UNAVAILABLE's
+ * message: which library, why) if not, or if the build has no direct solver
+ * (RBC_WITH_CHOLMOD=OFF). rbc_direct_create then fails the same way. */
+int rbc_direct_available(char *err, size_t errlen);
 
 /* Bytes held (factor + workspace), for stats. */
 size_t rbc_direct_bytes(const rbc_direct *d);

@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "direct.h"
 #include "errors.h"
 #include "rbcloth.h"
 #include "world.h"
@@ -239,6 +240,12 @@ rbc_result rbc_plugin_solver_settings_from(rbc_world *w, const char *fn, const r
         return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT,
                                       "%s: solver %d is not an rbc_solver_kind", fn,
                                       (int)d->solver);
+    /* CHOLMOD is loaded here, on the first direct-solver def (core/cholmod_load.h):
+     * a host without it hears so from rbc_world_create or rbc_world_set_solver,
+     * with the world as it was, not from a later step. */
+    char why[600];
+    if (d->solver == RBC_SOLVER_DIRECT && !rbc_direct_available(why, sizeof why))
+        return rbc_plugin_world_error(w, RBC_ERR_BACKEND_UNAVAILABLE, "%s: %s", fn, why);
     if (!(isfinite(d->omega) && d->omega >= 0.0f && d->omega < 2.0f))
         return rbc_plugin_world_error(
             w, RBC_ERR_INVALID_ARGUMENT,

@@ -313,8 +313,10 @@ static rbc_result import_in_helper(const char *path, const rbc_mesh_import_def *
                                    rbc_mesh *m) {
     char helper[PATH_MAX], looked[3 * PATH_MAX];
     if (!find_helper(helper, sizeof helper, looked, sizeof looked))
-        return rbc_import_error(path, RBC_ERR_IO,
-                                "the import helper " HELPER_NAME " was not found (looked for %s); "
+        /* An optional module that is absent, not a file that cannot be read. */
+        return rbc_import_error(path, RBC_ERR_UNSUPPORTED,
+                                "mesh import is not available: the import helper " HELPER_NAME
+                                " was not found (looked for %s); "
                                 "it belongs next to librbcloth.so, or set $RBC_IMPORT_HELPER",
                                 looked);
     int sv[2];

@@ -1,6 +1,7 @@
 /* core/cholmod_alloc.c, SuiteSparse's allocations through an rbc_allocator, on its
  * own (SuiteSparse_config left at its defaults, as a host that never sets it has it):
- *   1. a block SuiteSparse got from malloc before the wrappers were installed is
+ *   1. a block SuiteSparse got from malloc before the wrappers were installed (by
+ *      loading CHOLMOD, rbc_cholmod_get) is
  *      still freed and reallocated by malloc's own functions afterwards;
  *   2. inside rbc_cholmod_enter: malloc, calloc and realloc go to the hook with the
  *      size plus the 64-byte header, 64-byte aligned; calloc is zero; realloc keeps
@@ -27,6 +28,7 @@
 
 #include "check.h"
 #include "cholmod_alloc.h"
+#include "cholmod_load.h"
 #include "rbcloth.h"
 
 enum { MAXB = 256 };
@@ -162,7 +164,9 @@ int main(int argc, char **argv) {
     if (!early || !early2) return check_report("core_cholmod_alloc");
     memset(early, 7, 100);
 
-    const rbc_allocator *outer = rbc_cholmod_enter(&a1); /* installs */
+    /* Loading CHOLMOD (this executable's, linked: dlopen finds it loaded) installs. */
+    CHECK(rbc_cholmod_get(NULL, 0) != NULL);
+    const rbc_allocator *outer = rbc_cholmod_enter(&a1);
     CHECK(outer == NULL);
     CHECK(rbc_cholmod_hooks_installed());
     CHECK(SuiteSparse_config.malloc_func != malloc);

@@ -5,7 +5,8 @@
  *     error of the documented kind, named by its file prefix, within the def's time
  *     limit plus a margin; this process is still here to check it;
  *   - the memory limit: a file that imports is RBC_ERR_OUT_OF_MEMORY under 20 MiB;
- *   - the helper missing, or a program that is not the helper: RBC_ERR_IO naming
+ *   - the helper missing (RBC_ERR_UNSUPPORTED), or a program that is not the
+ *     helper (RBC_ERR_IO): naming
  *     it, and a host that left SIGPIPE at its default does not die of the helper's
  *     early exit;
  *   - a host that ignores SIGCHLD (children reaped by the kernel) still imports;
@@ -143,7 +144,7 @@ static void test_memory_limit(void) {
 static void test_helper_missing(const char *grid) {
     rbc_mesh_id m = 0;
     setenv("RBC_IMPORT_HELPER", "/nonexistent/rbcloth-import", 1);
-    CHECK_EQ(rbc_mesh_import(grid, NULL, &m), RBC_ERR_IO);
+    CHECK_EQ(rbc_mesh_import(grid, NULL, &m), RBC_ERR_UNSUPPORTED);
     CHECK(strstr(rbc_last_error(), "/nonexistent/rbcloth-import") != NULL);
     CHECK(strstr(rbc_last_error(), "was not found") != NULL);
     /* Programs that are not the helper: one that exits at once without reading

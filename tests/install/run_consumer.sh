@@ -7,6 +7,12 @@
 #   pkg-config       consumer.c compiled with `pkg-config --cflags --libs rbcloth`
 #   subdirectory     tests/install/consumer with add_subdirectory(SOURCE): only the
 #                    library and its helper are built (RBC_BUILD_EXTRAS is off there)
+#   closure          the installed library's dependencies are glibc's own (issue 20:
+#                    an engine loads no assimp, no CHOLMOD): its NEEDED entries and
+#                    ldd's whole closure are within libc, libm, libpthread and the
+#                    dynamic loader (NEEDED for __tls_get_addr, the TLS of a shared
+#                    library); CHOLMOD and assimp are reached by name only (dlopen,
+#                    the helper beside it)
 # Each runs the consumer on MESH (an import through the helper of that tree).
 set -euo pipefail
 mode=$1 build=$2 src=$3 work=$4 mesh=$5
@@ -56,5 +62,18 @@ subdirectory)
   [ ! -e "$work/sub/rbcloth/tests" ] || { echo "FAIL: add_subdirectory built the tests" >&2; exit 1; }
   "$work/sub/consumer" "$mesh"
   ;;
-*) echo "usage: $0 install|find_package|pkg-config|subdirectory BUILD SOURCE WORK MESH" >&2; exit 2 ;;
+closure)
+  lib=$(find "$prefix" -name 'librbcloth.so.1.*' -type f | head -1)
+  allowed='^(libc\.so\.6|libm\.so\.6|libpthread\.so\.0|ld-linux-x86-64\.so\.2|linux-vdso\.so\.1)$'
+  needed=$(readelf -d "$lib" | sed -n 's/.*Shared library: \[\(.*\)\]/\1/p')
+  [ -n "$needed" ] || { echo "FAIL: no NEEDED entries read from $lib" >&2; exit 1; }
+  # ldd lists the loader by path: keep the file name
+  closure=$(ldd "$lib" | awk '{print $1}' | sed 's,.*/,,')
+  bad=$(printf '%s\n%s\n' "$needed" "$closure" | grep -Ev "$allowed" || true)
+  [ -z "$bad" ] || { echo "FAIL: $lib depends on: $bad" >&2; ldd "$lib" >&2; exit 1; }
+  # CHOLMOD is loaded by its SONAME, never linked
+  grep -qaF 'libcholmod.so.3' "$lib" || { echo "FAIL: no libcholmod.so.3 in $lib" >&2; exit 1; }
+  echo "closure of $(basename "$lib"): NEEDED $(echo $needed); ldd $(echo $closure | wc -w) objects: $(echo $closure)"
+  ;;
+*) echo "usage: $0 install|find_package|pkg-config|subdirectory|closure BUILD SOURCE WORK MESH" >&2; exit 2 ;;
 esac
