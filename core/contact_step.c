@@ -138,8 +138,11 @@ static void detect_cloth(step_ctx *ctx, const rbc_step_at *at) {
 void rbc_stage_detect(step_ctx *ctx, const rbc_step_at *at) {
     rbc_solver *s = ctx->s;
     if (s->collider_count) detect_colliders(ctx, at);
-    if (s->contact_fn && ctx->result == RBC_OK) {
-        if (at->tid == 0) rbc_step_run_contact_callback(ctx, at->sub);
+    /* Every thread meets this barrier: thread 0 may fail the step inside the
+     * callback, and a worker that read ctx->result after that would skip the
+     * barrier and leave thread 0 waiting for ever (found by rbcloth-conformance). */
+    if (s->contact_fn) {
+        if (at->tid == 0 && ctx->result == RBC_OK) rbc_step_run_contact_callback(ctx, at->sub);
         rbc_pool_barrier(s->pool);
     }
     if (ctx->cc_active && ctx->result == RBC_OK) detect_cloth(ctx, at);
