@@ -29,8 +29,10 @@ build_pkgs=(cmake make gcc libc6-dev pkg-config libcjson-dev libsuitesparse-dev 
 # the sanitizer runtimes), llvm-14 the llvm-symbolizer that puts names on their stacks.
 # gcc's own ASan/UBSan runtimes (libasan8, libubsan1) come with gcc.
 # mono-mcs, mono-runtime: tests/mono runs a C# host (Mono 6.8) against the library.
+# gcc-mingw-w64-x86-64 (with binutils-mingw-w64-x86-64 and the -posix compiler),
+# wine64, wine: tests/windows cross-builds rbcloth.dll and runs hosts under wine 8.
 test_pkgs=(abigail-tools assimp-testmodels valgrind slurm-wlm munge chromium blender
-           mono-mcs mono-runtime
+           mono-mcs mono-runtime gcc-mingw-w64-x86-64 wine64 wine
            clang-14 libclang-rt-14-dev llvm-14 python3-numpy python3-pytest python3-venv
            python3-pip python3-setuptools python3-wheel)
 if [ "${1:-}" = build ]; then

@@ -4,6 +4,8 @@
 #   P/LIBDIR/../libexec/rbcloth/rbcloth-import   (where the library looks for it:
 #                                                 abi/rbcloth.h, rbc_mesh_import)
 #   P/bin/rbcloth                                (with the extras: the CLI)
+#   Windows: P/bin/rbcloth.dll (RUNTIME), P/lib/librbcloth.dll.a (ARCHIVE: the
+#   import library; rbcloth.lib with MSVC), no helper
 #   P/LIBDIR/cmake/rbcloth/rbclothConfig.cmake, rbclothConfigVersion.cmake,
 #     rbclothTargets.cmake                       (find_package(rbcloth 1.9): the
 #                                                 imported target rbcloth::rbcloth)
@@ -21,7 +23,10 @@ install(TARGETS rbcloth EXPORT rbclothTargets
   RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR}
   INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
 install(FILES ${PROJECT_SOURCE_DIR}/abi/rbcloth.h DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
-install(TARGETS rbcloth-import RUNTIME DESTINATION ${RBC_HELPER_DIR})
+# (Windows builds have no import helper: plugin/CMakeLists.txt.)
+if(TARGET rbcloth-import)
+  install(TARGETS rbcloth-import RUNTIME DESTINATION ${RBC_HELPER_DIR})
+endif()
 if(TARGET rbcloth_cli)
   install(TARGETS rbcloth_cli RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 endif()

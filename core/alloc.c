@@ -16,6 +16,23 @@
  * asked for. */
 enum { RBC_MMAP_MIN = 256 * 1024 };
 
+#if defined(_WIN32)
+/* The Windows C runtimes (msvcrt, the UCRT) have no aligned_alloc: a free() that takes
+ * any block cannot release an over-aligned one there. _aligned_malloc's blocks are
+ * released by _aligned_free, and only by it. */
+#include <malloc.h>
+
+static void *default_alloc(void *user, size_t size, size_t alignment) {
+    (void)user;
+    return _aligned_malloc(size, alignment);
+}
+
+static void default_free(void *user, void *ptr, size_t size) {
+    (void)user;
+    (void)size;
+    _aligned_free(ptr);
+}
+#else
 static void *default_alloc(void *user, size_t size, size_t alignment) {
     (void)user;
     /* aligned_alloc needs size to be a multiple of the alignment. */
@@ -29,6 +46,7 @@ static void default_free(void *user, void *ptr, size_t size) {
     (void)size;
     free(ptr);
 }
+#endif
 
 rbc_allocator rbc_allocator_default(void) {
     rbc_allocator a = {default_alloc, default_free, NULL};

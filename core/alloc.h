@@ -11,7 +11,7 @@ typedef struct rbc_allocator {
     void *user;
 } rbc_allocator;
 
-/* The default allocator: aligned_alloc/free. */
+/* The default allocator: aligned_alloc/free (_aligned_malloc/_aligned_free on Windows). */
 rbc_allocator rbc_allocator_default(void);
 
 /* size bytes, 64-byte aligned, zero-filled; NULL on failure (or size 0 -> a valid

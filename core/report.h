@@ -7,9 +7,11 @@
 #include <stdint.h>
 #include <stdio.h>
 
+#include "format_attr.h"
+
 /* Write the message into err (if any) and return code. */
 static inline int32_t rbc_fail(char *err, size_t errlen, int32_t code, const char *fmt, ...)
-    __attribute__((format(printf, 4, 5)));
+    RBC_PRINTF(4, 5);
 static inline int32_t rbc_fail(char *err, size_t errlen, int32_t code, const char *fmt, ...) {
     if (err && errlen) {
         va_list ap;

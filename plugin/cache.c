@@ -11,6 +11,7 @@
 #include "errors.h"
 #include "handles.h"
 #include "registry.h"
+#include "replace_file.h"
 #include "rbcloth.h"
 
 #define RBC_MAX_CACHES 4096u
@@ -110,7 +111,7 @@ RBC_API rbc_result RBC_CALL rbc_write_obj(const char *path, const float *xyz,
     }
     ok = (fflush(f) == 0) && ok;
     ok = (fclose(f) == 0) && ok;
-    if (!ok || rename(tmp, path) != 0) {
+    if (!ok || rbc_replace_file(tmp, path) != 0) {
         rbc_result rc = rbc_set_error(RBC_ERR_IO, "%s: writing %s failed: %s", fn, path,
                                       strerror(errno));
         remove(tmp);
@@ -353,7 +354,7 @@ static int finish_mdd(cache *c) {
 static int finish_objseq(cache *c) {
     for (uint32_t k = 0; k < c->frames; ++k) {
         char *t = objseq_name(c->path, k, 1), *d = objseq_name(c->path, k, 0);
-        int ok = t && d && rename(t, d) == 0;
+        int ok = t && d && rbc_replace_file(t, d) == 0;
         free(t);
         free(d);
         if (!ok) {
@@ -376,12 +377,12 @@ static rbc_result cache_end(rbc_cache_id id, const char *fn, int keep) {
         if (c->def.format == RBC_CACHE_OBJ_SEQUENCE) {
             ok = finish_objseq(c);
         } else if (c->def.format == RBC_CACHE_MDD) {
-            ok = finish_mdd(c) && rename(c->tmp_path, c->path) == 0;
+            ok = finish_mdd(c) && rbc_replace_file(c->tmp_path, c->path) == 0;
         } else {
             ok = write_pc2_header(c) && fflush(c->f) == 0;
             ok = (fclose(c->f) == 0) && ok;
             c->f = NULL;
-            ok = ok && rename(c->tmp_path, c->path) == 0;
+            ok = ok && rbc_replace_file(c->tmp_path, c->path) == 0;
         }
         if (!ok)
             rc = rbc_set_error(RBC_ERR_IO, "%s: completing %s failed: %s", fn, c->path,

@@ -3,19 +3,21 @@
 #define RBC_PLUGIN_ERRORS_H
 #include <stddef.h>
 
+#include "format_attr.h"
+
 #include "rbcloth.h"
 
 #define RBC_ERROR_CAP 1024
 
 /* Set the thread's message (printf format) and return code. */
 rbc_result rbc_set_error(rbc_result code, const char *fmt, ...)
-    __attribute__((format(printf, 2, 3)));
+    RBC_PRINTF(2, 3);
 /* Set the thread's message as "rbc_mesh_import: <path>: <what>" and return code:
  * every refusal of a mesh import, in the plugin (import.c) and in the import helper
  * (importer/convert.c). The sweep groups refusals by <what>'s first clause, so each
  * clause starts with a fixed phrase and details follow a ':'. */
 rbc_result rbc_import_error(const char *path, rbc_result code, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
+    RBC_PRINTF(3, 4);
 /* The thread's message buffer, for code that formats into it directly. */
 char *rbc_error_buffer(void);
 /* The struct_size values a struct of the ABI accepts: its size in this library

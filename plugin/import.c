@@ -11,31 +11,38 @@
  * (about 17 ms on small files, docs/results/import.md) and a copy of the mesh. */
 #define _GNU_SOURCE /* dladdr, pipe2 */
 #include <ctype.h>
-#include <dlfcn.h>
 #include <errno.h>
-#include <fcntl.h>
 #include <limits.h>
 #include <math.h>
-#include <poll.h>
-#include <signal.h>
-#include <spawn.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#if !defined(_WIN32)
+#include <dlfcn.h>
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <spawn.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <time.h>
 #include <unistd.h>
+#endif
 
 #include "errors.h"
 #include "handles.h"
 #include "importer/convert.h"
+#if !defined(_WIN32)
 #include "importer/wire.h"
+#endif
 #include "registry.h"
+#include "replace_file.h"
 #include "rbcloth.h"
 
+#if !defined(_WIN32)
 extern char **environ;
+#endif
 
 #define RBC_MAX_MESHES 4096u
 #define RBC_IMPORT_DEFAULT_TIMEOUT_MS 60000u
@@ -148,6 +155,11 @@ static rbc_result check_def(const char *path, const rbc_mesh_import_def *d) {
 /* ------------------------------------------------------------------------- */
 /* The import helper                                                         */
 /* ------------------------------------------------------------------------- */
+
+/* Windows builds have no helper (plugin/CMakeLists.txt): it is spawned with
+ * posix_spawn, answers over a socketpair and is limited with setrlimit, none of
+ * which Windows has; rbc_mesh_import refuses there (below). */
+#if !defined(_WIN32)
 
 #define HELPER_NAME "rbcloth-import"
 
@@ -475,6 +487,7 @@ static rbc_result import_in_helper(const char *path, const rbc_mesh_import_def *
     free(a.p);
     return rc;
 }
+#endif /* !_WIN32 */
 
 /* ------------------------------------------------------------------------- */
 /* rbc_mesh_import                                                           */
@@ -497,6 +510,13 @@ RBC_API rbc_result RBC_CALL rbc_mesh_import(const char *path, const rbc_mesh_imp
     }
     rbc_result rc = check_def(path, &def);
     if (rc) return rc;
+#if defined(_WIN32)
+    /* A bad call is still named as one (above); a good one cannot be served. */
+    return rbc_import_error(path, RBC_ERR_UNSUPPORTED,
+                            "mesh import is not available in Windows builds of rbcloth "
+                            "(its helper process needs POSIX); import the mesh on Linux, or "
+                            "pass its quads to rbc_cloth_create");
+#else
     size_t plen = strlen(path);
     if (plen >= RBC_WIRE_MAX_STRING || (def.mesh_name && strlen(def.mesh_name) >= RBC_WIRE_MAX_STRING) ||
         (def.pin_group && strlen(def.pin_group) >= RBC_WIRE_MAX_STRING))
@@ -524,6 +544,7 @@ RBC_API rbc_result RBC_CALL rbc_mesh_import(const char *path, const rbc_mesh_imp
     }
     *out_mesh = m->id;
     return RBC_OK;
+#endif
 }
 
 /* ------------------------------------------------------------------------- */
@@ -862,7 +883,7 @@ RBC_API rbc_result RBC_CALL rbc_mesh_write_file_obj(rbc_mesh_id id, const float 
     if (bad) {
         rc = rbc_set_error(RBC_ERR_IO, "%s: writing %s failed: %s", fn, tmp, strerror(errno));
         remove(tmp);
-    } else if (rename(tmp, path) != 0) {
+    } else if (rbc_replace_file(tmp, path) != 0) {
         rc = rbc_set_error(RBC_ERR_IO, "%s: cannot rename %s to %s: %s", fn, tmp, path,
                            strerror(errno));
         remove(tmp);

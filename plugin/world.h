@@ -9,6 +9,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "format_attr.h"
+
 #include "errors.h"
 #include "rbcloth.h"
 #include "registry.h"
@@ -40,7 +42,7 @@ static inline int rbc_plugin_finite3(const float *v) {
 void rbc_plugin_world_log(rbc_world *w, rbc_log_level level, const char *msg);
 /* Set the error, send it to the world's log hook (if any) and return the code. */
 rbc_result rbc_plugin_world_error(rbc_world *w, rbc_result code, const char *fmt, ...)
-    __attribute__((format(printf, 3, 4)));
+    RBC_PRINTF(3, 4);
 /* Look up a live world id; RBC_ERR_STALE_HANDLE (error set, message starting with
  * fn) if it is not one. */
 rbc_result rbc_plugin_lookup_world(rbc_world_id id, const char *fn, rbc_world **out);

@@ -1,14 +1,38 @@
 #define _GNU_SOURCE
 #include "pool.h"
 
-#include <linux/futex.h>
 #include <pthread.h>
-#include <sched.h>
-#include <sys/syscall.h>
 #include <stdatomic.h>
 #include <stdint.h>
 #include <string.h>
+#if defined(_WIN32)
+/* Windows (mingw-w64's winpthreads for the threads): the futex is WaitOnAddress and
+ * WakeByAddress* (Windows 8+), which wait while a word still holds a value exactly as
+ * FUTEX_WAIT does, so the sleeps and wake-ups below keep their meaning. */
+#define WIN32_LEAN_AND_MEAN
+#define NOMINMAX
+#include <windows.h>
+
+static void futex_wait(_Atomic uint32_t *word, uint32_t val) {
+    WaitOnAddress((volatile VOID *)word, &val, sizeof val, INFINITE);
+}
+static void futex_wake(_Atomic uint32_t *word, int all) {
+    if (all) WakeByAddressAll((PVOID)word);
+    else WakeByAddressSingle((PVOID)word);
+}
+#else
+#include <linux/futex.h>
+#include <sched.h>
+#include <sys/syscall.h>
 #include <unistd.h>
+
+static void futex_wait(_Atomic uint32_t *word, uint32_t val) {
+    syscall(SYS_futex, (uint32_t *)word, FUTEX_WAIT_PRIVATE, val, NULL, NULL, 0);
+}
+static void futex_wake(_Atomic uint32_t *word, int all) {
+    syscall(SYS_futex, (uint32_t *)word, FUTEX_WAKE_PRIVATE, all ? INT32_MAX : 1, NULL, NULL, 0);
+}
+#endif
 
 #if defined(__x86_64__) || defined(__i386__)
 #include <immintrin.h>
@@ -74,11 +98,26 @@ static void *worker_main(void *arg) {
         if (tid < pool->active) pool->fn(pool->ctx, tid, pool->active);
         atomic_fetch_add(&pool->done, 1);
         if (atomic_load(&pool->done_sleeper))
-            syscall(SYS_futex, (uint32_t *)&pool->done, FUTEX_WAKE_PRIVATE, 1, NULL, NULL, 0);
+            futex_wake(&pool->done, 0);
     }
     return NULL;
 }
 
+#if defined(_WIN32)
+uint32_t rbc_cpu_count(void) {
+    /* The process's affinity mask, as sched_getaffinity below (one processor group:
+     * up to 64 cores). */
+    DWORD_PTR proc, sys;
+    if (GetProcessAffinityMask(GetCurrentProcess(), &proc, &sys) && proc) {
+        uint32_t c = 0;
+        for (; proc; proc &= proc - 1) ++c;
+        return c;
+    }
+    SYSTEM_INFO si;
+    GetSystemInfo(&si);
+    return si.dwNumberOfProcessors > 0 ? (uint32_t)si.dwNumberOfProcessors : 1u;
+}
+#else
 uint32_t rbc_cpu_count(void) {
     cpu_set_t set;
     if (sched_getaffinity(0, sizeof set, &set) == 0) {
@@ -88,6 +127,7 @@ uint32_t rbc_cpu_count(void) {
     long c = sysconf(_SC_NPROCESSORS_ONLN);
     return c > 0 ? (uint32_t)c : 1u;
 }
+#endif
 
 int rbc_pool_create(rbc_pool **out, uint32_t nthreads, const rbc_allocator *a) {
     *out = NULL;
@@ -174,7 +214,7 @@ void rbc_pool_run_n(rbc_pool *pool, uint32_t n, rbc_pool_fn fn, void *ctx) {
         atomic_store(&pool->done_sleeper, 1);
         d = atomic_load(&pool->done);
         if (d != want)
-            syscall(SYS_futex, (uint32_t *)&pool->done, FUTEX_WAIT_PRIVATE, d, NULL, NULL, 0);
+            futex_wait(&pool->done, d);
         atomic_store(&pool->done_sleeper, 0);
     }
 }
@@ -187,8 +227,7 @@ void rbc_pool_barrier(rbc_pool *pool) {
         atomic_store_explicit(&pool->bar_count, 0, memory_order_relaxed);
         atomic_fetch_add(&pool->bar_gen, 1);
         if (atomic_load(&pool->bar_sleepers))
-            syscall(SYS_futex, (uint32_t *)&pool->bar_gen, FUTEX_WAKE_PRIVATE, INT32_MAX, NULL,
-                    NULL, 0);
+            futex_wake(&pool->bar_gen, 1);
         return;
     }
     uint32_t spins = 0;
@@ -204,12 +243,16 @@ void rbc_pool_barrier(rbc_pool *pool) {
          * sees the new generation). */
         atomic_fetch_add(&pool->bar_sleepers, 1);
         if (atomic_load(&pool->bar_gen) == gen)
-            syscall(SYS_futex, (uint32_t *)&pool->bar_gen, FUTEX_WAIT_PRIVATE, gen, NULL, NULL, 0);
+            futex_wait(&pool->bar_gen, gen);
         atomic_fetch_sub(&pool->bar_sleepers, 1);
     }
 }
 
 void rbc_pool_spin(uint32_t *spins) {
     if (++*spins < SPIN_BEFORE_YIELD) CPU_RELAX();
+#if defined(_WIN32)
+    else SwitchToThread();
+#else
     else sched_yield();
+#endif
 }
