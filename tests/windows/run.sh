@@ -2,8 +2,8 @@
 # windows_dll: rbcloth cross-built for 64-bit Windows with Debian's mingw-w64 and run
 # under Debian's wine.
 #   1. configure and build SRC with cmake/mingw-w64-x86_64.cmake in WORK/build (the
-#      library alone, no CHOLMOD), and the conformance kit where the tree has its
-#      target (rbcloth-conformance); install into WORK/prefix and check the layout:
+#      library alone, no CHOLMOD) and the conformance kit (rbcloth-conformance);
+#      install into WORK/prefix and check the layout:
 #      bin/rbcloth.dll, lib/librbcloth.dll.a, include/rbcloth.h
 #   2. objdump -p: the DLL imports Windows' own DLLs only (no libwinpthread-1.dll,
 #      libgcc_s_seh-1.dll: the toolchain file links them statically) and exports
@@ -11,7 +11,8 @@
 #   3. linked_host.c, linked to the installed import library, runs under wine; the
 #      same source linked to the native librbcloth.so (NATIVE_LIBDIR) runs here,
 #      and their positions and PC2 caches must be the same bytes
-#   4. the conformance kit under wine against the DLL, when it was built
+#   4. the conformance kit (rbcloth-conformance.exe) under wine against the DLL: it
+#      must pass every check
 # Exit 77 (skip) when mingw-w64 or wine is not installed.
 #
 #   run.sh SRC WORK NATIVE_LIBDIR NATIVE_CC
@@ -38,7 +39,7 @@ mkdir -p "$build" "$out"
 # --- 1. cross build and install -------------------------------------------------
 t=$(now)
 # Unix Makefiles whatever the outer build uses: its `help` target lists the targets,
-# which says whether this tree has the conformance kit.
+# which says whether the tree has the conformance kit (a missing one fails, below).
 if ! cmake -S "$src" -B "$build" -G "Unix Makefiles" \
      -DCMAKE_TOOLCHAIN_FILE="$src/cmake/mingw-w64-x86_64.cmake" \
      -DCMAKE_BUILD_TYPE=RelWithDebInfo -DRBC_BUILD_EXTRAS=OFF -DRBC_WITH_CHOLMOD=OFF \
@@ -181,7 +182,7 @@ if [[ " ${targets[*]} " == *" rbcloth-conformance "* ]]; then
     echo "# conformance kit under wine: $(since "$t") s"
   fi
 else
-  echo "# no rbcloth-conformance target in this tree: the conformance kit was not run"
+  bad "no rbcloth-conformance target in the cross build: the conformance kit was not run"
 fi
 
 [ $fail -eq 0 ] && echo "PASS"
