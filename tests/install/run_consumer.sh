@@ -2,7 +2,8 @@
 # run_consumer.sh MODE BUILD SOURCE WORK MESH -- a consumer of rbcloth built and run:
 #   install          cmake --install BUILD --prefix WORK/prefix, and the tree's files
 #                    (header, versioned library and SONAME, symbol versions, helper,
-#                    CMake package, pkg-config file) checked
+#                    CMake package, pkg-config file, the conformance kit) checked, and
+#                    the installed rbcloth-conformance passes on the installed library
 #   find_package     tests/install/consumer configured against WORK/prefix
 #   pkg-config       consumer.c compiled with `pkg-config --cflags --libs rbcloth`
 #   subdirectory     tests/install/consumer with add_subdirectory(SOURCE): only the
@@ -28,7 +29,8 @@ install)
            "$libdir/cmake/rbcloth/rbclothConfig.cmake" \
            "$libdir/cmake/rbcloth/rbclothConfigVersion.cmake" \
            "$libdir/cmake/rbcloth/rbclothTargets.cmake" "$libdir/pkgconfig/rbcloth.pc" \
-           "$libdir/../libexec/rbcloth/rbcloth-import" "$prefix/bin/rbcloth"; do
+           "$libdir/../libexec/rbcloth/rbcloth-import" "$prefix/bin/rbcloth" \
+           "$prefix/bin/rbcloth-conformance"; do
     [ -e "$f" ] || { echo "FAIL: not installed: $f" >&2; exit 1; }
   done
   soname=$(readelf -d "$lib" | sed -n 's/.*Library soname: \[\(.*\)\]/\1/p')
@@ -38,7 +40,11 @@ install)
   # the installed CLI finds the installed plugin and runs
   "$prefix/bin/rbcloth" info > "$work/info.txt"
   grep -q "$libdir/librbcloth.so" "$work/info.txt" || { echo "FAIL: rbcloth info:" >&2; cat "$work/info.txt" >&2; exit 1; }
-  echo "install: $(find "$prefix" -type f | wc -l) files; SONAME $soname; $nver symbols @@RBCLOTH_1"
+  # the installed conformance kit passes on the installed library
+  "$prefix/bin/rbcloth-conformance" "$lib" > "$work/conformance.txt" ||
+    { grep -A2 '^not ok' "$work/conformance.txt" >&2; echo "FAIL: rbcloth-conformance on $lib" >&2; exit 1; }
+  echo "install: $(find "$prefix" -type f | wc -l) files; SONAME $soname; $nver symbols @@RBCLOTH_1;" \
+       "$(tail -n 1 "$work/conformance.txt" | sed 's/^# //') (rbcloth-conformance)"
   ;;
 find_package)
   rm -rf "$work/fp"
