@@ -142,6 +142,10 @@ void rbc_stage_detect(step_ctx *ctx, const rbc_step_at *at) {
      * callback, and a worker that read ctx->result after that would skip the
      * barrier and leave thread 0 waiting for ever (found by rbcloth-conformance). */
     if (s->contact_fn) {
+        /* detect_colliders' workers read ctx->result after its last barrier: they
+         * must be past that read before the callback may write it (a data race
+         * ThreadSanitizer found under rbcloth-conformance). */
+        if (s->collider_count) rbc_pool_barrier(s->pool);
         if (at->tid == 0 && ctx->result == RBC_OK) rbc_step_run_contact_callback(ctx, at->sub);
         rbc_pool_barrier(s->pool);
     }
