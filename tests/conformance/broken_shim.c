@@ -32,6 +32,7 @@ static rbc_result world_def_init(rbc_world_def *d, uint32_t size) {
     }
     return real.world_def_init(d, size);
 }
+#define WRAPPED world_def_init
 #endif
 
 #if defined(BREAK_OLD_SIZE)
@@ -40,6 +41,7 @@ static rbc_result cloth_def_init(rbc_cloth_def *d, uint32_t size) {
     if (size == RBC_CLOTH_DEF_SIZE_V1_0) return real.cloth_def_init(d, 4); /* refused, with a message */
     return real.cloth_def_init(d, size);
 }
+#define WRAPPED cloth_def_init
 #endif
 
 #if defined(BREAK_INIT_OVERRUN)
@@ -52,6 +54,7 @@ static rbc_result collider_def_init(rbc_collider_def *d, uint32_t size) {
     }
     return r;
 }
+#define WRAPPED collider_def_init
 #endif
 
 #if defined(BREAK_WRONG_CODE) || defined(BREAK_OOM_CODE)
@@ -65,6 +68,7 @@ static rbc_result cloth_create(rbc_world_id w, const rbc_cloth_def *d, rbc_cloth
 #endif
     return r;
 }
+#define WRAPPED cloth_create
 #endif
 
 #if defined(BREAK_NO_MESSAGE)
@@ -73,6 +77,7 @@ static rbc_result world_set_iterations(rbc_world_id w, uint32_t s, uint32_t n, u
     if (n == 0) return RBC_ERR_INVALID_ARGUMENT;
     return real.world_set_iterations(w, s, n, l);
 }
+#define WRAPPED world_set_iterations
 #endif
 
 #if defined(BREAK_STATE_CHANGED)
@@ -91,6 +96,7 @@ static rbc_result cloth_set_state(rbc_world_id w, rbc_cloth_id c, const float *p
     }
     return real.cloth_set_state(w, c, p, q);
 }
+#define WRAPPED cloth_set_state
 #endif
 
 #if defined(BREAK_STALE_ACCEPTED)
@@ -99,6 +105,7 @@ static rbc_result cloth_destroy(rbc_world_id w, rbc_cloth_id c) {
     uint32_t nv;
     return real.cloth_get_vertex_count(w, c, &nv);
 }
+#define WRAPPED cloth_destroy
 #endif
 
 #if defined(BREAK_CALLBACK_THREAD)
@@ -116,6 +123,7 @@ static rbc_result world_step(rbc_world_id w, float dt) {
     pthread_join(t, NULL);
     return a.r;
 }
+#define WRAPPED world_step
 #endif
 
 #if defined(BREAK_THREAD_COUNT)
@@ -128,6 +136,7 @@ static rbc_result world_create(const rbc_world_def *d, rbc_world_id *out) {
     }
     return r;
 }
+#define WRAPPED world_create
 #endif
 
 #if defined(BREAK_SHARED_STATE)
@@ -150,6 +159,7 @@ static rbc_result world_step(rbc_world_id w, float dt) {
     __atomic_sub_fetch(&in_flight, 1, __ATOMIC_SEQ_CST);
     return r;
 }
+#define WRAPPED world_step
 #endif
 
 #if defined(BREAK_CALLBACK_IGNORED)
@@ -158,6 +168,7 @@ static rbc_result world_step(rbc_world_id w, float dt) {
     rbc_result r = real.world_step(w, dt);
     return r == RBC_ERR_CALLBACK ? RBC_OK : r;
 }
+#define WRAPPED world_step
 #endif
 
 #if defined(BREAK_HANGS)
@@ -170,6 +181,7 @@ static rbc_result world_step(rbc_world_id w, float dt) {
     }
     return r;
 }
+#define WRAPPED world_step
 #endif
 
 #if defined(BREAK_PRINTS)
@@ -180,49 +192,24 @@ static rbc_result world_create(const rbc_world_def *d, rbc_world_id *out) {
     fflush(stdout);
     return r;
 }
+#define WRAPPED world_create
 #endif
 
 #if defined(BREAK_VERSION)
 /* The table and the function disagree on the minor. */
 static uint32_t abi_version_fn(void) { return real.abi_version - 1; }
+#define WRAPPED abi_version_fn
 #endif
 
 /* --- the table ------------------------------------------------------------ */
 
+/* Each rule above replaces one entry, the one named WRAPPED, by its wrapper of
+ * the same name. */
 static void patch(rbc_api_v1 *t) {
 #if defined(BREAK_MISSING_ENTRY)
     t->world_stats_init = NULL;
-#endif
-#if defined(BREAK_UNKNOWN_SIZE)
-    t->world_def_init = world_def_init;
-#endif
-#if defined(BREAK_OLD_SIZE)
-    t->cloth_def_init = cloth_def_init;
-#endif
-#if defined(BREAK_INIT_OVERRUN)
-    t->collider_def_init = collider_def_init;
-#endif
-#if defined(BREAK_WRONG_CODE) || defined(BREAK_OOM_CODE)
-    t->cloth_create = cloth_create;
-#endif
-#if defined(BREAK_NO_MESSAGE)
-    t->world_set_iterations = world_set_iterations;
-#endif
-#if defined(BREAK_STATE_CHANGED)
-    t->cloth_set_state = cloth_set_state;
-#endif
-#if defined(BREAK_STALE_ACCEPTED)
-    t->cloth_destroy = cloth_destroy;
-#endif
-#if defined(BREAK_CALLBACK_THREAD) || defined(BREAK_SHARED_STATE) || \
-    defined(BREAK_CALLBACK_IGNORED) || defined(BREAK_HANGS)
-    t->world_step = world_step;
-#endif
-#if defined(BREAK_THREAD_COUNT) || defined(BREAK_PRINTS)
-    t->world_create = world_create;
-#endif
-#if defined(BREAK_VERSION)
-    t->abi_version_fn = abi_version_fn;
+#elif defined(WRAPPED)
+    t->WRAPPED = WRAPPED;
 #endif
     (void)t;
 }
