@@ -222,6 +222,8 @@ static uint32_t g_version;    /* what the library reports: (major << 16) | minor
 static uint32_t g_minor;
 static uint32_t g_table_size; /* bytes of the table this program may read */
 
+/* The codes' names, the kit's own: rbc_result_string is one of the functions under
+ * test (its strings are checked against these), so it cannot name them here. */
 static const char *code_name(rbc_result r) {
     switch (r) {
     case RBC_OK: return "RBC_OK";
@@ -437,6 +439,10 @@ static void snap_put(snapshot *s, const void *p, size_t n) {
     }
     memcpy(s->b + s->n, p, n);
     s->n += n;
+}
+
+static int snap_equal(const snapshot *x, const snapshot *y) {
+    return x->n == y->n && memcmp(x->b, y->b, x->n) == 0;
 }
 
 static void snap_world(snapshot *s, rbc_world_id w, const rbc_cloth_id *cloths, int ncloths) {
@@ -866,7 +872,7 @@ static void check_errors_intact(const grid *g) {
         rbc_result got_ = (call);                                                        \
         refused(got_, want, group, what);                                                \
         snap_world(&after, a.w, cl, 1);                                                  \
-        int same_ = before.n == after.n && memcmp(before.b, after.b, before.n) == 0;     \
+        int same_ = snap_equal(&before, &after);     \
         check(same_, "intact.after_refusal", "world as it was after %s", what);         \
     } while (0)
 
@@ -1129,7 +1135,7 @@ static void check_errors_intact(const grid *g) {
                 refused(r, RBC_ERR_BACKEND_UNAVAILABLE, "errors.backend",
                         "world_set_solver(RBC_SOLVER_DIRECT)");
                 snap_world(&after, a.w, cl, 1);
-                check(before.n == after.n && memcmp(before.b, after.b, before.n) == 0,
+                check(snap_equal(&before, &after),
                       "intact.after_refusal", "world as it was after the direct solver's refusal");
             }
         }
@@ -1280,6 +1286,20 @@ static int32_t RBC_CALL contact_cb(void *user, rbc_world_id w, float dt,
     return 0;
 }
 
+/* A step a host callback fails: RBC_ERR_CALLBACK with a message of its own, and
+ * the world as it was before the step. */
+static void failing_step(rbc_world_id w, rbc_cloth_id c, const char *what) {
+    snapshot before = {0}, after = {0};
+    snap_world(&before, w, &c, 1);
+    poison_message();
+    refused(A->world_step(w, 1.0f / 60.0f), RBC_ERR_CALLBACK, "callbacks.failure", what);
+    snap_world(&after, w, &c, 1);
+    check(snap_equal(&before, &after), "callbacks.undone", "the world as before the step after %s",
+          what);
+    free(before.b);
+    free(after.b);
+}
+
 static void check_callbacks(const grid *g) {
     scene a, b;
     if (!check(scene_make(&a, g, 2, 0.3f) == RBC_OK && scene_make(&b, g, 2, 0.3f) == RBC_OK,
@@ -1288,8 +1308,6 @@ static void check_callbacks(const grid *g) {
     cb_state s;
     memset(&s, 0, sizeof s);
     s.stepper = thread_self();
-    snapshot before = {0}, after = {0};
-    const rbc_cloth_id cl[1] = {a.c};
     A->world_set_collision_callback(a.w, collision_cb, &s);
     A->world_set_collision_callback(b.w, collision_cb, &s);
     int fail = 0;
@@ -1303,12 +1321,7 @@ static void check_callbacks(const grid *g) {
                                        "the collision callback writes NaN"};
     for (int mode = 1; mode <= 2; mode++) {
         s.mode = mode;
-        snap_world(&before, a.w, cl, 1);
-        poison_message();
-        refused(A->world_step(a.w, 1.0f / 60.0f), RBC_ERR_CALLBACK, "callbacks.failure", what[mode]);
-        snap_world(&after, a.w, cl, 1);
-        check(before.n == after.n && memcmp(before.b, after.b, before.n) == 0, "callbacks.undone",
-              "the world as before the step after %s", what[mode]);
+        failing_step(a.w, a.c, what[mode]);
     }
     s.mode = 0;
     if (HAS(world_set_contact_callback)) {
@@ -1319,12 +1332,7 @@ static void check_callbacks(const grid *g) {
         for (int mode = 1; mode <= 3; mode += 2) {
             s.mode = mode;
             s.add_result = RBC_OK;
-            snap_world(&before, a.w, cl, 1);
-            poison_message();
-            refused(A->world_step(a.w, 1.0f / 60.0f), RBC_ERR_CALLBACK, "callbacks.failure", cwhat[mode]);
-            snap_world(&after, a.w, cl, 1);
-            check(before.n == after.n && memcmp(before.b, after.b, before.n) == 0, "callbacks.undone",
-                  "the world as before the step after %s", cwhat[mode]);
+            failing_step(a.w, a.c, cwhat[mode]);
             if (mode == 3)
                 check(s.add_result == RBC_ERR_INVALID_ARGUMENT, "callbacks.sink",
                       "the sink refuses the contact with RBC_ERR_INVALID_ARGUMENT (got %s)",
@@ -1347,8 +1355,6 @@ static void check_callbacks(const grid *g) {
     check(s.calls == before_calls, "callbacks.remove", "a removed callback is not called");
     free(pa);
     free(pb);
-    free(before.b);
-    free(after.b);
     A->world_destroy(a.w);
     A->world_destroy(b.w);
 }
@@ -1434,7 +1440,7 @@ static void check_memory(const grid *g) {
         const char *m = msg_now();
         if (r != RBC_ERR_OUT_OF_MEMORY || !m[0] || strcmp(m, g_poison) == 0) wrong++;
         snap_world(&after, w, cl, 1);
-        if (before.n != after.n || memcmp(before.b, after.b, before.n) != 0) changed++;
+        if (!snap_equal(&before, &after)) changed++;
     }
     check(made && wrong == 0, "memory.out_of_memory",
           "cloth_create failing at each of its %d allocations returns RBC_ERR_OUT_OF_MEMORY "
@@ -1481,7 +1487,7 @@ static void check_capacity(const grid *g) {
     }
     for (int k = 0; k < n; k++) A->world_destroy(ws[k]);
     snap_world(&after, a.w, cl, 1);
-    check(before.n == after.n && memcmp(before.b, after.b, before.n) == 0, "intact.capacity",
+    check(snap_equal(&before, &after), "intact.capacity",
           "a world made before is as it was");
     rbc_world_id w = 0;
     check(A->world_create(&wd, &w) == RBC_OK, "errors.capacity", "worlds can be made again");
