@@ -108,18 +108,15 @@ static void worker_main(void *arg) {
 
 #if defined(_WIN32)
 /* QueryPerformanceCounter, monotonic: mingw-w64's clock_gettime is winpthreads' and
- * MSVC has none. The frequency is fixed at boot, so it is asked once (a benign race:
- * every thread that asks stores the same value). */
+ * MSVC has none. The frequency is asked each time (it reads a value Windows fixed at
+ * boot, no system call) rather than cached in a static that threads would race on.
+ * Whole seconds and the remainder apart, so that no tick count loses digits. */
 double rbc_now_ms(void) {
-    static LONGLONG freq;
-    LARGE_INTEGER t;
-    if (!freq) {
-        LARGE_INTEGER f;
-        QueryPerformanceFrequency(&f);
-        freq = f.QuadPart;
-    }
+    LARGE_INTEGER t, f;
+    QueryPerformanceFrequency(&f);
     QueryPerformanceCounter(&t);
-    return (double)(t.QuadPart / freq) * 1e3 + (double)(t.QuadPart % freq) * 1e3 / (double)freq;
+    return (double)(t.QuadPart / f.QuadPart) * 1e3 +
+           (double)(t.QuadPart % f.QuadPart) * 1e3 / (double)f.QuadPart;
 }
 
 uint32_t rbc_cpu_count(void) {
