@@ -9,12 +9,67 @@
 #include "simd.h"
 #include "cloth_state.h"
 
-/* Inlined into its callers (with constant flags where they pass them) (GCC and Clang; elsewhere an
- * ordinary inline, the same arithmetic). */
-#if defined(__GNUC__)
+/* Inlined into its callers (with constant flags where they pass them) (GCC and Clang,
+ * MSVC's __forceinline; elsewhere an ordinary inline, the same arithmetic). */
+#if defined(__GNUC__) || defined(__clang__)
 #define RBC_ALWAYS_INLINE static inline __attribute__((always_inline))
+#elif defined(_MSC_VER)
+#define RBC_ALWAYS_INLINE static __forceinline
 #else
 #define RBC_ALWAYS_INLINE static inline
+#endif
+
+/* The uniform free row's vector loop (row_axis_free) is written in GCC's vector
+ * extension, which GCC and Clang have (clang-cl too) and MSVC's cl has not: there
+ * (and wherever RBC_NO_VECTOR_EXT is defined, which is how GCC builds and tests this
+ * path: core_lattice_fallback) such a row takes the path of every other row, the
+ * scalar edges and row_axis_uniform's loop, which sums the same terms in another
+ * order. */
+#if (defined(__GNUC__) || defined(__clang__)) && !defined(RBC_NO_VECTOR_EXT)
+#define RBC_VECTOR_EXT 1
+#else
+#define RBC_VECTOR_EXT 0
+#endif
+
+/* The wavefront's progress counters: an acquire load and a release store of an aligned
+ * uint32_t. GCC and Clang: their builtins. MSVC on x86 and x64: the hardware orders
+ * loads as acquires and stores as releases (TSO) and an aligned 32-bit volatile access
+ * is one instruction, so only the compiler must be kept from moving other accesses
+ * across it (_ReadWriteBarrier). MSVC on ARM64: a full barrier (DMB ISH) after the
+ * load and before the store, as MSVC's own <atomic> did there; volatile itself orders
+ * nothing under ARM64's default /volatile:iso. (Neither MSVC branch is compiled
+ * here: README.md, "Windows".) */
+#if defined(__GNUC__) || defined(__clang__)
+#define RBC_LOAD_ACQUIRE(p) __atomic_load_n((p), __ATOMIC_ACQUIRE)
+#define RBC_STORE_RELEASE(p, v) __atomic_store_n((p), (v), __ATOMIC_RELEASE)
+#elif defined(_MSC_VER) && (defined(_M_X64) || defined(_M_IX86))
+#include <intrin.h>
+static __forceinline uint32_t rbc_load_acquire(volatile uint32_t *p) {
+    uint32_t v = *p;
+    _ReadWriteBarrier();
+    return v;
+}
+static __forceinline void rbc_store_release(volatile uint32_t *p, uint32_t v) {
+    _ReadWriteBarrier();
+    *p = v;
+}
+#define RBC_LOAD_ACQUIRE(p) rbc_load_acquire(p)
+#define RBC_STORE_RELEASE(p, v) rbc_store_release((p), (v))
+#elif defined(_MSC_VER) && defined(_M_ARM64)
+#include <intrin.h>
+static __forceinline uint32_t rbc_load_acquire(volatile uint32_t *p) {
+    uint32_t v = (uint32_t)__iso_volatile_load32((const volatile __int32 *)p);
+    __dmb(0xB); /* _ARM64_BARRIER_ISH */
+    return v;
+}
+static __forceinline void rbc_store_release(volatile uint32_t *p, uint32_t v) {
+    __dmb(0xB);
+    __iso_volatile_store32((volatile __int32 *)p, (__int32)v);
+}
+#define RBC_LOAD_ACQUIRE(p) rbc_load_acquire(p)
+#define RBC_STORE_RELEASE(p, v) rbc_store_release((p), (v))
+#else
+#error "lattice.c: no acquire load / release store for this compiler"
 #endif
 
 /* First column of color c in row j, and the number of such columns. */
@@ -262,6 +317,7 @@ static inline void edge_particle(rbc_cloth_state *c, uint32_t i, uint32_t ih, fl
     px[i] = gx, py[i] = gy, pz[i] = gz;
 }
 
+#if RBC_VECTOR_EXT
 /* Eight lanes of GCC's vector extension: ymm registers in the AVX2 and AVX-512
  * clones, two xmm in the SSE2 one. Unaligned loads and stores through memcpy. The
  * helpers are always inlined into the cloned sweeps, so no vector crosses a call. */
@@ -332,6 +388,7 @@ static inline int row_free(const uint8_t *pin, uint32_t n) {
     for (; m < n; ++m) any |= pin[m];
     return any == 0;
 }
+#endif /* RBC_VECTOR_EXT */
 
 /* One row of one color: the Gauss-Seidel update of its particles. */
 RBC_ALWAYS_INLINE void grid_row(const rbc_lattice *g, rbc_cloth_state *c, uint32_t color, uint32_t j,
@@ -357,6 +414,7 @@ RBC_ALWAYS_INLINE void grid_row(const rbc_lattice *g, rbc_cloth_state *c, uint32
      * neighbour of column 0 at ro + f - 1 and the right one of column nx - 1 at
      * ro + f + cnt - 1 (then masks them): in bounds unless this is the other color's
      * first or the last row, which take the path below. */
+#if RBC_VECTOR_EXT
     if (g->k_uniform != 0.0f && cnt >= 8 && lo + (cnt - hi) <= 2 && ro + f >= 1 &&
         ro + f + cnt <= g->row_first[1][ny] && row_free(c->pinned + s0, cnt)) {
         const float *B[3] = {c->bx, c->by, c->bz};
@@ -365,6 +423,7 @@ RBC_ALWAYS_INLINE void grid_row(const rbc_lattice *g, rbc_cloth_state *c, uint32
                           B[a] + s0, c->inv_denom + s0, g->k_uniform, omega, lo == 1, hi < cnt);
         return;
     }
+#endif
     for (uint32_t m = 0; m < lo; ++m) { /* column 0: the right neighbour only (if any) */
         const uint32_t i = s0 + m;
         const int has_r = f + 2 * m + 1 < nx;
@@ -418,13 +477,13 @@ void rbc_lattice_wavefront(const rbc_lattice *g, rbc_cloth_state *c, uint32_t it
          * writes at steps <= w. */
         if (before) {
             uint32_t spins = 0;
-            while (__atomic_load_n(before, __ATOMIC_ACQUIRE) <= w) rbc_pool_spin(&spins);
+            while (RBC_LOAD_ACQUIRE(before) <= w) rbc_pool_spin(&spins);
         }
         for (uint32_t u = u0; u < u1; ++u) {
             int64_t r = (int64_t)w - (int64_t)u;
             if (r >= 0 && r < (int64_t)ny) grid_row(g, c, u & 1u, (uint32_t)r, omega);
         }
-        __atomic_store_n(mine, w + 1, __ATOMIC_RELEASE);
+        RBC_STORE_RELEASE(mine, w + 1);
     }
 }
 

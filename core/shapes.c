@@ -221,8 +221,15 @@ static int box_raycast(const double o[3], const double d[3], const double h[3], 
  * it, never NaN. Not inlined: the BVH, the brute-force loop and the winner's
  * recomputation run the very same instructions, so their distances are bitwise equal
  * whatever the compiler might contract in one inlined copy. */
-__attribute__((noinline)) static double tri_closest(const float *restrict t, const double q[3],
-                                                    double diff[3], int *feat) {
+#if defined(__GNUC__) || defined(__clang__)
+#define RBC_NOINLINE __attribute__((noinline))
+#elif defined(_MSC_VER)
+#define RBC_NOINLINE __declspec(noinline)
+#else
+#define RBC_NOINLINE
+#endif
+RBC_NOINLINE static double tri_closest(const float *restrict t, const double q[3],
+                                       double diff[3], int *feat) {
     const double a[3] = {t[0], t[1], t[2]}, b[3] = {t[3], t[4], t[5]}, c[3] = {t[6], t[7], t[8]};
     double ab[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
     double ac[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};

@@ -10,8 +10,8 @@
 #define RBC_CORE_STAGE_H
 #include <stddef.h>
 #include <stdint.h>
-#include <time.h>
 
+#include "cpu/pool.h" /* rbc_now_ms */
 #include "solver.h"
 
 /* The stages of a step, in the order they run. BUDGET runs once at the start of a
@@ -96,11 +96,4 @@ static inline int rbc_step_guarded(const step_ctx *ctx) {
 }
 /* Per-cloth parameters are kept for the first 64 cloths; later ones share the last. */
 static inline uint32_t rbc_step_slot(uint32_t cloth) { return cloth < 64 ? cloth : 63; }
-
-/* Milliseconds on the monotonic clock (stage times, the budget mode's deadline). */
-static inline double rbc_now_ms(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
-}
 #endif

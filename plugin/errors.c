@@ -3,7 +3,13 @@
 #include <stdarg.h>
 #include <stdio.h>
 
+/* MSVC's cl: __declspec(thread), which every version has, where _Thread_local in C
+ * mode is recent (a DLL's __declspec(thread) works under LoadLibrary since Vista). */
+#if defined(_MSC_VER) && !defined(__clang__)
+static __declspec(thread) char g_error[RBC_ERROR_CAP];
+#else
 static _Thread_local char g_error[RBC_ERROR_CAP];
+#endif
 
 char *rbc_error_buffer(void) { return g_error; }
 

@@ -4,7 +4,7 @@
 #include "handles.h"
 
 rbc_result rbc_reg_add(rbc_registry *r, void *ptr, uint32_t owner, uint32_t *out_id) {
-    pthread_mutex_lock(&r->lock);
+    rbc_mutex_lock(&r->lock);
     uint32_t s;
     if (r->free_head != UINT32_MAX) {
         s = r->free_head;
@@ -12,7 +12,7 @@ rbc_result rbc_reg_add(rbc_registry *r, void *ptr, uint32_t owner, uint32_t *out
     } else if (r->used < r->cap) {
         s = r->used++;
     } else {
-        pthread_mutex_unlock(&r->lock);
+        rbc_mutex_unlock(&r->lock);
         return RBC_ERR_CAPACITY;
     }
     rbc_reg_entry *e = &r->entries[s];
@@ -20,18 +20,18 @@ rbc_result rbc_reg_add(rbc_registry *r, void *ptr, uint32_t owner, uint32_t *out
     atomic_store(&e->gen, gen);
     atomic_store(&e->owner, owner);
     atomic_store(&e->ptr, ptr);
-    pthread_mutex_unlock(&r->lock);
+    rbc_mutex_unlock(&r->lock);
     *out_id = rbc_id_make(r->kind, gen, s);
     return RBC_OK;
 }
 
 void rbc_reg_remove(rbc_registry *r, uint32_t id) {
     uint32_t s = rbc_id_slot(id);
-    pthread_mutex_lock(&r->lock);
+    rbc_mutex_lock(&r->lock);
     atomic_store(&r->entries[s].ptr, NULL);
     r->entries[s].next_free = r->free_head;
     r->free_head = s;
-    pthread_mutex_unlock(&r->lock);
+    rbc_mutex_unlock(&r->lock);
 }
 
 void *rbc_reg_get(rbc_registry *r, uint32_t id, uint32_t owner, const char *fn) {

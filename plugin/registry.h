@@ -11,11 +11,11 @@
  * using a world adds, removes or looks up that world's objects. */
 #ifndef RBC_PLUGIN_REGISTRY_H
 #define RBC_PLUGIN_REGISTRY_H
-#include <pthread.h>
 #include <stdatomic.h>
 #include <stdint.h>
 
 #include "rbcloth.h"
+#include "threads.h"
 
 typedef struct rbc_reg_entry {
     _Atomic uint32_t gen;      /* generation of the live (or last) object in the slot */
@@ -25,7 +25,7 @@ typedef struct rbc_reg_entry {
 } rbc_reg_entry;
 
 typedef struct rbc_registry {
-    pthread_mutex_t lock;
+    rbc_mutex lock;
     uint32_t kind;             /* RBC_KIND_* */
     uint32_t cap;              /* entries, at most 65536 (16-bit slots) */
     uint32_t used;             /* slots ever used: [0, used) */
@@ -34,7 +34,7 @@ typedef struct rbc_registry {
 } rbc_registry;
 
 #define RBC_REGISTRY_INIT(kind_, cap_, storage_) \
-    {PTHREAD_MUTEX_INITIALIZER, (kind_), (cap_), 0, UINT32_MAX, (storage_)}
+    {RBC_MUTEX_INIT, (kind_), (cap_), 0, UINT32_MAX, (storage_)}
 
 /* Add ptr owned by `owner`; *out_id receives the new id. RBC_ERR_CAPACITY when full. */
 rbc_result rbc_reg_add(rbc_registry *r, void *ptr, uint32_t owner, uint32_t *out_id);

@@ -1,17 +1,16 @@
 #define _GNU_SOURCE
 #include "pool.h"
 
-#include <pthread.h>
 #include <stdatomic.h>
 #include <stdint.h>
 #include <string.h>
+
+#include "../threads.h"
 #if defined(_WIN32)
-/* Windows (mingw-w64's winpthreads for the threads): the futex is WaitOnAddress and
+/* Windows (threads.h's Win32 threads): the futex is WaitOnAddress and
  * WakeByAddress* (Windows 8+), which wait while a word still holds a value exactly as
- * FUTEX_WAIT does, so the sleeps and wake-ups below keep their meaning. */
-#define WIN32_LEAN_AND_MEAN
-#define NOMINMAX
-#include <windows.h>
+ * FUTEX_WAIT does, so the sleeps and wake-ups below keep their meaning. (threads.h
+ * has included <windows.h>.) */
 
 static void futex_wait(_Atomic uint32_t *word, uint32_t val) {
     WaitOnAddress((volatile VOID *)word, &val, sizeof val, INFINITE);
@@ -24,6 +23,7 @@ static void futex_wake(_Atomic uint32_t *word, int all) {
 #include <linux/futex.h>
 #include <sched.h>
 #include <sys/syscall.h>
+#include <time.h>
 #include <unistd.h>
 
 static void futex_wait(_Atomic uint32_t *word, uint32_t val) {
@@ -34,9 +34,13 @@ static void futex_wake(_Atomic uint32_t *word, int all) {
 }
 #endif
 
-#if defined(__x86_64__) || defined(__i386__)
+/* (_M_X64, _M_IX86, _M_ARM64: MSVC's names of the targets.) */
+#if defined(__x86_64__) || defined(__i386__) || defined(_M_X64) || defined(_M_IX86)
 #include <immintrin.h>
 #define CPU_RELAX() _mm_pause()
+#elif defined(_M_ARM64)
+#include <intrin.h>
+#define CPU_RELAX() __yield()
 #else
 #define CPU_RELAX() ((void)0)
 #endif
@@ -56,9 +60,9 @@ static void futex_wake(_Atomic uint32_t *word, int all) {
 struct rbc_pool {
     rbc_allocator alloc;
     uint32_t n;
-    pthread_t *threads;
-    pthread_mutex_t mu;
-    pthread_cond_t cv;
+    rbc_thread *threads;
+    rbc_mutex mu;
+    rbc_cond cv;
     _Atomic uint32_t job_gen;
     _Atomic int quit;
     _Atomic uint32_t done;
@@ -76,7 +80,7 @@ typedef struct worker_arg {
     uint32_t tid;
 } worker_arg;
 
-static void *worker_main(void *arg) {
+static void worker_main(void *arg) {
     rbc_pool *pool = ((worker_arg *)arg)->pool;
     uint32_t tid = ((worker_arg *)arg)->tid;
     uint32_t seen = 0;
@@ -88,10 +92,10 @@ static void *worker_main(void *arg) {
                 CPU_RELAX();
                 continue;
             }
-            pthread_mutex_lock(&pool->mu);
+            rbc_mutex_lock(&pool->mu);
             while (atomic_load(&pool->job_gen) == seen && !atomic_load(&pool->quit))
-                pthread_cond_wait(&pool->cv, &pool->mu);
-            pthread_mutex_unlock(&pool->mu);
+                rbc_cond_wait(&pool->cv, &pool->mu);
+            rbc_mutex_unlock(&pool->mu);
         }
         if (atomic_load(&pool->quit)) break;
         seen = atomic_load(&pool->job_gen);
@@ -100,10 +104,21 @@ static void *worker_main(void *arg) {
         if (atomic_load(&pool->done_sleeper))
             futex_wake(&pool->done, 0);
     }
-    return NULL;
 }
 
 #if defined(_WIN32)
+/* QueryPerformanceCounter, monotonic: mingw-w64's clock_gettime is winpthreads' and
+ * MSVC has none. The frequency is asked each time (it reads a value Windows fixed at
+ * boot, no system call) rather than cached in a static that threads would race on.
+ * Whole seconds and the remainder apart, so that no tick count loses digits. */
+double rbc_now_ms(void) {
+    LARGE_INTEGER t, f;
+    QueryPerformanceFrequency(&f);
+    QueryPerformanceCounter(&t);
+    return (double)(t.QuadPart / f.QuadPart) * 1e3 +
+           (double)(t.QuadPart % f.QuadPart) * 1e3 / (double)f.QuadPart;
+}
+
 uint32_t rbc_cpu_count(void) {
     /* The process's affinity mask, as sched_getaffinity below (one processor group:
      * up to 64 cores). */
@@ -118,6 +133,12 @@ uint32_t rbc_cpu_count(void) {
     return si.dwNumberOfProcessors > 0 ? (uint32_t)si.dwNumberOfProcessors : 1u;
 }
 #else
+double rbc_now_ms(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
+}
+
 uint32_t rbc_cpu_count(void) {
     cpu_set_t set;
     if (sched_getaffinity(0, sizeof set, &set) == 0) {
@@ -137,9 +158,9 @@ int rbc_pool_create(rbc_pool **out, uint32_t nthreads, const rbc_allocator *a) {
     pool->alloc = *a;
     pool->n = nthreads;
     pool->active = nthreads;
-    pthread_mutex_init(&pool->mu, NULL);
-    pthread_cond_init(&pool->cv, NULL);
-    size_t bytes = sizeof(pthread_t) * nthreads + sizeof(worker_arg) * nthreads;
+    rbc_mutex_init(&pool->mu);
+    rbc_cond_init(&pool->cv);
+    size_t bytes = sizeof(rbc_thread) * nthreads + sizeof(worker_arg) * nthreads;
     pool->threads = rbc_mem_alloc(a, bytes);
     if (!pool->threads) {
         rbc_pool_destroy(pool);
@@ -149,7 +170,7 @@ int rbc_pool_create(rbc_pool **out, uint32_t nthreads, const rbc_allocator *a) {
     for (uint32_t t = 1; t < nthreads; ++t) {
         args[t].pool = pool;
         args[t].tid = t;
-        if (pthread_create(&pool->threads[t], NULL, worker_main, &args[t]) != 0) {
+        if (rbc_thread_create(&pool->threads[t], worker_main, &args[t]) != 0) {
             pool->n = t; /* join only the ones started */
             rbc_pool_destroy(pool);
             return -1;
@@ -161,17 +182,17 @@ int rbc_pool_create(rbc_pool **out, uint32_t nthreads, const rbc_allocator *a) {
 
 void rbc_pool_destroy(rbc_pool *pool) {
     if (!pool) return;
-    pthread_mutex_lock(&pool->mu);
+    rbc_mutex_lock(&pool->mu);
     atomic_store(&pool->quit, 1);
-    pthread_cond_broadcast(&pool->cv);
-    pthread_mutex_unlock(&pool->mu);
+    rbc_cond_broadcast(&pool->cv);
+    rbc_mutex_unlock(&pool->mu);
     if (pool->threads)
-        for (uint32_t t = 1; t < pool->n; ++t) pthread_join(pool->threads[t], NULL);
-    pthread_mutex_destroy(&pool->mu);
-    pthread_cond_destroy(&pool->cv);
+        for (uint32_t t = 1; t < pool->n; ++t) rbc_thread_join(&pool->threads[t]);
+    rbc_mutex_destroy(&pool->mu);
+    rbc_cond_destroy(&pool->cv);
     rbc_allocator a = pool->alloc;
     uint32_t n = pool->n;
-    rbc_mem_free(&a, pool->threads, sizeof(pthread_t) * n + sizeof(worker_arg) * n);
+    rbc_mem_free(&a, pool->threads, sizeof(rbc_thread) * n + sizeof(worker_arg) * n);
     rbc_mem_free(&a, pool, sizeof *pool);
 }
 
@@ -194,10 +215,10 @@ void rbc_pool_run_n(rbc_pool *pool, uint32_t n, rbc_pool_fn fn, void *ctx) {
     pool->ctx = ctx;
     pool->active = n;
     atomic_store_explicit(&pool->done, 0, memory_order_relaxed);
-    pthread_mutex_lock(&pool->mu);
+    rbc_mutex_lock(&pool->mu);
     atomic_fetch_add_explicit(&pool->job_gen, 1, memory_order_release);
-    pthread_cond_broadcast(&pool->cv);
-    pthread_mutex_unlock(&pool->mu);
+    rbc_cond_broadcast(&pool->cv);
+    rbc_mutex_unlock(&pool->mu);
     fn(ctx, 0, n);
     /* Every worker acknowledges the run (those past n at once), so none still reads
      * fn or ctx when the next run sets them. */

@@ -29,4 +29,8 @@ void rbc_pool_barrier(rbc_pool *pool);
 void rbc_pool_spin(uint32_t *spins);
 /* The number of cores this process may run on (at least 1). */
 uint32_t rbc_cpu_count(void);
+/* Milliseconds on the monotonic clock (stage times, the budget mode's deadline):
+ * here beside the other calls into the OS, out of line so that no header of the
+ * core needs <windows.h>. */
+double rbc_now_ms(void);
 #endif

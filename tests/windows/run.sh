@@ -5,8 +5,10 @@
 #      library alone, no CHOLMOD) and the conformance kit (rbcloth-conformance);
 #      install into WORK/prefix and check the layout:
 #      bin/rbcloth.dll, lib/librbcloth.dll.a, include/rbcloth.h
-#   2. objdump -p: the DLL imports Windows' own DLLs only (no libwinpthread-1.dll,
-#      libgcc_s_seh-1.dll: the toolchain file links them statically) and exports
+#   2. objdump -p: the DLL imports Windows' own DLLs only (no libgcc_s_seh-1.dll:
+#      the toolchain file links libgcc statically; no libwinpthread-1.dll: the
+#      threads are Win32's, core/threads.h, and the toolchain's -win32 compiler does
+#      not link winpthreads, so a pthread call fails step 1's link) and exports
 #      exactly the RBC_API functions of abi/rbcloth.h
 #   3. linked_host.c, linked to the installed import library, runs under wine; the
 #      same source linked to the native librbcloth.so (NATIVE_LIBDIR) runs here,
@@ -18,7 +20,8 @@
 #   run.sh SRC WORK NATIVE_LIBDIR NATIVE_CC
 set -uo pipefail
 src=$1 work=$2 native_libdir=$3 native_cc=$4
-mingw=x86_64-w64-mingw32-gcc-posix
+# The toolchain file's compiler: the -win32 flavour, whose libgcc needs no winpthreads.
+mingw=x86_64-w64-mingw32-gcc-win32
 objdump=x86_64-w64-mingw32-objdump
 for tool in "$mingw" "$objdump" wine wineboot wineserver; do
   if ! command -v "$tool" >/dev/null 2>&1; then
