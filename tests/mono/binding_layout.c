@@ -1,4 +1,4 @@
-/* layout.c -- prints sizeof and every field's offset of the structs the C# binding
+/* binding_layout.c -- prints sizeof and every field's offset of the structs the C# binding
  * (hosts/unity/Runtime/Native/RbcStructs.cs) declares, as the C compiler lays them
  * out from abi/rbcloth.h. BindingTest.cs compares them with Marshal.SizeOf and
  * Marshal.OffsetOf, so a field the binding misses, misorders or mistypes fails the
