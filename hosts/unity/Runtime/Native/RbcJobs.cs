@@ -55,8 +55,14 @@ namespace RbCloth.Native
     /// executor the header allows (Enqueue returns null).</summary>
     public sealed class RbcInlineJobs : IRbcJobSystem
     {
+        int enqueued;
+
+        /// <summary>Tasks enqueued so far.</summary>
+        public int EnqueuedTasks { get { return Volatile.Read(ref enqueued); } }
+
         public object Enqueue(RbcTask task, uint itemCount, uint minRange)
         {
+            Interlocked.Increment(ref enqueued);
             if (itemCount > 0) task.Run(0, itemCount, 0);
             return null;
         }

@@ -340,7 +340,9 @@ public static unsafe class BindingTest
             Check(rev == 1, "triangle revision of a new cloth " + rev);
             for (int v = 0; v < N * N; ++v)
             {
-                bool ok = buf[Floats * v + 3] == 0f && buf[Floats * v + 4] == sign && buf[Floats * v + 5] == 0f;
+                // Normalised in float: within a few ulps of 1 (1e-6 is 16 of them).
+                bool ok = Math.Abs(buf[Floats * v + 3]) <= 1e-6f && Math.Abs(buf[Floats * v + 4] - sign) <= 1e-6f &&
+                          Math.Abs(buf[Floats * v + 5]) <= 1e-6f;
                 if (!ok)
                 {
                     Check(false, "flat sheet: normal of vertex " + v + " is (" + buf[Floats * v + 3] + ", " +
@@ -432,11 +434,14 @@ public static unsafe class BindingTest
             float[] p = Run(w, MakeCloth(w));
             Check(BitwiseEqual(p, Run(wb, MakeCloth(wb))), "ThreadPool jobs at 4 threads: differ from the built-in pool's");
             Check(BitwiseEqual(p, reference), "4 threads differ from 1");
+            Check(pool4.EnqueuedTasks > 0, "ThreadPool jobs at 4 threads: enqueue_task was never called");
         }
-        using (var w = MakeWorld(2, new RbcInlineJobs()))
+        var inline = new RbcInlineJobs();
+        using (var w = MakeWorld(2, inline))
         {
             float[] p = Run(w, MakeCloth(w), true);
             Check(BitwiseEqual(p, reference), "inline jobs with the split step: positions differ");
+            Check(inline.EnqueuedTasks > 0, "inline jobs: enqueue_task was never called");
         }
     }
 }
