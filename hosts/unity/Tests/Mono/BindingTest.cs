@@ -416,6 +416,20 @@ public static unsafe class BindingTest
             w.StepWait();
             w.StepWait(); // none running: RBC_OK at once
             c.ReadPositions();
+
+            // After step_begin the callbacks run on the world's step thread, a thread
+            // Mono has never seen: the reverse P/Invoke must attach it and work there.
+            int main = System.Threading.Thread.CurrentThread.ManagedThreadId, calls = 0, foreign = 0;
+            w.SetCollisionHandler((dt, cloths, count) =>
+            {
+                calls++;
+                if (System.Threading.Thread.CurrentThread.ManagedThreadId != main) foreign++;
+                return true;
+            });
+            for (int k = 0; k < 10; ++k) { w.StepBegin(Dt); w.StepWait(); }
+            uint sub = w.GetStats(true).substeps;
+            Check(calls == 10 * (int)sub && foreign == calls,
+                  "split step callbacks: " + calls + " calls (" + foreign + " off the main thread), expected " + 10 * sub);
         }
 
         // Task callbacks: C# job systems give bitwise the world's own pool's result.
