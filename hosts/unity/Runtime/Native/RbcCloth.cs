@@ -46,6 +46,21 @@ namespace RbCloth.Native
             return xyz;
         }
 
+        /// <summary>Positions and previous positions into buffers of `capacity` floats
+        /// each (either may be null).</summary>
+        public void GetState(float* positions, float* previous, int capacity)
+        {
+            RbcException.Check(RbcNative.rbc_cloth_get_state(World.LiveId, Id, positions, previous,
+                                                             (UIntPtr)capacity));
+        }
+
+        /// <summary>Replace the state from buffers of 3 * VertexCount floats (previous
+        /// null = at rest).</summary>
+        public void SetState(float* positions, float* previous)
+        {
+            RbcException.Check(RbcNative.rbc_cloth_set_state(World.LiveId, Id, positions, previous));
+        }
+
         /// <summary>Positions and previous positions (either may be null).</summary>
         public void GetState(float[] positions, float[] previous)
         {

@@ -162,7 +162,12 @@ public static unsafe class BindingTest
     static int Main(string[] args)
     {
         if (args.Length != 1) { Console.Error.WriteLine("usage: BindingTest.exe LAYOUT_FILE"); return 2; }
-        return Run(args[0]);
+        try { return Run(args[0]); }
+        catch (Exception e)
+        {
+            Console.Error.WriteLine("mono_binding: FAILED: unexpected " + e);
+            return 1;
+        }
     }
 
     /// <summary>Every check; layoutFile null leaves out the layout check. Returns the
@@ -224,6 +229,22 @@ public static unsafe class BindingTest
             Expect(() => w.CreateCloth(GridPositions(), GridQuads(), new uint[] { N * N }),
                    RbcNative.RBC_ERR_INVALID_ARGUMENT, "pin out of range", (N * N).ToString());
             Check(w.GetStats().cloth_count == 1, "a refused cloth was created");
+            // C would read 3 * VertexCount floats: a shorter array is refused before the call.
+            try { c.SetState(new float[3 * N * N - 1]); Check(false, "a short state array was passed to C"); }
+            catch (ArgumentException) { }
+
+            // State round trip through the pointer forms: a moved state reads back as set.
+            var moved = GridPositions();
+            for (int k = 1; k < moved.Length; k += 3) moved[k] = -0.01f;
+            fixed (float* mp = moved) c.SetState(mp, null);
+            var got = new float[moved.Length];
+            var prev = new float[moved.Length];
+            fixed (float* gp = got) fixed (float* pp = prev) c.GetState(gp, pp, got.Length);
+            bool asSet = true;
+            for (int v = 0; v < N * N; ++v)
+                if (v != Pins[0] && v != Pins[1])
+                    for (int k = 0; k < 3; ++k) asSet &= got[3 * v + k] == moved[3 * v + k] && prev[3 * v + k] == moved[3 * v + k];
+            Check(asSet, "set_state/get_state: the state does not read back as set");
             w.Step(Dt);
             float[] p = c.ReadPositions();
             Check(MinY(p) < 0f, "after refused calls the world did not step: min y " + MinY(p));
