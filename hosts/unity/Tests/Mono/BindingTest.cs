@@ -226,6 +226,8 @@ public static unsafe class BindingTest
             Expect(() => w.CreateCloth(GridPositions(), bad, Pins), RbcNative.RBC_ERR_BAD_MESH,
                    "quad index out of range", "quad 7", (N * N + 5).ToString());
             Expect(() => w.Step(-1f), RbcNative.RBC_ERR_INVALID_ARGUMENT, "dt = -1", "dt");
+            Expect(() => RbcException.Check(RbcNative.rbc_world_set_gravity(w.Id, null)),
+                   RbcNative.RBC_ERR_INVALID_ARGUMENT, "gravity NULL", "gravity");
             Expect(() => w.CreateCloth(GridPositions(), GridQuads(), new uint[] { N * N }),
                    RbcNative.RBC_ERR_INVALID_ARGUMENT, "pin out of range", (N * N).ToString());
             Check(w.GetStats().cloth_count == 1, "a refused cloth was created");
