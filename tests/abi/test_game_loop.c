@@ -642,6 +642,230 @@ static void test_split_step(void) {
     rbc_world_destroy(wb);
 }
 
+
+/* ------------------------------------------------------------------------- */
+/* The host's job system                                                     */
+/* ------------------------------------------------------------------------- */
+
+/* Executors as engines have them. serial: runs every range inside enqueue (Box2D's
+ * single-threaded default) and returns NULL. pool: K threads take ranges from a queue
+ * (a job system). deferred: ranges run only inside finish_task, on the caller (a job
+ * system whose workers are all busy: every item is late). sync: enqueue starts a
+ * thread per range and joins them before it returns (a parallel-for that blocks). */
+enum { EXEC_SERIAL, EXEC_POOL, EXEC_DEFERRED, EXEC_SYNC, EXEC_KINDS };
+static const char *const exec_names[EXEC_KINDS] = {"serial", "pool", "deferred", "sync"};
+
+#define EXEC_WORKERS 3
+#define EXEC_QUEUE 64
+typedef struct job {
+    rbc_task_fn fn;
+    uint32_t begin, end;
+    void *ctx;
+    int *pending;
+} job;
+typedef struct executor {
+    int kind;
+    pthread_mutex_t mu;
+    pthread_cond_t cv, done;
+    job queue[EXEC_QUEUE];
+    int head, tail, quit;
+    int pending; /* of the one task in flight (the library has one at a time) */
+    pthread_t workers[EXEC_WORKERS];
+    uint64_t enqueues, items, off_thread_calls;
+    pthread_t stepper;
+} executor;
+
+static void *exec_worker(void *arg) {
+    executor *e = arg;
+    pthread_mutex_lock(&e->mu);
+    for (;;) {
+        while (e->head == e->tail && !e->quit) pthread_cond_wait(&e->cv, &e->mu);
+        if (e->head == e->tail) break;
+        job j = e->queue[e->head++ % EXEC_QUEUE];
+        pthread_mutex_unlock(&e->mu);
+        j.fn(j.begin, j.end, 1, j.ctx);
+        pthread_mutex_lock(&e->mu);
+        if (--*j.pending == 0) pthread_cond_broadcast(&e->done);
+    }
+    pthread_mutex_unlock(&e->mu);
+    return NULL;
+}
+
+typedef struct sync_arg {
+    rbc_task_fn fn;
+    uint32_t k;
+    void *ctx;
+} sync_arg;
+static void *sync_item(void *arg) {
+    sync_arg *a = arg;
+    a->fn(a->k, a->k + 1, a->k, a->ctx);
+    return NULL;
+}
+
+static void *RBC_CALL exec_enqueue(rbc_task_fn fn, uint32_t count, uint32_t min_range, void *ctx,
+                                   void *user) {
+    executor *e = user;
+    e->enqueues++;
+    e->items += count;
+    e->off_thread_calls += !pthread_equal(pthread_self(), e->stepper);
+    CHECK(min_range >= 1 && count >= 1);
+    switch (e->kind) {
+    case EXEC_SERIAL:
+        fn(0, count, 0, ctx);
+        return NULL;
+    case EXEC_SYNC: {
+        pthread_t th[64];
+        sync_arg a[64];
+        for (uint32_t k = 0; k < count && k < 64; ++k) {
+            a[k] = (sync_arg){fn, k, ctx};
+            pthread_create(&th[k], NULL, sync_item, &a[k]);
+        }
+        for (uint32_t k = 0; k < count && k < 64; ++k) pthread_join(th[k], NULL);
+        return NULL;
+    }
+    default:
+        break;
+    }
+    pthread_mutex_lock(&e->mu);
+    e->pending = 0;
+    for (uint32_t b = 0; b < count; b += min_range) {
+        uint32_t end = b + min_range < count ? b + min_range : count;
+        e->queue[e->tail++ % EXEC_QUEUE] = (job){fn, b, end, ctx, &e->pending};
+        e->pending++;
+    }
+    if (e->kind == EXEC_POOL) pthread_cond_broadcast(&e->cv);
+    pthread_mutex_unlock(&e->mu);
+    return e;
+}
+
+static void RBC_CALL exec_finish(void *handle, void *user) {
+    executor *e = user;
+    CHECK(handle == e);
+    e->off_thread_calls += !pthread_equal(pthread_self(), e->stepper);
+    pthread_mutex_lock(&e->mu);
+    if (e->kind == EXEC_DEFERRED) {
+        /* Run what is queued here, on the caller: every item is late. */
+        while (e->head != e->tail) {
+            job j = e->queue[e->head++ % EXEC_QUEUE];
+            pthread_mutex_unlock(&e->mu);
+            j.fn(j.begin, j.end, 0, j.ctx);
+            pthread_mutex_lock(&e->mu);
+            --*j.pending;
+        }
+    }
+    while (e->pending) pthread_cond_wait(&e->done, &e->mu);
+    pthread_mutex_unlock(&e->mu);
+}
+
+static void exec_start(executor *e, int kind) {
+    memset(e, 0, sizeof *e);
+    e->kind = kind;
+    e->stepper = pthread_self();
+    pthread_mutex_init(&e->mu, NULL);
+    pthread_cond_init(&e->cv, NULL);
+    pthread_cond_init(&e->done, NULL);
+    if (kind == EXEC_POOL)
+        for (int k = 0; k < EXEC_WORKERS; ++k) pthread_create(&e->workers[k], NULL, exec_worker, e);
+}
+
+static void exec_stop(executor *e) {
+    pthread_mutex_lock(&e->mu);
+    e->quit = 1;
+    pthread_cond_broadcast(&e->cv);
+    pthread_mutex_unlock(&e->mu);
+    if (e->kind == EXEC_POOL)
+        for (int k = 0; k < EXEC_WORKERS; ++k) pthread_join(e->workers[k], NULL);
+    pthread_mutex_destroy(&e->mu);
+    pthread_cond_destroy(&e->cv);
+    pthread_cond_destroy(&e->done);
+}
+
+/* A 32 x 24 hanging cloth and a sphere it falls on, 40 steps at 1/60 s: the world's own
+ * threads (1 and 2) and each executor give bitwise the same positions. */
+static float *task_run(uint32_t threads, executor *e, uint32_t *used_max, uint32_t *n) {
+    rbc_world_def wd = rbc_world_def_default();
+    wd.thread_count = threads;
+    if (e) {
+        wd.enqueue_task = exec_enqueue;
+        wd.finish_task = exec_finish;
+        wd.task_user = e;
+    }
+    rbc_world_id w = test_world(&wd);
+    test_grid g = test_grid_make(32, 24, 0.03f, 0.0f, 1.0f, 0.0f);
+    rbc_cloth_id c = hanging(w, &g);
+    rbc_collider_def cd = rbc_collider_def_default();
+    cd.shape = RBC_SHAPE_SPHERE;
+    cd.radius = 0.2f;
+    cd.position[0] = 0.45f, cd.position[1] = 0.7f, cd.position[2] = 0.35f;
+    rbc_collider_id col = 0;
+    CHECK_EQ(rbc_collider_create(w, &cd, &col), RBC_OK);
+    *used_max = 0;
+    for (int f = 0; f < 40; ++f) {
+        CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_OK);
+        uint32_t u = test_stats(w).thread_count;
+        if (u > *used_max) *used_max = u;
+    }
+    float *x = test_read(w, c, n);
+    test_grid_free(&g);
+    rbc_world_destroy(w);
+    return x;
+}
+
+static void test_host_tasks(void) {
+    /* Both or neither. */
+    rbc_world_def wd = rbc_world_def_default();
+    wd.enqueue_task = exec_enqueue;
+    rbc_world_id w = 0;
+    CHECK_EQ(rbc_world_create(&wd, &w), RBC_ERR_INVALID_ARGUMENT);
+    CHECK(contains(rbc_last_error(), "enqueue_task and finish_task"));
+    CHECK_EQ(w, 0);
+    /* A def of the 1.6 size has none (the fields past it are not read). */
+    executor e;
+    exec_start(&e, EXEC_POOL);
+    wd.finish_task = exec_finish;
+    wd.task_user = &e;
+    wd.struct_size = RBC_WORLD_DEF_SIZE_V1_6;
+    CHECK_EQ(rbc_world_create(&wd, &w), RBC_OK);
+    test_grid g = test_grid_make(8, 8, 0.05f, 0.0f, 1.0f, 0.0f);
+    hanging(w, &g);
+    CHECK_EQ(rbc_world_step(w, 1.0f / 60.0f), RBC_OK);
+    CHECK_EQ(e.enqueues, 0);
+    rbc_world_destroy(w);
+    test_grid_free(&g);
+    exec_stop(&e);
+
+    uint32_t n1 = 0, n = 0, used = 0;
+    float *ref = task_run(1, NULL, &used, &n1);
+    CHECK_EQ(used, 1);
+    float *two = task_run(2, NULL, &used, &n);
+    CHECK(ref && two && n == n1 && memcmp(ref, two, 12 * (size_t)n) == 0);
+    free(two);
+    for (int kind = 0; kind < EXEC_KINDS; ++kind)
+        for (uint32_t threads = 2; threads <= 4; threads += 2) {
+            exec_start(&e, kind);
+            float *x = task_run(threads, &e, &used, &n);
+            const int same = ref && x && n == n1 && memcmp(ref, x, 12 * (size_t)n) == 0;
+            CHECK(same);
+            CHECK(used >= 1 && used <= threads);
+            CHECK(e.enqueues > 0);
+            /* threads - 1 items for a step; the strain pass after it asks for as many
+             * threads as joined the step. */
+            CHECK(e.items >= e.enqueues && e.items <= e.enqueues * (threads - 1));
+            CHECK_EQ(e.off_thread_calls, 0);
+            /* Late items never run the solver's work: the deferred executor's and a
+             * blocking one's steps run on the caller alone. */
+            if (kind == EXEC_DEFERRED || kind == EXEC_SERIAL || kind == EXEC_SYNC)
+                CHECK_EQ(used, 1);
+            printf("host tasks: %s executor, %u threads asked: bitwise %s, at most %u joined a "
+                   "step, %llu enqueues\n",
+                   exec_names[kind], threads, same ? "equal" : "DIFFERENT", used,
+                   (unsigned long long)e.enqueues);
+            free(x);
+            exec_stop(&e);
+        }
+    free(ref);
+}
+
 int main(void) {
     test_flat_normals();
     test_cylinder_normals();
@@ -651,5 +875,6 @@ int main(void) {
     test_transform();
     test_transform_rest();
     test_split_step();
+    test_host_tasks();
     return check_report("abi_game_loop");
 }
