@@ -133,17 +133,3 @@ void rbc_cloth_move(rbc_cloth_state *c, const float t[3], const float quat[4],
     c->system_valid = 0;
     rbc_cloth_state_energy_invalidate(c, 1);
 }
-
-size_t rbc_cloth_render_bytes(const rbc_cloth_state *c) {
-    size_t b = (size_t)c->lone_cap * 3 * sizeof(uint32_t);
-    if (c->normal_acc) b += 3 * (size_t)c->topo.n * sizeof(float);
-    return b;
-}
-
-void rbc_cloth_render_free(const rbc_allocator *al, rbc_cloth_state *c) {
-    rbc_mem_free(al, c->lone_tris, sizeof(uint32_t) * 3 * (size_t)c->lone_cap);
-    if (c->normal_acc) rbc_mem_free(al, c->normal_acc, 3 * (size_t)c->topo.n * sizeof(float));
-    c->lone_tris = NULL;
-    c->normal_acc = NULL;
-    c->lone_count = c->lone_cap = 0;
-}

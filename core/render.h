@@ -29,7 +29,6 @@ size_t rbc_cloth_triangles_host(const rbc_cloth_state *c, uint32_t *out, size_t 
  * reset_velocity) and pin targets; R from the unit quaternion x y z w. */
 void rbc_cloth_move(rbc_cloth_state *c, const float t[3], const float quat[4],
                     int reset_velocity);
-/* Bytes held by the state of this file (leftover triangles, normal scratch). */
-size_t rbc_cloth_render_bytes(const rbc_cloth_state *c);
-void rbc_cloth_render_free(const rbc_allocator *al, rbc_cloth_state *c);
+/* cloth.c frees the leftover triangles and the normals' scratch with the rest of
+ * the state, and counts them in its bytes. */
 #endif
