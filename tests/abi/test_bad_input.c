@@ -164,7 +164,7 @@ static void test_result_strings(void) {
         }
     }
     /* Codes that do not exist: "unknown result". */
-    const rbc_result unknown[] = {1, -11, -100, RBC_RESULT_FORCE32, INT32_MIN};
+    const rbc_result unknown[] = {1, -12, -100, RBC_RESULT_FORCE32, INT32_MIN};
     for (size_t k = 0; k < sizeof unknown / sizeof unknown[0]; k++) {
         const char *s = rbc_result_string(unknown[k]);
         CHECK(s != NULL && strcmp(s, "unknown result") == 0);
