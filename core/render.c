@@ -1,0 +1,149 @@
+/* render.c -- normals, triangles and the rigid move of a cloth (render.h). */
+#include "render.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "cloth.h"
+
+int rbc_cloth_set_lone_triangles(const rbc_allocator *al, rbc_cloth_state *c,
+                                 const uint32_t *tris, uint32_t count) {
+    if (!count) return 0;
+    uint32_t *t = rbc_mem_alloc(al, rbc_mul_size(3 * (size_t)count, sizeof(uint32_t)));
+    if (!t) return -1;
+    /* Internal indices, as the quads: tearing and normals work in that order. */
+    for (size_t k = 0; k < 3 * (size_t)count; ++k) t[k] = c->topo.to_internal[tris[k]];
+    rbc_mem_free(al, c->lone_tris, sizeof(uint32_t) * 3 * (size_t)c->lone_cap);
+    c->lone_tris = t;
+    c->lone_count = c->lone_cap = count;
+    return 0;
+}
+
+int rbc_cloth_normals_reserve(const rbc_allocator *al, rbc_cloth_state *c) {
+    if (c->normal_acc) return 0;
+    c->normal_acc = rbc_mem_alloc(al, rbc_mul_size(3 * (size_t)c->topo.n, sizeof(float)));
+    return c->normal_acc ? 0 : -1;
+}
+
+static inline void add3(float *dst, const float v[3]) {
+    dst[0] += v[0];
+    dst[1] += v[1];
+    dst[2] += v[2];
+}
+
+const float *rbc_cloth_normals(rbc_cloth_state *c) {
+    float *acc = c->normal_acc;
+    const float *x = c->x[0], *y = c->x[1], *z = c->x[2];
+    memset(acc, 0, 3 * (size_t)c->topo.n * sizeof(float));
+    for (uint32_t q = 0; q < c->quad_count; ++q) {
+        const uint32_t *v = &c->quads[4 * (size_t)q];
+        const uint32_t a = v[0], b = v[1], cc = v[2], d = v[3];
+        /* The diagonals' cross product: twice the vector area of the quad, planar or
+         * not, the same from whichever corner it is taken. */
+        const float e[3] = {x[cc] - x[a], y[cc] - y[a], z[cc] - z[a]};
+        const float f[3] = {x[d] - x[b], y[d] - y[b], z[d] - z[b]};
+        const float n[3] = {e[1] * f[2] - e[2] * f[1], e[2] * f[0] - e[0] * f[2],
+                            e[0] * f[1] - e[1] * f[0]};
+        add3(&acc[3 * (size_t)a], n);
+        add3(&acc[3 * (size_t)b], n);
+        add3(&acc[3 * (size_t)cc], n);
+        add3(&acc[3 * (size_t)d], n);
+    }
+    for (uint32_t k = 0; k < c->lone_count; ++k) {
+        const uint32_t *v = &c->lone_tris[3 * (size_t)k];
+        const uint32_t a = v[0], b = v[1], cc = v[2];
+        const float e[3] = {x[b] - x[a], y[b] - y[a], z[b] - z[a]};
+        const float f[3] = {x[cc] - x[a], y[cc] - y[a], z[cc] - z[a]};
+        const float n[3] = {e[1] * f[2] - e[2] * f[1], e[2] * f[0] - e[0] * f[2],
+                            e[0] * f[1] - e[1] * f[0]};
+        add3(&acc[3 * (size_t)a], n);
+        add3(&acc[3 * (size_t)b], n);
+        add3(&acc[3 * (size_t)cc], n);
+    }
+    for (uint32_t i = 0; i < c->topo.n; ++i) {
+        float *n = &acc[3 * (size_t)i];
+        const float l2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
+        if (!(l2 > 0.0f)) {
+            n[0] = n[1] = n[2] = 0.0f;
+            continue;
+        }
+        const float s = 1.0f / sqrtf(l2);
+        n[0] *= s;
+        n[1] *= s;
+        n[2] *= s;
+    }
+    return acc;
+}
+
+size_t rbc_cloth_triangles_host(const rbc_cloth_state *c, uint32_t *out, size_t cap) {
+    const uint32_t *h = c->topo.to_host;
+    const size_t need = 6 * (size_t)c->quad_count + 3 * (size_t)c->lone_count;
+    if (!out) return need;
+    size_t m = 0;
+    for (uint32_t q = 0; q < c->quad_count && m + 6 <= cap; ++q, m += 6) {
+        const uint32_t *v = &c->quads[4 * (size_t)q];
+        out[m] = h[v[0]], out[m + 1] = h[v[1]], out[m + 2] = h[v[2]];
+        out[m + 3] = h[v[0]], out[m + 4] = h[v[2]], out[m + 5] = h[v[3]];
+    }
+    for (uint32_t k = 0; k < c->lone_count && m + 3 <= cap; ++k, m += 3) {
+        const uint32_t *v = &c->lone_tris[3 * (size_t)k];
+        out[m] = h[v[0]], out[m + 1] = h[v[1]], out[m + 2] = h[v[2]];
+    }
+    return need;
+}
+
+/* R p + t in double (a float rotation of a float point rounds once at the end), so
+ * the same move of x and q keeps their difference, the velocity, as exact as floats
+ * allow. */
+static void move_point(const double R[9], const float t[3], float *px, float *py, float *pz) {
+    const double x = *px, y = *py, z = *pz;
+    *px = (float)(R[0] * x + R[1] * y + R[2] * z + t[0]);
+    *py = (float)(R[3] * x + R[4] * y + R[5] * z + t[1]);
+    *pz = (float)(R[6] * x + R[7] * y + R[8] * z + t[2]);
+}
+
+void rbc_cloth_move(rbc_cloth_state *c, const float t[3], const float quat[4],
+                    int reset_velocity) {
+    /* Normalised here: the plugin accepts |q| within 1e-3 of 1. */
+    double qx = quat[0], qy = quat[1], qz = quat[2], qw = quat[3];
+    const double l = sqrt(qx * qx + qy * qy + qz * qz + qw * qw);
+    qx /= l, qy /= l, qz /= l, qw /= l;
+    const double R[9] = {1 - 2 * (qy * qy + qz * qz), 2 * (qx * qy - qz * qw),
+                         2 * (qx * qz + qy * qw),     2 * (qx * qy + qz * qw),
+                         1 - 2 * (qx * qx + qz * qz), 2 * (qy * qz - qx * qw),
+                         2 * (qx * qz - qy * qw),     2 * (qy * qz + qx * qw),
+                         1 - 2 * (qx * qx + qy * qy)};
+    for (uint32_t i = 0; i < c->topo.n; ++i) {
+        move_point(R, t, &c->x[0][i], &c->x[1][i], &c->x[2][i]);
+        if (reset_velocity) {
+            c->q[0][i] = c->x[0][i];
+            c->q[1][i] = c->x[1][i];
+            c->q[2][i] = c->x[2][i];
+        } else {
+            move_point(R, t, &c->q[0][i], &c->q[1][i], &c->q[2][i]);
+        }
+    }
+    for (uint32_t k = 0; k < c->pin_count; ++k) {
+        float *g = &c->pin_target[3 * (size_t)k], *s = &c->pin_start[3 * (size_t)k];
+        move_point(R, t, &g[0], &g[1], &g[2]);
+        move_point(R, t, &s[0], &s[1], &s[2]);
+    }
+    /* The warm start and the last substep's system describe the old place; the
+     * height changed, so the energy account is rebuilt, keeping its slack. */
+    c->system_valid = 0;
+    rbc_cloth_state_energy_invalidate(c, 1);
+}
+
+size_t rbc_cloth_render_bytes(const rbc_cloth_state *c) {
+    size_t b = (size_t)c->lone_cap * 3 * sizeof(uint32_t);
+    if (c->normal_acc) b += 3 * (size_t)c->topo.n * sizeof(float);
+    return b;
+}
+
+void rbc_cloth_render_free(const rbc_allocator *al, rbc_cloth_state *c) {
+    rbc_mem_free(al, c->lone_tris, sizeof(uint32_t) * 3 * (size_t)c->lone_cap);
+    if (c->normal_acc) rbc_mem_free(al, c->normal_acc, 3 * (size_t)c->topo.n * sizeof(float));
+    c->lone_tris = NULL;
+    c->normal_acc = NULL;
+    c->lone_count = c->lone_cap = 0;
+}
