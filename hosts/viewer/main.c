@@ -85,9 +85,6 @@ typedef struct view_cloth {
     float *spring_rest;
     /// Pixel coordinates of each vertex (x, y, and 1 if in front of the camera).
     float *screen;
-    /// Quads for the pre-1.10 path (normals and triangles computed here).
-    uint32_t *quads;
-    size_t quad_values;
     GLuint vertex_buffer, colour_buffer, index_buffer;
     int index_dirty;
 } view_cloth;
@@ -100,9 +97,6 @@ typedef struct ball {
 
 typedef struct app {
     const rbc_api_v1 *api;
-    /// rbc_world_read_vertices and rbc_cloth_get_triangles (ABI 1.10) are in the
-    /// table; else positions and quads are read and normals computed here.
-    int has_read_vertices;
     uint32_t abi_version;
     rbc_scene scene;
     rbc_scene_instance inst;
@@ -164,7 +158,6 @@ static void view_cloth_free(view_cloth *c) {
     free(c->springs);
     free(c->spring_rest);
     free(c->screen);
-    free(c->quads);
     if (c->vertex_buffer) glDeleteBuffers(1, &c->vertex_buffer);
     if (c->colour_buffer) glDeleteBuffers(1, &c->colour_buffer);
     if (c->index_buffer) glDeleteBuffers(1, &c->index_buffer);
@@ -236,47 +229,6 @@ static int read_triangles(app *a, uint32_t i) {
     return 0;
 }
 
-/* Before ABI 1.10: triangles (a b c), (a c d) of each remaining quad, as 1.10's
- * rbc_cloth_get_triangles makes them; the revision counts changes of the quad count. */
-static int read_quads_as_triangles(app *a, uint32_t i) {
-    view_cloth *c = &a->cloths[i];
-    size_t before = c->quad_values;
-    if (read_u32(a, a->api->cloth_get_quads, a->inst.cloths[i], &c->quads, &c->quad_values,
-                 "rbc_cloth_get_quads"))
-        return -1;
-    if (c->triangles && c->quad_values == before) return 0;
-    size_t nq = c->quad_values / 4;
-    uint32_t *t = realloc(c->triangles, (nq ? nq : 1) * 6 * sizeof *t);
-    if (!t) return -1;
-    c->triangles = t;
-    for (size_t q = 0; q < nq; ++q) {
-        const uint32_t *v = c->quads + 4 * q;
-        uint32_t tri[6] = {v[0], v[1], v[2], v[0], v[2], v[3]};
-        memcpy(t + 6 * q, tri, sizeof tri);
-    }
-    c->triangle_values = 6 * nq;
-    c->revision += 1;
-    c->index_dirty = 1;
-    return 0;
-}
-
-/* Before ABI 1.10: area-weighted normals as rbc_world_read_vertices documents them,
- * (c - a) x (d - b) / 2 per quad, from positions already in c->vertices. */
-static void compute_normals(view_cloth *c) {
-    float *v = c->vertices;
-    for (uint32_t k = 0; k < c->vertex_count; ++k) memset(v + 6 * k + 3, 0, 3 * sizeof *v);
-    for (size_t q = 0; q < c->quad_values / 4; ++q) {
-        const uint32_t *x = c->quads + 4 * q;
-        float d1[3], d2[3], n[3];
-        v3_sub(v + 6 * x[2], v + 6 * x[0], d1);
-        v3_sub(v + 6 * x[3], v + 6 * x[1], d2);
-        v3_cross(d1, d2, n);
-        for (int k = 0; k < 4; ++k)
-            for (int j = 0; j < 3; ++j) v[6 * x[k] + 3 + j] += 0.5f * n[j];
-    }
-    for (uint32_t k = 0; k < c->vertex_count; ++k) v3_normalize(v + 6 * k + 3);
-}
-
 /* Per vertex the largest |len / rest - 1| of its springs, as a colour (the CLI
  * still's ramp, cli_view_strain_colour). Springs of rest length 0 are skipped. */
 static void compute_strain(view_cloth *c) {
@@ -293,51 +245,40 @@ static void compute_strain(view_cloth *c) {
     for (uint32_t k = 0; k < c->vertex_count; ++k) cli_view_strain_colour(c->strain[k], c->colours + 3 * k);
 }
 
-/* This frame's vertices of every cloth, and its triangles and springs when a tear or
- * a cut changed them. */
+/* This frame's vertices of every cloth (position and normal, ABI 1.10's
+ * rbc_world_read_vertices, all cloths in one call per 64), and its triangles and
+ * springs when a tear or a cut changed them (the triangle revision moved). */
 static int read_cloths(app *a) {
     const rbc_scene *sc = &a->scene;
-    if (a->has_read_vertices) {
-        rbc_vertex_output out[64];
-        for (uint32_t base = 0; base < sc->cloth_count; base += 64) {
-            uint32_t n = sc->cloth_count - base < 64 ? sc->cloth_count - base : 64;
-            for (uint32_t k = 0; k < n; ++k) {
-                view_cloth *c = &a->cloths[base + k];
-                a->api->vertex_output_init(&out[k], (uint32_t)sizeof out[k]);
-                out[k].cloth = a->inst.cloths[base + k];
-                out[k].buffer = c->vertices;
-                out[k].buffer_size = (size_t)c->vertex_count * 24;
-                out[k].stride = 24;
-                out[k].position_offset = 0;
-                out[k].normal_offset = 12;
-            }
-            rbc_result r = a->api->world_read_vertices(a->inst.world, out, n);
-            if (r != RBC_OK) {
-                report_api(a, r, "rbc_world_read_vertices");
-                return -1;
-            }
-            for (uint32_t k = 0; k < n; ++k)
-                if (out[k].triangle_revision != a->cloths[base + k].revision &&
-                    (read_triangles(a, base + k) || read_springs(a, base + k)))
-                    return -1;
+    rbc_vertex_output out[64];
+    for (uint32_t base = 0; base < sc->cloth_count; base += 64) {
+        uint32_t n = sc->cloth_count - base < 64 ? sc->cloth_count - base : 64;
+        for (uint32_t k = 0; k < n; ++k) {
+            view_cloth *c = &a->cloths[base + k];
+            a->api->vertex_output_init(&out[k], (uint32_t)sizeof out[k]);
+            out[k].cloth = a->inst.cloths[base + k];
+            out[k].buffer = c->vertices;
+            out[k].buffer_size = (size_t)c->vertex_count * 24;
+            out[k].stride = 24;
+            out[k].position_offset = 0;
+            out[k].normal_offset = 12;
         }
-    } else {
-        for (uint32_t i = 0; i < sc->cloth_count; ++i) {
-            view_cloth *c = &a->cloths[i];
-            uint32_t revision = c->revision;
-            /* Positions packed at stride 12 into the back of the buffer, then spread. */
-            float *packed = c->vertices + 3 * (size_t)c->vertex_count;
-            rbc_result r = a->api->cloth_read_positions(a->inst.world, a->inst.cloths[i], packed,
-                                                        3 * (size_t)c->vertex_count, NULL);
-            if (r != RBC_OK) {
-                report_api(a, r, "rbc_cloth_read_positions");
+        rbc_result r = a->api->world_read_vertices(a->inst.world, out, n);
+        if (r != RBC_OK) {
+            report_api(a, r, "rbc_world_read_vertices");
+            return -1;
+        }
+        for (uint32_t k = 0; k < n; ++k) {
+            view_cloth *c = &a->cloths[base + k];
+            if (out[k].triangle_revision != c->revision &&
+                (read_triangles(a, base + k) || read_springs(a, base + k)))
                 return -1;
-            }
-            for (uint32_t k = 0; k < c->vertex_count; ++k)
-                memmove(c->vertices + 6 * k, packed + 3 * k, 3 * sizeof(float));
-            if (read_quads_as_triangles(a, i)) return -1;
-            compute_normals(c);
-            if (c->revision != revision && read_springs(a, i)) return -1;
+            /* A tear can break a spring whose faces are already gone, which leaves
+             * the revision as it was: the spring count tells. */
+            size_t springs = 0;
+            if (a->api->cloth_get_springs(a->inst.world, out[k].cloth, NULL, 0, &springs) == RBC_OK &&
+                springs != c->spring_values && read_springs(a, base + k))
+                return -1;
         }
     }
     for (uint32_t i = 0; i < sc->cloth_count; ++i) compute_strain(&a->cloths[i]);
@@ -545,15 +486,19 @@ static int cloth_index(const app *a, rbc_cloth_id id) {
 static void pick(app *a) {
     float dir[3];
     pixel_ray(a, a->mouse_x, a->mouse_y, dir);
-    /* A vertex within 12 pixels of the ray at the cloth's distance. */
+    /* Pixel size at the scene's distance, in metres. */
     float pixel = 2.0f * a->distance * tanf(0.5f * FOV_Y_DEG * PI_F / 180.0f) / a->height;
     float len = sqrtf(v3_dot(dir, dir));
     rbc_cloth_id cloth = 0;
     uint32_t vertex = 0;
     float t = 0;
-    rbc_result r = a->api->world_pick(a->inst.world, a->eye, dir,
-                                      (a->distance + 4.0f * a->radius) / len, 12.0f * pixel,
-                                      &cloth, &vertex, &t);
+    /* The library takes the hit nearest the eye among the vertices within the radius:
+     * first a tight 3-pixel radius, so the vertex under the cursor wins on a cloth
+     * facing the camera, then 12 pixels, so a near miss still grabs. */
+    rbc_result r = RBC_OK;
+    for (int pass = 0; pass < 2 && r == RBC_OK && !cloth; ++pass)
+        r = a->api->world_pick(a->inst.world, a->eye, dir, (a->distance + 4.0f * a->radius) / len,
+                               (pass ? 12.0f : 3.0f) * pixel, &cloth, &vertex, &t);
     if (r != RBC_OK) {
         report_api(a, r, "rbc_world_pick");
         return;
@@ -1101,8 +1046,17 @@ int main(int argc, char **argv) {
     }
     a.api = plugin.api;
     a.abi_version = a.api->abi_version_fn();
-    a.has_read_vertices = (a.abi_version & 0xFFFFu) >= 10 && a.api->world_read_vertices &&
-                          a.api->cloth_get_triangles && a.api->vertex_output_init;
+    /* cli_plugin_open refuses a table older than this header's (1.10), but checks
+     * only the 1.0 entries: a library built from the 1.10 header alone lacks these. */
+    if (!a.api->world_read_vertices || !a.api->cloth_get_triangles || !a.api->vertex_output_init) {
+        fprintf(stderr, "rbcloth-viewer: %s lacks rbc_world_read_vertices or "
+                        "rbc_cloth_get_triangles (ABI 1.10), which the viewer draws from\n",
+                plugin.path);
+        cli_plugin_close(&plugin);
+        rbc_scene_free(&a.scene);
+        viewer_script_free(&script);
+        return 1;
+    }
     if (preset) {
         a.preset = find_name(preset, rbc_scene_preset_names);
         rbc_result r = a.api->solver_def_preset(&a.scene.world.solver, sizeof a.scene.world.solver,
@@ -1143,8 +1097,8 @@ int main(int argc, char **argv) {
     glEnable(GL_COLOR_MATERIAL);
     glColorMaterial(GL_FRONT_AND_BACK, GL_AMBIENT_AND_DIFFUSE);
     if (a.scripted)
-        printf("viewer abi=%u.%u read_vertices=%d renderer=%s\n", a.abi_version >> 16,
-               a.abi_version & 0xFFFFu, a.has_read_vertices, (const char *)glGetString(GL_RENDERER));
+        printf("viewer abi=%u.%u renderer=%s\n", a.abi_version >> 16, a.abi_version & 0xFFFFu,
+               (const char *)glGetString(GL_RENDERER));
 
     glfwGetWindowSize(a.window, &a.width, &a.height);
     fit_camera(&a);
