@@ -331,6 +331,7 @@ static int create_world(app *a) {
     a->sim_frame = 0;
     a->drag_cloth = -1;
     a->last_pick_cloth = -1;
+    a->springs_cut = 0;
     return read_cloths(a);
 }
 
@@ -697,10 +698,12 @@ static void draw_sphere(const float c[3], float r) {
             float p = 2 * PI_F * j / SLICES;
             float n0[3] = {cosf(t0) * cosf(p), sinf(t0), cosf(t0) * sinf(p)};
             float n1[3] = {cosf(t1) * cosf(p), sinf(t1), cosf(t1) * sinf(p)};
-            glNormal3fv(n1);
-            glVertex3f(c[0] + r * n1[0], c[1] + r * n1[1], c[2] + r * n1[2]);
+            /* Lower ring first: counter-clockwise seen from outside, so the front
+             * face (which two-sided lighting lights with the normal as given) is out. */
             glNormal3fv(n0);
             glVertex3f(c[0] + r * n0[0], c[1] + r * n0[1], c[2] + r * n0[2]);
+            glNormal3fv(n1);
+            glVertex3f(c[0] + r * n1[0], c[1] + r * n1[1], c[2] + r * n1[2]);
         }
         glEnd();
     }
@@ -766,8 +769,8 @@ static void draw_colliders(const app *a, double time) {
             for (int s = 0; s <= 24; ++s) {
                 float ang = 2 * PI_F * s / 24, cx = cosf(ang), cz = sinf(ang);
                 glNormal3f(cx, 0, cz);
+                glVertex3f(k->radius * cx, -h, k->radius * cz); /* bottom first: outward front */
                 glVertex3f(k->radius * cx, h, k->radius * cz);
-                glVertex3f(k->radius * cx, -h, k->radius * cz);
             }
             glEnd();
         } else if (k->shape == RBC_SHAPE_TRIANGLE_MESH && k->mesh_positions) {
