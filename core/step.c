@@ -560,13 +560,14 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
 
     const uint32_t threads = rbc_step_threads_choose(s);
     const double run_t0 = rbc_now_ms();
-    rbc_pool_run_n(s->pool, threads, step_spmd, &ctx);
+    /* On the host's job system the threads that joined (1..threads). */
+    const uint32_t used = rbc_pool_run_n(s->pool, threads, step_spmd, &ctx);
     const double run_ms = rbc_now_ms() - run_t0;
-    s->threads_last = threads;
+    s->threads_last = used;
     if (ctx.result != RBC_OK) {
         if (need_snapshot) snapshot(s, 1);
         return ctx.result;
     }
-    finish_step(s, &ctx, threads, start, run_ms);
+    finish_step(s, &ctx, used, start, run_ms);
     return RBC_OK;
 }

@@ -172,6 +172,10 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     if ((def.alloc == NULL) != (def.free == NULL))
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                              "%s: give both alloc and free hooks, or neither", fn);
+    if ((def.enqueue_task == NULL) != (def.finish_task == NULL))
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                             "%s: give both enqueue_task and finish_task, or neither", fn);
+    const int hosted = def.enqueue_task != NULL;
 
     /* A given solver def starts from the field defaults, as rbc_solver_def_init's. */
     rbc_solver_def sdef =
@@ -198,14 +202,22 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     if (!w) return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: out of memory", fn);
     w->alloc = alloc;
     w->def = def;
-    if (rbc_solver_init(&w->solver, &alloc, threads) != RBC_OK) {
+    /* On the host's job system the world starts no thread: its pool has one, and
+     * the host's workers join it (core/cpu/pool.c, run_hosted). */
+    if (rbc_solver_init(&w->solver, &alloc, hosted ? 1 : threads) != RBC_OK) {
         rbc_mem_free(&alloc, w, sizeof *w);
         return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: could not start %u worker threads", fn,
                              threads);
     }
     /* thread_count 0: the step measures whether its threads pay (core/step_threads.c,
      * threads_for_step); a count the host gives is used as given. */
-    w->solver.threads_auto = def.thread_count == 0;
+    w->solver.threads_auto = def.thread_count == 0 && !hosted;
+    if (hosted) {
+        const rbc_pool_host h = {(void *(*)(rbc_pool_task_fn, uint32_t, uint32_t, void *,
+                                            void *))def.enqueue_task,
+                                 (void (*)(void *, void *))def.finish_task, def.task_user};
+        rbc_pool_set_host(w->solver.pool, &h, threads);
+    }
     if (rbc_reg_add(&rbc_plugin_worlds, w, 0, &w->id) != RBC_OK) {
         rbc_solver_fini(&w->solver);
         rbc_mem_free(&alloc, w, sizeof *w);
@@ -221,7 +233,8 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     w->solver.public_world_id = w->id;
     *out_world = w->id;
     char msg[128];
-    snprintf(msg, sizeof msg, "world 0x%08x created: CPU backend, %u threads", w->id, threads);
+    snprintf(msg, sizeof msg, "world 0x%08x created: CPU backend, %u threads%s", w->id, threads,
+             hosted ? " on the host's job system" : "");
     rbc_plugin_world_log(w, RBC_LOG_INFO, msg);
     return RBC_OK;
 }

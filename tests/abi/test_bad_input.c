@@ -143,6 +143,7 @@ static void test_result_strings(void) {
         {RBC_ERR_STALE_HANDLE, "RBC_ERR_STALE_HANDLE"},
         {RBC_ERR_CALLBACK, "RBC_ERR_CALLBACK"},
         {RBC_ERR_CAPACITY, "RBC_ERR_CAPACITY"},
+        {RBC_ERR_BUSY, "RBC_ERR_BUSY"},
     };
     const size_t n = sizeof codes / sizeof codes[0];
     for (size_t a = 0; a < n; a++) {
