@@ -2,6 +2,7 @@
  * on drag_cut.json (run_glviewer.sh runs both under Xvfb).
  *
  * usage: check_glviewer LOG STILL.png BEFORE.png DRAGGED.png PRECUT.png CUT.png
+ *        check_glviewer keys LOG BEFORE.png BALL.png     (keys.script)
  *
  * The geometry the bounds come from. The viewer's window is 800 x 600, camera
  * --camera 0,0 (looking along -z), vertical field of view 30 deg. It fits the
@@ -79,10 +80,77 @@ static long number(const char *line, const char *key) {
     return v ? strtol(v, NULL, 10) : -1;
 }
 
+/* glviewer_keys: the state lines of keys.script (numbered there) after each key. */
+static int check_keys(const char *log, const char *before_png, const char *ball_png) {
+    FILE *f = fopen(log, "r");
+    if (!f) {
+        fprintf(stderr, "check_glviewer: cannot open %s\n", log);
+        return 2;
+    }
+    enum { N = 8 };
+    char line[4096], st[N][4096];
+    int n = 0, picks = 0;
+    while (fgets(line, sizeof line, f)) {
+        if (strncmp(line, "state ", 6) == 0 && n < N) memcpy(st[n++], line, sizeof line);
+        if (strncmp(line, "pick ", 5) == 0) ++picks;
+    }
+    fclose(f);
+    CHECK(n == N, "%s has %d state lines, want %d", log, n, N);
+    if (n != N) return 1;
+    const char *solver[N] = {"rbgs_sor", "rbgs_chebyshev", "rbgs", "rbgs", "rbgs", "rbgs", "rbgs", "rbgs"};
+    const long linear[N] = {11, 11, 11, 12, 12, 12, 12, 12};
+    for (int k = 0; k < N; ++k) {
+        const char *v = field(st[k], "solver");
+        CHECK(v && strcmp(v, solver[k]) == 0, "state %d: solver=%s, want %s", k + 1, v ? v : "?",
+              solver[k]);
+        CHECK(number(st[k], "linear") == linear[k], "state %d: linear=%ld, want %ld", k + 1,
+              number(st[k], "linear"), linear[k]);
+    }
+    /* Space: frames 16 and 24 both see the steps of frames 0 to 14 (15), none since. */
+    CHECK(number(st[4], "frame") == 15 && number(st[5], "frame") == 15,
+          "paused: frame=%ld and %ld, want 15 and 15", number(st[4], "frame"), number(st[5], "frame"));
+    /* B, then the cut in cut mode: a left press there cuts and never picks. */
+    CHECK(number(st[6], "balls") == 1, "after B: balls=%ld, want 1", number(st[6], "balls"));
+    CHECK(picks == 0, "%d pick lines: a left press in cut mode must not pick", picks);
+    CHECK(number(st[6], "springs_cut") >= 24 && number(st[6], "cloth0.triangles") <= 1058 - 46,
+          "cut mode: springs_cut=%ld triangles=%ld, want >= 24 and <= 1012",
+          number(st[6], "springs_cut"), number(st[6], "cloth0.triangles"));
+    /* R at frame 41: a fresh world that frames 41 and 42 stepped, no balls, nothing cut. */
+    CHECK(number(st[7], "frame") == 2 && number(st[7], "balls") == 0 &&
+          number(st[7], "springs_cut") == 0 && number(st[7], "cloth0.triangles") == 1058 &&
+          number(st[7], "cloth0.revision") == 1,
+          "after R: '%.*s', want frame=2 balls=0 springs_cut=0 triangles=1058 revision=1",
+          (int)strcspn(st[7], "\n"), st[7]);
+    /* The ball: sent through pixel (400, 180), so its centre stays on that pixel; at
+     * 1.6 m from the eye its 0.134 m radius spans about 90 px there. Grey (the
+     * colliders' colour) where the cloth was before. */
+    test_image before, ball;
+    char err[512];
+    if (test_png_read(before_png, &before, err, sizeof err) || test_png_read(ball_png, &ball, err, sizeof err)) {
+        fprintf(stderr, "check_glviewer: %s\n", err);
+        return 1;
+    }
+    long grey_before = 0, grey_ball = 0;
+    for (int y = 170; y < 191; ++y)
+        for (int x = 390; x < 411; ++x) {
+            grey_before += test_is_grey(before.rgb + 3 * ((size_t)y * before.w + x));
+            grey_ball += test_is_grey(ball.rgb + 3 * ((size_t)y * ball.w + x));
+        }
+    CHECK(grey_before == 0 && grey_ball == 21 * 21,
+          "ball: %ld grey pixels of 441 around (400, 180) before and %ld after, want 0 and 441",
+          grey_before, grey_ball);
+    test_image_free(&before);
+    test_image_free(&ball);
+    if (failures) return 1;
+    printf("check_glviewer: keys: all checks passed\n");
+    return 0;
+}
+
 int main(int argc, char **argv) {
+    if (argc == 5 && strcmp(argv[1], "keys") == 0) return check_keys(argv[2], argv[3], argv[4]);
     if (argc != 7) {
         fprintf(stderr, "usage: check_glviewer LOG STILL.png BEFORE.png DRAGGED.png PRECUT.png "
-                        "CUT.png\n");
+                        "CUT.png\n       check_glviewer keys LOG BEFORE.png BALL.png\n");
         return 2;
     }
     /* The viewer's stdout: its pick line and one state line per screenshot. */
