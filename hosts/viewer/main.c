@@ -891,9 +891,10 @@ static void print_state(const app *a, const char *tag) {
     else printf(" dragging=none");
     if (a->last_pick_cloth >= 0) printf(" picked=%d:%u", a->last_pick_cloth, a->last_pick_vertex);
     else printf(" picked=none");
-    printf(" springs_cut=%llu balls=%u solver=%s linear=%u max_strain=%.4g\n",
+    printf(" springs_cut=%llu balls=%u solver=%s linear=%u max_strain=%.4g step_ms=%.2f "
+           "frame_ms=%.2f\n",
            (unsigned long long)a->springs_cut, a->ball_count, solver_name(a),
-           a->scene.world.linear_iterations, st.step_max_strain);
+           a->scene.world.linear_iterations, st.step_max_strain, a->step_ms, a->frame_ms);
     fflush(stdout);
 }
 
