@@ -1116,7 +1116,10 @@ int main(int argc, char **argv) {
         glfwPollEvents();
         glfwGetWindowSize(a.window, &a.width, &a.height);
         glfwGetFramebufferSize(a.window, &a.fb_width, &a.fb_height);
-        if (a.width < 1 || a.height < 1) continue; /* minimised */
+        if (a.width < 1 || a.height < 1) { /* minimised: nothing to draw, wait for events */
+            glfwWaitEventsTimeout(0.1);
+            continue;
+        }
         update_camera(&a);
         /* The script's input of this frame; window pixels are event coordinates. */
         size_t first_output = next_event;
