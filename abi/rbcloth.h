@@ -37,7 +37,8 @@
  *  - Between rbc_world_step_begin and rbc_world_step_wait a world is stepping: every
  *    other call on it, and on its cloths and colliders, returns RBC_ERR_BUSY and
  *    changes nothing (rbc_world_destroy first waits for the step). step_wait may be
- *    called from any thread, one at a time.
+ *    called from any thread; calls on one world, step_wait and destroy included, are
+ *    still made one at a time.
  *  - A point cache, like a world, is used by one thread at a time; different caches
  *    may be used concurrently.
  *  - A mesh (rbc_mesh_import) is immutable: its getters and
@@ -355,8 +356,9 @@ typedef struct rbc_collision_cloth {
     const float *previous_positions;
 } rbc_collision_cloth;
 
-/// The host's collision code, called once per substep on the thread that called
-/// rbc_world_step, after the solver and the built-in colliders. `dt` is the
+/// The host's collision code, called once per substep on the thread that runs the
+/// step (the caller of rbc_world_step, or the world's step thread after
+/// rbc_world_step_begin), after the solver and the built-in colliders. `dt` is the
 /// substep length in seconds. Return 0 on success; any other value ends the step
 /// with RBC_ERR_CALLBACK and the world as it was before the step.
 typedef int32_t (RBC_CALL *rbc_collision_fn)(void *user, rbc_world_id world, float dt,
@@ -388,8 +390,8 @@ typedef struct rbc_contact_sink {
                                uint32_t count);
 } rbc_contact_sink;
 
-/// The host's contact generation, called once per substep on the thread that called
-/// rbc_world_step, after the prediction and before the solve: `positions` hold the
+/// The host's contact generation, called once per substep on the thread that runs
+/// the step (as the collision callback), after the prediction and before the solve: `positions` hold the
 /// predicted (inertial) positions and `previous_positions` those at the start of the
 /// substep, both read only. Report contacts through `sink`. Return 0 on success;
 /// any other value ends the step with RBC_ERR_CALLBACK and the world as it was. (1.3)

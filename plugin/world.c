@@ -402,6 +402,7 @@ typedef struct rbc_step_thread {
     rbc_mutex mu;
     rbc_cond cv;
     int state, quit;
+    uint32_t waiters; /* step_wait calls inside step_thread_wait */
     float dt;
     rbc_result rc;
     char msg[RBC_ERROR_CAP];
@@ -427,16 +428,26 @@ static void step_thread_main(void *arg) {
     rbc_mutex_unlock(&t->mu);
 }
 
-/* Wait for the step in flight, if any: its result, its message in *t->msg. */
+/* Wait for the step in flight, if any, and take its result: its message becomes this
+ * thread's (under the lock, before `stepping` is cleared: once it is, the host may
+ * begin the next step, whose thread writes t->msg). A step another thread already
+ * took the result of is RBC_OK here. `waiters` lets destroy free the thread only
+ * when no wait is inside. */
 static rbc_result step_thread_wait(rbc_world *w) {
     rbc_step_thread *t = w->stepper;
     if (!t || !atomic_load(&w->stepping)) return RBC_OK;
     rbc_mutex_lock(&t->mu);
-    while (t->state != STEP_DONE) rbc_cond_wait(&t->cv, &t->mu);
-    t->state = STEP_IDLE;
-    const rbc_result rc = t->rc;
+    t->waiters++;
+    while (t->state == STEP_RUN) rbc_cond_wait(&t->cv, &t->mu);
+    rbc_result rc = RBC_OK;
+    if (t->state == STEP_DONE) {
+        rc = t->rc;
+        if (rc) rbc_set_error(rc, "%s", t->msg);
+        t->state = STEP_IDLE;
+        atomic_store_explicit(&w->stepping, 0, memory_order_release);
+    }
+    if (--t->waiters == 0) rbc_cond_broadcast(&t->cv);
     rbc_mutex_unlock(&t->mu);
-    atomic_store_explicit(&w->stepping, 0, memory_order_release);
     return rc;
 }
 
@@ -445,6 +456,7 @@ static void step_thread_stop(rbc_world *w) {
     if (!t) return;
     step_thread_wait(w);
     rbc_mutex_lock(&t->mu);
+    while (t->waiters) rbc_cond_wait(&t->cv, &t->mu);
     t->quit = 1;
     rbc_cond_broadcast(&t->cv);
     rbc_mutex_unlock(&t->mu);
@@ -497,10 +509,9 @@ RBC_API rbc_result RBC_CALL rbc_world_step_wait(rbc_world_id id) {
     rbc_world *w;
     rbc_result rc = lookup_any(id, fn, &w);
     if (rc) return rc;
-    rc = step_thread_wait(w);
-    /* The step thread logged it already; here it becomes this thread's message. */
-    if (rc) return rbc_set_error(rc, "%s", w->stepper->msg);
-    return RBC_OK;
+    /* The step thread logged a failure already; step_thread_wait made its message
+     * this thread's. */
+    return step_thread_wait(w);
 }
 
 RBC_API rbc_result RBC_CALL rbc_world_set_iterations(rbc_world_id id, uint32_t substeps,

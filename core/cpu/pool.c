@@ -287,9 +287,12 @@ static uint32_t run_hosted(rbc_pool *pool, uint32_t n, rbc_pool_fn fn, void *ctx
     atomic_store(&pool->h_tid, 1);
     atomic_store(&pool->h_done, 0);
     atomic_store(&pool->h_in_enqueue, 1);
+    /* Restored, not cleared: a serial executor may step another hosted world from
+     * inside this enqueue, on this thread. */
+    const rbc_pool *outer = tls_enqueuing;
     tls_enqueuing = pool;
     void *handle = pool->host.enqueue(host_entry, n - 1, 1, pool, pool->host.user);
-    tls_enqueuing = NULL;
+    tls_enqueuing = outer;
     atomic_store(&pool->h_in_enqueue, 0);
     double *last = host_last_ms(pool, fn);
     double wait = *last > 0.0 ? 0.25 * *last : HOST_WAIT_FIRST_MS;

@@ -619,12 +619,20 @@ static void test_split_step(void) {
     pthread_create(&th, NULL, wait_thread, &x);
     pthread_join(th, NULL);
     CHECK_EQ(x.rc, RBC_ERR_CALLBACK);
-    g_cb_fail = 0;
     CHECK_EQ(rbc_world_step_wait(wa), RBC_OK); /* already waited for */
     float *after = test_read(wa, ca, NULL);
     CHECK(before && after && memcmp(before, after, 12 * (size_t)g.vertex_count) == 0);
     free(before);
     free(after);
+    /* Two threads waiting for one failing step: one takes its result, the other
+     * gets RBC_OK (the step it waited for is over), and neither hangs. */
+    CHECK_EQ(rbc_world_step_begin(wa, 1.0f / 60.0f), RBC_OK);
+    waiter two[2] = {{wa, RBC_OK}, {wa, RBC_OK}};
+    pthread_t th2[2];
+    for (int k = 0; k < 2; ++k) pthread_create(&th2[k], NULL, wait_thread, &two[k]);
+    for (int k = 0; k < 2; ++k) pthread_join(th2[k], NULL);
+    CHECK((two[0].rc == RBC_ERR_CALLBACK) + (two[1].rc == RBC_ERR_CALLBACK) == 1);
+    CHECK((two[0].rc == RBC_OK) + (two[1].rc == RBC_OK) == 1);
     /* The message in the waiting thread's buffer: make the failure here. */
     g_cb_fail = 1;
     CHECK_EQ(rbc_world_step_begin(wa, 1.0f / 60.0f), RBC_OK);
