@@ -595,10 +595,12 @@ typedef struct rbc_world_def {
     /// Optional: the host's job system runs the step's parallel work (as Box2D v3's
     /// enqueueTask / finishTask); both or neither. Then the world starts no thread
     /// of its own: each parallel phase of a step hands the host thread_count - 1
-    /// items (thread_count 0: one per core) with min_range 1, runs its own share on
-    /// the calling thread, and shares the work with those items that start within
-    /// a short wait (a quarter of the last phase's time; items that start later
-    /// return at once), then calls finish_task before the step returns. A job
+    /// items with min_range 1, runs its own share on the calling thread, and shares
+    /// the work with those items that start within a short wait (a quarter of the
+    /// last phase's time; items that start later return at once), then calls
+    /// finish_task before the step returns. thread_count 0 is one participant per
+    /// core, and each step asks for the items or runs on the calling thread alone,
+    /// whichever the world's probes measure faster (as for its own threads). A job
     /// system whose workers are busy costs a short wait, never a deadlock, and the
     /// result is bitwise the one of the world's own threads at any thread count.
     /// The library calls them only inside a step, on the thread running the step.

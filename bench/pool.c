@@ -40,7 +40,7 @@ static const pool_cloth cloths[] = {
 };
 enum { CLOTH_COUNT = sizeof cloths / sizeof cloths[0] };
 
-enum { CFG_ONE, CFG_DEFAULT, CFG_ALL, CFG_HOST, CFG_COUNT };
+enum { CFG_ONE, CFG_DEFAULT, CFG_ALL, CFG_HOST, CFG_HOST_AUTO, CFG_COUNT };
 
 typedef struct pool_row {
     double median, mean, p90;
@@ -55,7 +55,8 @@ static const char csv_header[] =
     "cloth,load,particles,cores,one_median_ms,one_mean_ms,one_steps,default_median_ms,"
     "default_mean_ms,default_steps,all_median_ms,all_mean_ms,all_steps,default_over_one,"
     "all_over_one,default_steps_multithreaded,host_median_ms,host_mean_ms,host_steps,"
-    "host_over_one,host_steps_multithreaded,error";
+    "host_over_one,host_steps_multithreaded,host_auto_median_ms,host_auto_mean_ms,"
+    "host_auto_steps,host_auto_over_one,host_auto_steps_multithreaded,error";
 
 /* The host's job system of CFG_HOST: workers take ranges from a queue under a mutex
  * and sleep on a condition variable when it is empty; finish_task waits for the
@@ -184,7 +185,7 @@ static rbc_result make_world(const rbc_api_v1 *api, uint32_t threads, jobs *host
 
 static void measure(const rbc_api_v1 *api, const bench_mesh *m, uint32_t cores, uint32_t rounds,
                     uint32_t block, double block_limit_s, pool_row rows[CFG_COUNT]) {
-    const uint32_t threads[CFG_COUNT] = {1, 0, cores, cores};
+    const uint32_t threads[CFG_COUNT] = {1, 0, cores, cores, 0};
     rbc_world_id worlds[CFG_COUNT] = {0};
     double *ms[CFG_COUNT] = {0};
     const uint32_t cap = rounds * block;
@@ -193,11 +194,12 @@ static void measure(const rbc_api_v1 *api, const bench_mesh *m, uint32_t cores, 
     const int have_host = api->struct_size > RBC_API_V1_SIZE_V1_9 && jobs_start(&host, cores - 1) == 0;
     for (int k = 0; k < CFG_COUNT; ++k) {
         memset(&rows[k], 0, sizeof rows[k]);
-        if (k == CFG_HOST && !have_host) {
+        const int hosted = k == CFG_HOST || k == CFG_HOST_AUTO;
+        if (hosted && !have_host) {
             snprintf(rows[k].error, sizeof rows[k].error, "no host tasks (ABI before 1.10)");
             continue;
         }
-        rbc_result r = make_world(api, threads[k], k == CFG_HOST ? &host : NULL, m, &worlds[k]);
+        rbc_result r = make_world(api, threads[k], hosted ? &host : NULL, m, &worlds[k]);
         if (r != RBC_OK) {
             bench_result_text(api, r, rows[k].error, sizeof rows[k].error);
             ok = 0;
@@ -260,8 +262,9 @@ static int write_plot(const char *dir, pool_row rows[CLOTH_COUNT][2][CFG_COUNT])
         for (int c = 0; c < CLOTH_COUNT; ++c) {
             const pool_row *r = rows[c][load];
             if (!r[CFG_ONE].steps) continue;
-            fprintf(f, "%s %.5f %.5f %.5f %.5f\n", cloths[c].name, r[CFG_ONE].median,
-                    r[CFG_DEFAULT].median, r[CFG_ALL].median, r[CFG_HOST].median);
+            fprintf(f, "%s %.5f %.5f %.5f %.5f %.5f\n", cloths[c].name, r[CFG_ONE].median,
+                    r[CFG_DEFAULT].median, r[CFG_ALL].median, r[CFG_HOST].median,
+                    r[CFG_HOST_AUTO].median);
         }
         fprintf(f, "EOD\n");
     }
@@ -278,7 +281,8 @@ static int write_plot(const char *dir, pool_row rows[CLOTH_COUNT][2][CFG_COUNT])
     for (int load = 0; load < 2; ++load)
         fprintf(f, "set title '%s'\n"
                    "plot $%s using 2:xtic(1) title '1 thread', '' using 3 title 'default', "
-                   "'' using 4 title 'all cores', '' using 5 title 'host tasks'\n",
+                   "'' using 4 title 'all cores', '' using 5 title 'host tasks', '' using 6 "
+                   "title 'host tasks, default count'\n",
                 load ? "every core busy with other work" : "idle machine", load ? "busy" : "idle");
     fprintf(f, "unset multiplot\n");
     return bench_close(f, dir, "pool.gp");
@@ -327,23 +331,28 @@ int cli_bench_pool(const cli_plugin *plugin, const cli_bench_options *o) {
             const double d1 = r[CFG_DEFAULT].median / r[CFG_ONE].median;
             const double a1 = r[CFG_ALL].median / r[CFG_ONE].median;
             const double h1 = r[CFG_HOST].median / r[CFG_ONE].median;
+            const double h0 = r[CFG_HOST_AUTO].median / r[CFG_ONE].median;
             fprintf(csv,
                     "%s,%s,%u,%u,%.5f,%.5f,%u,%.5f,%.5f,%u,%.5f,%.5f,%u,%.4f,%.4f,%u,%.5f,%.5f,%u,"
-                    "%.4f,%u,%s%s%s%s\n",
+                    "%.4f,%u,%.5f,%.5f,%u,%.4f,%u,%s%s%s%s%s\n",
                     cloths[c].name, load ? "busy" : "idle", cloths[c].nx * cloths[c].ny, cores,
                     r[CFG_ONE].median, r[CFG_ONE].mean, r[CFG_ONE].steps, r[CFG_DEFAULT].median,
                     r[CFG_DEFAULT].mean, r[CFG_DEFAULT].steps, r[CFG_ALL].median, r[CFG_ALL].mean,
                     r[CFG_ALL].steps, d1, a1, r[CFG_DEFAULT].steps_multi, r[CFG_HOST].median,
                     r[CFG_HOST].mean, r[CFG_HOST].steps, h1, r[CFG_HOST].steps_multi,
-                    r[CFG_ONE].error, r[CFG_DEFAULT].error, r[CFG_ALL].error, r[CFG_HOST].error);
+                    r[CFG_HOST_AUTO].median, r[CFG_HOST_AUTO].mean, r[CFG_HOST_AUTO].steps, h0,
+                    r[CFG_HOST_AUTO].steps_multi, r[CFG_ONE].error, r[CFG_DEFAULT].error,
+                    r[CFG_ALL].error, r[CFG_HOST].error, r[CFG_HOST_AUTO].error);
             fflush(csv);
             printf("%-14s %s: 1 thread %8.3f ms, default %8.3f ms (x%.2f, %u of %u steps on "
                    "several threads), all %u cores %8.3f ms (x%.2f), host tasks %8.3f ms "
-                   "(x%.2f, %u of %u steps on several threads)\n",
+                   "(x%.2f, %u of %u steps on several threads), host tasks with the default "
+                   "count %8.3f ms (x%.2f, %u of %u)\n",
                    cloths[c].name, load ? "busy" : "idle", r[CFG_ONE].median,
                    r[CFG_DEFAULT].median, d1, r[CFG_DEFAULT].steps_multi, r[CFG_DEFAULT].steps,
                    cores, r[CFG_ALL].median, a1, r[CFG_HOST].median, h1,
-                   r[CFG_HOST].steps_multi, r[CFG_HOST].steps);
+                   r[CFG_HOST].steps_multi, r[CFG_HOST].steps, r[CFG_HOST_AUTO].median, h0,
+                   r[CFG_HOST_AUTO].steps_multi, r[CFG_HOST_AUTO].steps);
             fflush(stdout);
         }
         if (load) stop_load(pids, busy);
@@ -366,28 +375,32 @@ int cli_bench_pool(const cli_plugin *plugin, const cli_bench_options *o) {
             "stepping thread and %u worker threads of a small job system that sleep on a "
             "condition variable between jobs); the library shares each phase with the items "
             "that start within a quarter of the last phase's time and does the rest on the "
-            "stepping thread. Four worlds step in alternation. Figures: the host's wall "
+            "stepping thread. *host, default*: the same job system with `thread_count` 0, "
+            "where the world's probe chooses between asking for the items and the stepping "
+            "thread alone. Five worlds step in alternation. Figures: the host's wall "
             "time of `rbc_world_step`, median over all steps (mean in `pool.csv`, which "
             "includes the default's probe steps); *x*: the ratio to one thread's median in "
             "the same load. *multi*: steps of the default (or the host tasks') world that "
             "ran on several threads.\n\n",
             rounds, block, block_limit, cores, cores, busy, cores, cores - 1);
     fprintf(md, "| cloth | particles | load | 1 thread, ms | default, ms | x | multi | all "
-                "cores, ms | x | host tasks, ms | x | multi |\n"
-                "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+                "cores, ms | x | host tasks, ms | x | multi | host, default, ms | x | multi |\n"
+                "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for (int load = 0; load < 2; ++load)
         for (int c = 0; c < CLOTH_COUNT; ++c) {
             const pool_row *r = rows[c][load];
             if (!r[CFG_ONE].steps) continue;
             fprintf(md,
                     "| %s | %u | %s | %.3f | %.3f | %.2f | %u / %u | %.3f | %.2f | %.3f | %.2f | "
-                    "%u / %u |\n",
+                    "%u / %u | %.3f | %.2f | %u / %u |\n",
                     cloths[c].name, cloths[c].nx * cloths[c].ny, load ? "busy" : "idle",
                     r[CFG_ONE].median, r[CFG_DEFAULT].median,
                     r[CFG_DEFAULT].median / r[CFG_ONE].median, r[CFG_DEFAULT].steps_multi,
                     r[CFG_DEFAULT].steps, r[CFG_ALL].median, r[CFG_ALL].median / r[CFG_ONE].median,
                     r[CFG_HOST].median, r[CFG_HOST].median / r[CFG_ONE].median,
-                    r[CFG_HOST].steps_multi, r[CFG_HOST].steps);
+                    r[CFG_HOST].steps_multi, r[CFG_HOST].steps, r[CFG_HOST_AUTO].median,
+                    r[CFG_HOST_AUTO].median / r[CFG_ONE].median, r[CFG_HOST_AUTO].steps_multi,
+                    r[CFG_HOST_AUTO].steps);
         }
     fprintf(md, "\n![ms per step, one thread, the default, all cores and host tasks, idle and busy](pool.png)"
                 "\n\nThe plot (`pool.png`, from `pool.gp`) needs gnuplot.\n");

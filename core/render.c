@@ -25,54 +25,55 @@ int rbc_cloth_normals_reserve(const rbc_allocator *al, rbc_cloth_state *c) {
     return c->normal_acc ? 0 : -1;
 }
 
-static inline void add3(float *dst, const float v[3]) {
-    dst[0] += v[0];
-    dst[1] += v[1];
-    dst[2] += v[2];
+/* Twice the vector area of a face, summed at each corner: SoA accumulators (nx, ny,
+ * nz, n floats each, in the scratch), so that the normalisation below is one loop
+ * the compiler vectorizes (render.c builds with -fno-math-errno). */
+static inline void add_at(float *nx, float *ny, float *nz, uint32_t i, float x, float y,
+                          float z) {
+    nx[i] += x;
+    ny[i] += y;
+    nz[i] += z;
 }
 
 const float *rbc_cloth_normals(rbc_cloth_state *c) {
-    float *acc = c->normal_acc;
-    const float *x = c->x[0], *y = c->x[1], *z = c->x[2];
-    memset(acc, 0, 3 * (size_t)c->topo.n * sizeof(float));
+    const size_t n = c->topo.n;
+    float *restrict nx = c->normal_acc, *restrict ny = nx + n, *restrict nz = ny + n;
+    const float *restrict x = c->x[0], *restrict y = c->x[1], *restrict z = c->x[2];
+    memset(nx, 0, 3 * n * sizeof(float));
     for (uint32_t q = 0; q < c->quad_count; ++q) {
         const uint32_t *v = &c->quads[4 * (size_t)q];
         const uint32_t a = v[0], b = v[1], cc = v[2], d = v[3];
         /* The diagonals' cross product: twice the vector area of the quad, planar or
          * not, the same from whichever corner it is taken. */
-        const float e[3] = {x[cc] - x[a], y[cc] - y[a], z[cc] - z[a]};
-        const float f[3] = {x[d] - x[b], y[d] - y[b], z[d] - z[b]};
-        const float n[3] = {e[1] * f[2] - e[2] * f[1], e[2] * f[0] - e[0] * f[2],
-                            e[0] * f[1] - e[1] * f[0]};
-        add3(&acc[3 * (size_t)a], n);
-        add3(&acc[3 * (size_t)b], n);
-        add3(&acc[3 * (size_t)cc], n);
-        add3(&acc[3 * (size_t)d], n);
+        const float e0 = x[cc] - x[a], e1 = y[cc] - y[a], e2 = z[cc] - z[a];
+        const float f0 = x[d] - x[b], f1 = y[d] - y[b], f2 = z[d] - z[b];
+        const float m0 = e1 * f2 - e2 * f1, m1 = e2 * f0 - e0 * f2, m2 = e0 * f1 - e1 * f0;
+        add_at(nx, ny, nz, a, m0, m1, m2);
+        add_at(nx, ny, nz, b, m0, m1, m2);
+        add_at(nx, ny, nz, cc, m0, m1, m2);
+        add_at(nx, ny, nz, d, m0, m1, m2);
     }
     for (uint32_t k = 0; k < c->lone_count; ++k) {
         const uint32_t *v = &c->lone_tris[3 * (size_t)k];
         const uint32_t a = v[0], b = v[1], cc = v[2];
-        const float e[3] = {x[b] - x[a], y[b] - y[a], z[b] - z[a]};
-        const float f[3] = {x[cc] - x[a], y[cc] - y[a], z[cc] - z[a]};
-        const float n[3] = {e[1] * f[2] - e[2] * f[1], e[2] * f[0] - e[0] * f[2],
-                            e[0] * f[1] - e[1] * f[0]};
-        add3(&acc[3 * (size_t)a], n);
-        add3(&acc[3 * (size_t)b], n);
-        add3(&acc[3 * (size_t)cc], n);
+        const float e0 = x[b] - x[a], e1 = y[b] - y[a], e2 = z[b] - z[a];
+        const float f0 = x[cc] - x[a], f1 = y[cc] - y[a], f2 = z[cc] - z[a];
+        const float m0 = e1 * f2 - e2 * f1, m1 = e2 * f0 - e0 * f2, m2 = e0 * f1 - e1 * f0;
+        add_at(nx, ny, nz, a, m0, m1, m2);
+        add_at(nx, ny, nz, b, m0, m1, m2);
+        add_at(nx, ny, nz, cc, m0, m1, m2);
     }
-    for (uint32_t i = 0; i < c->topo.n; ++i) {
-        float *n = &acc[3 * (size_t)i];
-        const float l2 = n[0] * n[0] + n[1] * n[1] + n[2] * n[2];
-        if (!(l2 > 0.0f)) {
-            n[0] = n[1] = n[2] = 0.0f;
-            continue;
-        }
-        const float s = 1.0f / sqrtf(l2);
-        n[0] *= s;
-        n[1] *= s;
-        n[2] *= s;
+    for (size_t i = 0; i < n; ++i) {
+        const float l2 = nx[i] * nx[i] + ny[i] * ny[i] + nz[i] * nz[i];
+        /* 0 where no face (or only faces of zero area) meets the vertex. Selects of
+         * values, not a branch around the division: the loop vectorizes. */
+        const float safe = l2 > 0.0f ? l2 : 1.0f, one = l2 > 0.0f ? 1.0f : 0.0f;
+        const float s = one / sqrtf(safe);
+        nx[i] *= s;
+        ny[i] *= s;
+        nz[i] *= s;
     }
-    return acc;
+    return nx;
 }
 
 size_t rbc_cloth_triangles_host(const rbc_cloth_state *c, uint32_t *out, size_t cap) {

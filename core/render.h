@@ -16,10 +16,10 @@ int rbc_cloth_set_lone_triangles(const rbc_allocator *al, rbc_cloth_state *c,
 /* The scratch normals need (3 floats a vertex), allocated on first use: 0, or -1 out
  * of memory. Separate from rbc_cloth_normals so a caller can fail before it writes. */
 int rbc_cloth_normals_reserve(const rbc_allocator *al, rbc_cloth_state *c);
-/* Unit normals in internal order, 3 floats a vertex, into the reserved scratch, which
- * it returns: each vertex sums (c - a) x (d - b) over its quads and (b - a) x (c - a)
- * over its leftover triangles (twice their vector areas) and normalises; 0 where the
- * sum is 0. */
+/* Unit normals in internal order into the reserved scratch, which it returns as SoA:
+ * n x values, then n y, then n z. Each vertex sums (c - a) x (d - b) over its quads
+ * and (b - a) x (c - a) over its leftover triangles (twice their vector areas) and
+ * normalises; 0 where the sum is 0. */
 const float *rbc_cloth_normals(rbc_cloth_state *c);
 /* Triangles in host order, 3 indices each: (a b c) (a c d) per remaining quad, then
  * the remaining leftover triangles. Writes at most cap values (out may be NULL) and

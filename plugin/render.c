@@ -100,21 +100,13 @@ static rbc_result check_output(rbc_world *w, const char *fn, uint32_t k,
     return RBC_OK;
 }
 
-/* Internal SoA (or a packed normal array) to the host's strided bytes. */
+/* Internal SoA (positions, or the normals' scratch) to the host's strided bytes. */
 static void write_attribute(const rbc_cloth_state *c, unsigned char *buf, uint32_t stride,
-                            uint32_t offset, const float *x, const float *y, const float *z,
-                            const float *packed) {
+                            uint32_t offset, const float *x, const float *y, const float *z) {
     const uint32_t *to_int = c->topo.to_internal;
     for (uint32_t v = 0; v < c->topo.n; ++v) {
         const uint32_t i = to_int[v];
-        float p[3];
-        if (packed) {
-            memcpy(p, &packed[3 * (size_t)i], sizeof p);
-        } else {
-            p[0] = x[i];
-            p[1] = y[i];
-            p[2] = z[i];
-        }
+        const float p[3] = {x[i], y[i], z[i]};
         /* memcpy: the host's buffer need not be float-aligned at this offset. */
         memcpy(buf + (size_t)v * stride + offset, p, sizeof p);
     }
@@ -138,11 +130,12 @@ RBC_API rbc_result RBC_CALL rbc_world_read_vertices(rbc_world_id wid, rbc_vertex
         rbc_cloth_state *c = rbc_reg_get(&rbc_plugin_cloths, o->cloth, w->id, fn);
         unsigned char *buf = o->buffer;
         if (o->position_offset != RBC_NO_ATTRIBUTE)
-            write_attribute(c, buf, o->stride, o->position_offset, c->x[0], c->x[1], c->x[2],
-                            NULL);
-        if (o->normal_offset != RBC_NO_ATTRIBUTE)
-            write_attribute(c, buf, o->stride, o->normal_offset, NULL, NULL, NULL,
-                            rbc_cloth_normals(c));
+            write_attribute(c, buf, o->stride, o->position_offset, c->x[0], c->x[1], c->x[2]);
+        if (o->normal_offset != RBC_NO_ATTRIBUTE) {
+            const float *n = rbc_cloth_normals(c);
+            const size_t nv = c->topo.n;
+            write_attribute(c, buf, o->stride, o->normal_offset, n, n + nv, n + 2 * nv);
+        }
         o->triangle_revision = c->tri_revision;
     }
     return RBC_OK;

@@ -211,7 +211,9 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     }
     /* thread_count 0: the step measures whether its threads pay (core/step_threads.c,
      * threads_for_step); a count the host gives is used as given. */
-    w->solver.threads_auto = def.thread_count == 0 && !hosted;
+    /* On the host's job system too: thread_count 0 asks for every item or none,
+     * whichever the probes measure faster. */
+    w->solver.threads_auto = def.thread_count == 0;
     if (hosted) {
         const rbc_pool_host h = {(void *(*)(rbc_pool_task_fn, uint32_t, uint32_t, void *,
                                             void *))def.enqueue_task,
