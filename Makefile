@@ -41,7 +41,7 @@ check-long: build
 # Sanitizers and fuzzing (tests/README.md, "Sanitizers and fuzzing"), each in its own
 # build folder:
 #   check-asan   every test of an ASan + UBSan build (gcc), but those labelled
-#                external (valgrind, Chromium, Blender, Slurm: see cmake/TestLabels.cmake)
+#                external (valgrind, Chromium, Blender, Slurm, Xvfb: see cmake/TestLabels.cmake)
 #   check-tsan   the tests labelled threads in a ThreadSanitizer build (clang: gcc's TSan
 #                cannot load the plugin's target_clones resolvers)
 #   check-fuzz   the three libFuzzer targets of tests/fuzz for FUZZ_SECONDS each (clang,

@@ -10,10 +10,14 @@ set -euo pipefail
 # libxml2-dev: the import helper reads a Collada file's own vertex order itself
 # (plugin/importer/file_vertices_dae.c), which assimp does not keep; zlib1g-dev also
 # serves its binary FBX reader's compressed arrays.
+# libglfw3-dev, libgl-dev, libgl1-mesa-dri: the real-time viewer (hosts/viewer),
+# part of the normal build: GLFW for its window and input, the OpenGL headers and
+# libGL (glvnd) it links, and Mesa's drivers (llvmpipe) that draw where no GPU is.
 # python3: the build generates the Python binding's ctypes module from abi/rbcloth.h
 # (hosts/python/gen_abi.py, standard library only) and zips the Blender add-on.
 build_pkgs=(cmake make gcc libc6-dev pkg-config libcjson-dev libsuitesparse-dev binutils
-            libassimp-dev zlib1g-dev libpng-dev libxml2-dev python3)
+            libassimp-dev zlib1g-dev libpng-dev libxml2-dev python3
+            libglfw3-dev libgl-dev libgl1-mesa-dri)
 # slurm-wlm, munge: tests/slurm starts a one-node Slurm on localhost to run
 # samples/slurm/ (about 12 s to install on bookworm; the test skips without them).
 # chromium: tests/viewer loads the player page in headless Chromium (software WebGL)
@@ -28,13 +32,15 @@ build_pkgs=(cmake make gcc libc6-dev pkg-config libcjson-dev libsuitesparse-dev 
 # calls after `make test`; tests/README.md): ThreadSanitizer and libFuzzer need clang (libclang-rt-14-dev has libFuzzer and
 # the sanitizer runtimes), llvm-14 the llvm-symbolizer that puts names on their stacks.
 # gcc's own ASan/UBSan runtimes (libasan8, libubsan1) come with gcc.
+# xvfb, xauth: tests/glviewer runs the viewer under xvfb-run (an X server in memory,
+# drawn by Mesa's llvmpipe); xvfb-run needs xauth for its cookie.
 # mono-mcs, mono-runtime: tests/mono runs a C# host (Mono 6.8) against the library.
 # gcc-mingw-w64-x86-64 (with binutils-mingw-w64-x86-64 and the -posix compiler),
 # wine64, wine: tests/windows cross-builds rbcloth.dll and runs hosts under wine 8.
 test_pkgs=(abigail-tools assimp-testmodels valgrind slurm-wlm munge chromium blender
            mono-mcs mono-runtime gcc-mingw-w64-x86-64 wine64 wine
            clang-14 libclang-rt-14-dev llvm-14 python3-numpy python3-pytest python3-venv
-           python3-pip python3-setuptools python3-wheel)
+           python3-pip python3-setuptools python3-wheel xvfb xauth)
 if [ "${1:-}" = build ]; then
   pkgs=("${build_pkgs[@]}")
 else

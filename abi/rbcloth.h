@@ -32,7 +32,13 @@
  *  - Different worlds may be used concurrently from different threads.
  *  - One world is used by one thread at a time (the host serialises calls on it).
  *    A world may run its own worker threads inside rbc_world_step; host callbacks
- *    are always called on the thread that called rbc_world_step.
+ *    are always called on the thread that runs the step: the one that called
+ *    rbc_world_step, or after rbc_world_step_begin (1.10) the world's step thread.
+ *  - Between rbc_world_step_begin and rbc_world_step_wait a world is stepping: every
+ *    other call on it, and on its cloths and colliders, returns RBC_ERR_BUSY and
+ *    changes nothing (rbc_world_destroy first waits for the step). step_wait may be
+ *    called from any thread; calls on one world, step_wait and destroy included, are
+ *    still made one at a time.
  *  - A point cache, like a world, is used by one thread at a time; different caches
  *    may be used concurrently.
  *  - A mesh (rbc_mesh_import) is immutable: its getters and
@@ -75,7 +81,14 @@
  *    order, to its own (rbc_mesh_get_file_map, rbc_mesh_to_file_positions,
  *    rbc_mesh_write_file_obj); the file's units (rbc_mesh_import_def.keep_file_units,
  *    rbc_mesh_info.file_unit_metres and applied_scale); MDD times in seconds
- *    (rbc_cache_def.frame_rate).
+ *    (rbc_cache_def.frame_rate). 1.10: a game loop: positions and normals into a
+ *    host's own vertex buffer at a stride and offsets, several cloths per call
+ *    (rbc_world_read_vertices), a triangle index buffer for every cloth with a
+ *    revision that changes on tears and cuts (rbc_cloth_get_triangles), a rigid
+ *    move of a whole cloth (rbc_cloth_transform), the split step
+ *    (rbc_world_step_begin / rbc_world_step_wait, RBC_ERR_BUSY) and the host's own
+ *    job system for the step's parallel work (rbc_world_def.enqueue_task,
+ *    finish_task).
  *  - The ABI version is not the library's release version (rbc_version_string).
  */
 #ifndef RBCLOTH_H
@@ -107,7 +120,7 @@ extern "C" {
 /// Major version of this ABI: incompatible changes bump it.
 #define RBC_ABI_VERSION_MAJOR 1
 /// Minor version of this ABI: appended functions or fields bump it.
-#define RBC_ABI_VERSION_MINOR 9
+#define RBC_ABI_VERSION_MINOR 10
 /// (major << 16) | minor, as returned by rbc_abi_version().
 #define RBC_ABI_VERSION ((RBC_ABI_VERSION_MAJOR << 16) | RBC_ABI_VERSION_MINOR)
 
@@ -142,6 +155,9 @@ enum {
     RBC_ERR_CALLBACK = -9,
     /// A fixed capacity (worlds, cloths, colliders per world) is exhausted.
     RBC_ERR_CAPACITY = -10,
+    /// The world is stepping (between rbc_world_step_begin and rbc_world_step_wait):
+    /// the call changed nothing; call rbc_world_step_wait first. (1.10)
+    RBC_ERR_BUSY = -11,
     RBC_RESULT_FORCE32 = 0x7FFFFFFF
 };
 
@@ -340,8 +356,9 @@ typedef struct rbc_collision_cloth {
     const float *previous_positions;
 } rbc_collision_cloth;
 
-/// The host's collision code, called once per substep on the thread that called
-/// rbc_world_step, after the solver and the built-in colliders. `dt` is the
+/// The host's collision code, called once per substep on the thread that runs the
+/// step (the caller of rbc_world_step, or the world's step thread after
+/// rbc_world_step_begin), after the solver and the built-in colliders. `dt` is the
 /// substep length in seconds. Return 0 on success; any other value ends the step
 /// with RBC_ERR_CALLBACK and the world as it was before the step.
 typedef int32_t (RBC_CALL *rbc_collision_fn)(void *user, rbc_world_id world, float dt,
@@ -373,8 +390,8 @@ typedef struct rbc_contact_sink {
                                uint32_t count);
 } rbc_contact_sink;
 
-/// The host's contact generation, called once per substep on the thread that called
-/// rbc_world_step, after the prediction and before the solve: `positions` hold the
+/// The host's contact generation, called once per substep on the thread that runs
+/// the step (as the collision callback), after the prediction and before the solve: `positions` hold the
 /// predicted (inertial) positions and `previous_positions` those at the start of the
 /// substep, both read only. Report contacts through `sink`. Return 0 on success;
 /// any other value ends the step with RBC_ERR_CALLBACK and the world as it was. (1.3)
@@ -492,6 +509,23 @@ enum {
     RBC_PRESET_FORCE32 = 0x7FFFFFFF
 };
 
+/// A piece of the library's parallel work for the host's job system (1.10): run
+/// items [begin, end) of it. `worker` is the index of the host's worker running it,
+/// below the world def's thread_count (informative: the library does not rely on
+/// it). Return promptly; never call back into the library from it.
+typedef void (RBC_CALL *rbc_task_fn)(uint32_t begin, uint32_t end, uint32_t worker,
+                                     void *task_context);
+/// Hand `task` to the host's job system: items [0, item_count), split into ranges
+/// of at least min_range items, each range one call of task(begin, end, worker,
+/// task_context), on any threads, in any order, at once or later. Return a handle
+/// for finish_task, or NULL when every range has already run (a serial executor
+/// may run task(0, item_count, 0, task_context) inside this call). (1.10)
+typedef void *(RBC_CALL *rbc_enqueue_task_fn)(rbc_task_fn task, uint32_t item_count,
+                                              uint32_t min_range, void *task_context,
+                                              void *user);
+/// Wait until every range of the task behind `handle` has returned. (1.10)
+typedef void (RBC_CALL *rbc_finish_task_fn)(void *handle, void *user);
+
 /// How a world is made. Fill one with rbc_world_def_init (or rbc_world_def_default).
 typedef struct rbc_world_def {
     /// sizeof(rbc_world_def) as compiled by the host.
@@ -557,12 +591,32 @@ typedef struct rbc_world_def {
     /// 1.23 (at its pins, swinging) and the default solve at 1.29, while the
     /// paper's step at 1/240 to 1/30 s reaches 4 to 850 (docs/results/defaults.md).
     float strain_warning;
+    /* --- 1.10 --- */
+    /// Optional: the host's job system runs the step's parallel work (as Box2D v3's
+    /// enqueueTask / finishTask); both or neither. Then the world starts no thread
+    /// of its own: each parallel phase of a step hands the host thread_count - 1
+    /// items with min_range 1, runs its own share on the calling thread, and shares
+    /// the work with those items that start within a short wait (a quarter of the
+    /// last phase's time; items that start later return at once), then calls
+    /// finish_task before the step returns. thread_count 0 is one participant per
+    /// core, and each step asks for the items or runs on the calling thread alone,
+    /// whichever the world's probes measure faster (as for its own threads). A job
+    /// system whose workers are busy costs a short wait, never a deadlock, and the
+    /// result is bitwise the one of the world's own threads at any thread count.
+    /// The library calls them only inside a step, on the thread running the step.
+    /// Default NULL.
+    rbc_enqueue_task_fn enqueue_task;
+    rbc_finish_task_fn finish_task;
+    /// Passed to enqueue_task and finish_task as `user`. Default NULL.
+    void *task_user;
 } rbc_world_def;
 
 /// sizeof(rbc_world_def) in ABI 1.0 (before `solver`).
 #define RBC_WORLD_DEF_SIZE_V1_0 ((uint32_t)offsetof(rbc_world_def, solver))
 /// sizeof(rbc_world_def) in ABI 1.1 to 1.5 (before `substep_rate`).
 #define RBC_WORLD_DEF_SIZE_V1_1 ((uint32_t)offsetof(rbc_world_def, substep_rate))
+/// sizeof(rbc_world_def) in ABI 1.6 to 1.9 (before `enqueue_task`).
+#define RBC_WORLD_DEF_SIZE_V1_6 ((uint32_t)offsetof(rbc_world_def, enqueue_task))
 
 /// How a cloth is made. Fill one with rbc_cloth_def_init (or rbc_cloth_def_default).
 /// All arrays are copied.
@@ -1394,6 +1448,86 @@ RBC_API rbc_result RBC_CALL rbc_mesh_write_file_obj(rbc_mesh_id mesh, const floa
                                                     size_t xyz_count, rbc_vertex_order order,
                                                     const char *path);
 
+/* --- 1.10: a game loop --- */
+
+/// An offset of rbc_vertex_output that writes nothing. (1.10)
+#define RBC_NO_ATTRIBUTE 0xFFFFFFFFu
+
+/// Where rbc_world_read_vertices writes one cloth's vertices: vertex i (creation
+/// order) at buffer + i * stride; its position (3 floats) at position_offset and
+/// its normal (3 floats) at normal_offset bytes into it. Floats are copied byte by
+/// byte, so the buffer needs no alignment. Fill with rbc_vertex_output_init. (1.10)
+typedef struct rbc_vertex_output {
+    /// sizeof(rbc_vertex_output) as compiled by the host.
+    uint32_t struct_size;
+    /// The cloth to read.
+    rbc_cloth_id cloth;
+    /// The host's buffer, at least (vertex_count - 1) * stride + the end of the
+    /// last attribute bytes.
+    void *buffer;
+    /// Bytes the buffer holds.
+    size_t buffer_size;
+    /// Bytes from one vertex to the next, >= the end of every attribute written
+    /// and at most 65536. Default 12 (packed positions).
+    uint32_t stride;
+    /// Byte offset of the position in a vertex, or RBC_NO_ATTRIBUTE. Default 0.
+    uint32_t position_offset;
+    /// Byte offset of the unit normal, or RBC_NO_ATTRIBUTE. Normals are
+    /// area-weighted: each vertex sums the vector areas of its quads (and leftover
+    /// triangles), (c - a) x (d - b) / 2 for a quad a b c d, so they point to the
+    /// side from which the quads' corners run counter-clockwise, and normalises
+    /// the sum; a vertex with no face (or faces of zero area) gets (0, 0, 0). They
+    /// are computed only when asked for. Default RBC_NO_ATTRIBUTE.
+    uint32_t normal_offset;
+    /// Out: the cloth's triangle revision (rbc_cloth_get_triangles) at this read.
+    uint32_t triangle_revision;
+} rbc_vertex_output;
+
+/// Fill an rbc_vertex_output with its defaults (cloth 0, buffer NULL). (1.10)
+RBC_API rbc_result RBC_CALL rbc_vertex_output_init(rbc_vertex_output *output,
+                                                   uint32_t struct_size);
+/// Write the vertices of several cloths of one world, one rbc_vertex_output each.
+/// Every entry is checked first (cloth of this world, buffer, stride, offsets, that
+/// position and normal do not overlap, size): a bad one fails the call with a
+/// message naming its index, and no buffer is written. (1.10)
+RBC_API rbc_result RBC_CALL rbc_world_read_vertices(rbc_world_id world,
+                                                    rbc_vertex_output *outputs,
+                                                    uint32_t count);
+/// The cloth's triangles, 3 vertex indices each (creation order) into triangles:
+/// two per remaining quad a b c d, (a b c) and (a c d), in the order of
+/// rbc_cloth_get_quads, then the triangles an imported mesh kept as they were
+/// (rbc_mesh_get_triangles) that have not torn. Pass NULL to learn the count
+/// (*out_count, in uint32_t values); `capacity` counts uint32_t values.
+/// *out_revision (may be NULL) is the triangle revision: 1 when the cloth is made,
+/// +1 each time a tear or a cut removes a face, so a host re-uploads its index
+/// buffer when it changes. (1.10)
+RBC_API rbc_result RBC_CALL rbc_cloth_get_triangles(rbc_world_id world, rbc_cloth_id cloth,
+                                                    uint32_t *triangles, size_t capacity,
+                                                    size_t *out_count, uint32_t *out_revision);
+
+/// rbc_cloth_transform flags. (1.10)
+enum {
+    /// Rotate the velocity with the cloth (a character turning carries its cape).
+    RBC_TRANSFORM_KEEP_VELOCITY = 0,
+    /// The cloth is at rest after the move (a teleport).
+    RBC_TRANSFORM_RESET_VELOCITY = 1
+};
+/// Move a whole cloth rigidly: every position p becomes R p + t (R the unit
+/// quaternion rotation x y z w, t the translation in metres), and so do its
+/// previous positions and pin targets, so the move adds no velocity and no strain.
+/// Apply the change of the carrying transform: new * inverse(old). (1.10)
+RBC_API rbc_result RBC_CALL rbc_cloth_transform(rbc_world_id world, rbc_cloth_id cloth,
+                                                const float translation[3],
+                                                const float rotation[4], uint32_t flags);
+/// Start a step of the world (as rbc_world_step) on the world's step thread and
+/// return at once; dt is checked here. Until rbc_world_step_wait the world is
+/// stepping (the thread contract). (1.10)
+RBC_API rbc_result RBC_CALL rbc_world_step_begin(rbc_world_id world, float dt);
+/// Wait for the step rbc_world_step_begin started and return its result, with its
+/// message in this thread's rbc_last_error; RBC_OK at once when none is running.
+/// (1.10)
+RBC_API rbc_result RBC_CALL rbc_world_step_wait(rbc_world_id world);
+
 /* ------------------------------------------------------------------------- */
 /* Function table                                                            */
 /* ------------------------------------------------------------------------- */
@@ -1509,6 +1643,18 @@ typedef struct rbc_api_v1 {
     rbc_result (RBC_CALL *mesh_write_file_obj)(rbc_mesh_id mesh, const float *xyz,
                                                size_t xyz_count, rbc_vertex_order order,
                                                const char *path);
+    /* --- 1.10 --- */
+    rbc_result (RBC_CALL *vertex_output_init)(rbc_vertex_output *output, uint32_t struct_size);
+    rbc_result (RBC_CALL *world_read_vertices)(rbc_world_id world, rbc_vertex_output *outputs,
+                                               uint32_t count);
+    rbc_result (RBC_CALL *cloth_get_triangles)(rbc_world_id world, rbc_cloth_id cloth,
+                                               uint32_t *triangles, size_t capacity,
+                                               size_t *out_count, uint32_t *out_revision);
+    rbc_result (RBC_CALL *cloth_transform)(rbc_world_id world, rbc_cloth_id cloth,
+                                           const float translation[3], const float rotation[4],
+                                           uint32_t flags);
+    rbc_result (RBC_CALL *world_step_begin)(rbc_world_id world, float dt);
+    rbc_result (RBC_CALL *world_step_wait)(rbc_world_id world);
 } rbc_api_v1;
 
 /// sizeof(rbc_api_v1) in ABI 1.0 (a host built against 1.0 checks struct_size >= it).
@@ -1523,6 +1669,8 @@ typedef struct rbc_api_v1 {
 #define RBC_API_V1_SIZE_V1_6 ((uint32_t)offsetof(rbc_api_v1, world_stats_init))
 /// sizeof(rbc_api_v1) in ABI 1.7 and 1.8 (before the 1.9 entries).
 #define RBC_API_V1_SIZE_V1_8 ((uint32_t)offsetof(rbc_api_v1, mesh_get_file_map))
+/// sizeof(rbc_api_v1) in ABI 1.9 (before the 1.10 entries).
+#define RBC_API_V1_SIZE_V1_9 ((uint32_t)offsetof(rbc_api_v1, vertex_output_init))
 
 /// The function table of ABI major `abi_major`, or NULL if this library does not
 /// implement that major. The table is static: never free it.
@@ -1555,6 +1703,7 @@ enum {
     RBC_STRUCT_MESH_IMPORT_DEF = 6,
     RBC_STRUCT_MESH_INFO = 7,
     RBC_STRUCT_WORLD_STATS = 8,
+    RBC_STRUCT_VERTEX_OUTPUT = 9, /* 1.10 */
     RBC_STRUCT_KIND_FORCE32 = 0x7FFFFFFF
 };
 
@@ -1572,7 +1721,8 @@ static inline uint32_t rbc_struct_size_for(rbc_struct_kind kind, uint32_t librar
     if ((library_version >> 16) != RBC_ABI_VERSION_MAJOR) return 0;
     switch (kind) {
     case RBC_STRUCT_WORLD_DEF:
-        return minor >= 6 ? (uint32_t)sizeof(rbc_world_def)
+        return minor >= 10 ? (uint32_t)sizeof(rbc_world_def)
+               : minor >= 6 ? RBC_WORLD_DEF_SIZE_V1_6
                : minor >= 1 ? RBC_WORLD_DEF_SIZE_V1_1 : RBC_WORLD_DEF_SIZE_V1_0;
     case RBC_STRUCT_CLOTH_DEF:
         return minor >= 3 ? (uint32_t)sizeof(rbc_cloth_def)
@@ -1596,6 +1746,8 @@ static inline uint32_t rbc_struct_size_for(rbc_struct_kind kind, uint32_t librar
                : minor == 5 ? RBC_WORLD_STATS_SIZE_V1_5 : minor == 4 ? RBC_WORLD_STATS_SIZE_V1_4
                : minor == 3 ? RBC_WORLD_STATS_SIZE_V1_3 : minor == 2 ? RBC_WORLD_STATS_SIZE_V1_2
                : minor == 1 ? RBC_WORLD_STATS_SIZE_V1_1 : RBC_WORLD_STATS_SIZE_V1_0;
+    case RBC_STRUCT_VERTEX_OUTPUT:
+        return minor >= 10 ? (uint32_t)sizeof(rbc_vertex_output) : 0;
     default:
         return 0;
     }

@@ -24,6 +24,11 @@
  *                particle-iteration against the grid's (target: within 1.5x);
  *   4. solvers   RBGS, Jacobi and serial Gauss-Seidel at equal iterations (11) on
  *                the 100 x 100 grid, 1 and N threads.
+ *   5. readback  (ABI 1.10) what a renderer's read costs per frame on the grids:
+ *                rbc_cloth_read_positions, rbc_world_read_vertices with positions
+ *                only (stride 12), positions and normals interleaved (stride 24)
+ *                and normals alone, against the step they follow; the four reads
+ *                alternate, medians over PERF_READS rounds (perf_readback.csv).
  *
  * Each configuration runs 2 warm-up frames (first-touch page faults, lazily sized
  * buffers) and then F frames; the stage columns are medians of each stage on its
@@ -85,6 +90,14 @@ typedef struct perf_row {
     char note[256];
 } perf_row;
 
+/* Section 5: one grid's reads, ms (medians), beside its step on one thread. */
+enum { PERF_READS = 200, PERF_READ_KINDS = 4, PERF_MAX_READBACK = 8 };
+typedef struct perf_readback {
+    uint32_t side, particles;
+    double step_ms;
+    double ms[PERF_READ_KINDS];
+} perf_readback;
+
 typedef struct perf_ctx {
     bench_run run;
     /// The ABI minor of the plugin: 2 has memory_bytes and the energy guard.
@@ -112,6 +125,9 @@ typedef struct perf_ctx {
     double triad_gbs[2];
     /// Arithmetic peak of one thread, GFLOP/s (peak_loop): the roofline's roof.
     double peak_gflops;
+    /// Section 5 (ABI 1.10 plugins only).
+    perf_readback readback[PERF_MAX_READBACK];
+    uint32_t readback_count;
 } perf_ctx;
 
 static int out_of_memory(void) { return bench_out_of_memory("perf"); }
@@ -889,6 +905,8 @@ static void write_intro(const perf_ctx *ctx, FILE *f) {
             PERF_MIN_JIFFIES, (unsigned long long)PERF_SEED);
 }
 
+static void write_readback(const perf_ctx *ctx, FILE *f);
+
 static int write_md(const perf_ctx *ctx) {
     FILE *f = bench_open(ctx->run.dir, "perf.md");
     if (!f)
@@ -896,6 +914,7 @@ static int write_md(const perf_ctx *ctx) {
     fprintf(f, "# Performance (`rbcloth bench perf%s`)\n\n", ctx->run.opt->quick ? " --quick" : "");
     write_intro(ctx, f);
     write_tables(ctx, f);
+    write_readback(ctx, f);
     return bench_close(f, ctx->run.dir, "perf.md") ? 1 : 0;
 }
 
@@ -1003,6 +1022,103 @@ static int run_threads(perf_ctx *ctx, const bench_mesh *m, perf_mesh_kind mesh, 
     return 0;
 }
 
+
+/* Section 5: the four reads of a renderer on one grid, alternating, after the step's
+ * own median on one thread. */
+static int run_readback(perf_ctx *ctx, const bench_mesh *m, uint32_t side) {
+    const rbc_api_v1 *api = ctx->run.api;
+    if (ctx->run.api->struct_size <= RBC_API_V1_SIZE_V1_9 ||
+        ctx->readback_count == PERF_MAX_READBACK)
+        return 0;
+    rbc_world_id w;
+    rbc_cloth_id c;
+    double setup;
+    rbc_result r = perf_world_create(ctx, m, 0, 1, &w, &c, &setup);
+    if (r != RBC_OK) {
+        fprintf(stderr, "rbcloth: bench perf: readback world: %s\n", api->last_error());
+        return 1;
+    }
+    fprintf(stderr, "rbcloth: bench perf: readback, %u particles ...\n", m->n);
+    const uint32_t n = m->n, rounds = ctx->run.opt->quick ? 20 : PERF_READS;
+    unsigned char *buf = malloc(24 * (size_t)n);
+    double *t = malloc(sizeof(double) * rounds * (PERF_READ_KINDS + 1));
+    if (!buf || !t) {
+        free(buf);
+        free(t);
+        api->world_destroy(w);
+        return out_of_memory();
+    }
+    perf_readback *row = &ctx->readback[ctx->readback_count];
+    row->side = side;
+    row->particles = n;
+    const uint32_t steps = rounds < 40 ? rounds : 40;
+    for (uint32_t k = 0; k < steps + PERF_WARMUP && r == RBC_OK; ++k) {
+        const double t0 = bench_now();
+        r = api->world_step(w, PERF_DT);
+        if (k >= PERF_WARMUP) t[k - PERF_WARMUP] = 1e3 * (bench_now() - t0);
+    }
+    row->step_ms = bench_median(t, steps);
+    rbc_vertex_output o[PERF_READ_KINDS];
+    for (int k = 1; k < PERF_READ_KINDS; ++k) {
+        api->vertex_output_init(&o[k], (uint32_t)sizeof o[k]);
+        o[k].cloth = c;
+        o[k].buffer = buf;
+        o[k].buffer_size = 24 * (size_t)n;
+    }
+    o[2].stride = 24, o[2].normal_offset = 12;
+    o[3].position_offset = RBC_NO_ATTRIBUTE, o[3].normal_offset = 0;
+    for (uint32_t k = 0; k < rounds && r == RBC_OK; ++k)
+        for (int j = 0; j < PERF_READ_KINDS && r == RBC_OK; ++j) {
+            /* Alternate the order: 0 1 2 3, 3 2 1 0, ... */
+            const int kind = k % 2 ? PERF_READ_KINDS - 1 - j : j;
+            size_t written;
+            const double t0 = bench_now();
+            r = kind == 0 ? api->cloth_read_positions(w, c, (float *)buf, 3 * (size_t)n, &written)
+                          : api->world_read_vertices(w, &o[kind], 1);
+            t[kind * rounds + k] = 1e3 * (bench_now() - t0);
+        }
+    if (r != RBC_OK) fprintf(stderr, "rbcloth: bench perf: readback: %s\n", api->last_error());
+    for (int kind = 0; kind < PERF_READ_KINDS; ++kind)
+        row->ms[kind] = bench_median(t + kind * rounds, rounds);
+    ctx->readback_count += r == RBC_OK;
+    free(buf);
+    free(t);
+    api->world_destroy(w);
+    return r == RBC_OK ? 0 : 1;
+}
+
+static void write_readback(const perf_ctx *ctx, FILE *f) {
+    if (!ctx->readback_count) return;
+    fprintf(f, "\n## Readback for renderers (ABI 1.10)\n\n"
+               "What a renderer's read costs each frame, after the step it follows (the setup "
+               "above, one thread). The four reads alternate; medians over %u rounds. The normals "
+               "are computed by the read that asks for them (a sum over the quads and a "
+               "normalisation); the other reads pay nothing for them.\n\n"
+               "| particles | step, ms | read_positions, ms | positions (stride 12), ms | "
+               "positions + normals (stride 24), ms | normals only, ms | normals / step |\n"
+               "|---:|---:|---:|---:|---:|---:|---:|\n",
+            ctx->run.opt->quick ? 20 : PERF_READS);
+    for (uint32_t k = 0; k < ctx->readback_count; ++k) {
+        const perf_readback *r = &ctx->readback[k];
+        fprintf(f, "| %u | %.3f | %.4f | %.4f | %.4f | %.4f | %.3f |\n", r->particles, r->step_ms,
+                r->ms[0], r->ms[1], r->ms[2], r->ms[3], r->ms[3] / r->step_ms);
+    }
+}
+
+static int write_readback_csv(const perf_ctx *ctx) {
+    if (!ctx->readback_count) return 0;
+    FILE *f = bench_open_csv(ctx->run.dir, "perf_readback.csv",
+                             "particles,step_ms,read_positions_ms,vertices_positions_ms,"
+                             "vertices_interleaved_ms,vertices_normals_ms");
+    if (!f) return 1;
+    for (uint32_t k = 0; k < ctx->readback_count; ++k) {
+        const perf_readback *r = &ctx->readback[k];
+        fprintf(f, "%u,%.5f,%.6f,%.6f,%.6f,%.6f\n", r->particles, r->step_ms, r->ms[0], r->ms[1],
+                r->ms[2], r->ms[3]);
+    }
+    return bench_close(f, ctx->run.dir, "perf_readback.csv") ? 1 : 0;
+}
+
 int cli_bench_perf(const cli_plugin *plugin, const cli_bench_options *options) {
     if (bench_require_v1_1(plugin))
         return 1;
@@ -1053,6 +1169,7 @@ int cli_bench_perf(const cli_plugin *plugin, const cli_bench_options *options) {
             break;
         }
         rc = run_threads(ctx, &m, PERF_GRID, 0, sides[k]);
+        if (!rc && sides[k] <= 500) rc = run_readback(ctx, &m, sides[k]);
         /* Jacobi and serial Gauss-Seidel on the same grid, at equal iterations. */
         if (!rc && sides[k] == ctx->solver_side) {
             for (uint32_t s = 0; s < BENCH_SOLVER_COUNT && !rc; ++s)
@@ -1074,11 +1191,12 @@ int cli_bench_perf(const cli_plugin *plugin, const cli_bench_options *options) {
     ctx->load_end = bench_load_average();
     double seconds = bench_now() - start;
     if (!rc) /* each returns 0, or 1 after a message: the first to fail ends it */
-        rc = write_csv(ctx) || write_md(ctx) || write_plot(ctx);
+        rc = write_csv(ctx) || write_readback_csv(ctx) || write_md(ctx) || write_plot(ctx);
     if (!rc) {
         printf("\nPerformance bench\n\n");
         write_intro(ctx, stdout);
         write_tables(ctx, stdout);
+        write_readback(ctx, stdout);
         printf("\nWrote perf.csv, perf.md%s in %s (%.1f s)\n",
                bench_have_gnuplot() ? ", perf_scaling.png" : "", ctx->run.dir, seconds);
         if (ctx->failed_rows) {

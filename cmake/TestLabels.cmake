@@ -20,18 +20,21 @@
 #   mono      Debian's Mono running a C# host of ours (tests/mono)
 #   windows   the library cross-built with mingw-w64 and run under Debian's wine
 #             (tests/windows)
-#   external  browser, blender, slurm, mono, windows and valgrind together
+#   xvfb      an X server in memory (Debian's xvfb-run) with Mesa's llvmpipe drawing
+#             OpenGL: the real-time viewer (tests/glviewer)
+#   external  browser, blender, slurm, mono, windows, xvfb and valgrind together
 set(RBC_LABEL_LONG_REGEX
   "^(scene_funnel|scene_four_layers|scene_caches_thread_independent|abi_contact|abi_layer_order|core_clothcontact|import_sweep|bench_scenes_quick|bench_accuracy_quick|bench_stability_quick|cli_run_funnel|cli_batch_kill_trials|install_subdirectory|conformance_old_minor|conformance_catches_shared_state|conformance_catches_hangs)"
   CACHE INTERNAL "")
 set(RBC_LABEL_THREADS_REGEX
-  "^(core_rbgs|core_grid|core_clothcontact|abi_behaviour|abi_energy_guard|abi_target|abi_contact|abi_layer_order|abi_hardening|bench_scenes_quick|cli_batch)$"
+  "^(core_rbgs|core_grid|core_clothcontact|abi_behaviour|abi_game_loop|abi_energy_guard|abi_target|abi_contact|abi_layer_order|abi_hardening|bench_scenes_quick|cli_batch)$"
   CACHE INTERNAL "")
 set(RBC_LABEL_VALGRIND_REGEX "valgrind" CACHE INTERNAL "")
 set(RBC_LABEL_BLENDER_REGEX "^(blender_|import_file_vertices_blender_live$)" CACHE INTERNAL "")
 set(RBC_LABEL_SLURM_REGEX "^slurm_" CACHE INTERNAL "")
 set(RBC_LABEL_MONO_REGEX "^mono_" CACHE INTERNAL "")
 set(RBC_LABEL_WINDOWS_REGEX "^windows_" CACHE INTERNAL "")
+set(RBC_LABEL_XVFB_REGEX "^glviewer_" CACHE INTERNAL "")
 
 function(rbc_label_tests folder)
   get_property(tests DIRECTORY PROPERTY TESTS)
@@ -43,7 +46,7 @@ function(rbc_label_tests folder)
       list(APPEND labels browser)
       set(external 1)
     endif()
-    foreach(kind VALGRIND BLENDER SLURM MONO WINDOWS)
+    foreach(kind VALGRIND BLENDER SLURM MONO WINDOWS XVFB)
       if(t MATCHES "${RBC_LABEL_${kind}_REGEX}")
         string(TOLOWER ${kind} l)
         list(APPEND labels ${l})

@@ -113,6 +113,8 @@ void rbc_cloth_state_destroy(const rbc_allocator *al, rbc_cloth_state *c) {
     rbc_mem_free(al, c->att.vertex, sizeof(uint32_t) * c->att.cap);
     rbc_mem_free(al, c->att.collider, sizeof(uint32_t) * c->att.cap);
     rbc_mem_free(al, c->att.local, sizeof(float) * 3 * c->att.cap);
+    rbc_mem_free(al, c->lone_tris, sizeof(uint32_t) * 3 * (size_t)c->lone_cap);
+    if (c->normal_acc) rbc_mem_free(al, c->normal_acc, 3 * (size_t)c->topo.n * sizeof(float));
     rbc_topology_free(&c->topo, al);
     rbc_mem_free(al, c, sizeof *c);
 }
@@ -213,6 +215,7 @@ int32_t rbc_cloth_state_create(const rbc_allocator *al, rbc_solver_kind kind, in
     }
     c->h_cached = 0.0f;
     c->h_last = 0.0f;
+    c->tri_revision = 1;
     c->guard.valid = 0;
     c->guard.keep_slack = 0;
     *out = c;
@@ -351,6 +354,8 @@ size_t rbc_cloth_state_bytes(const rbc_cloth_state *c) {
     if (c->ell) b += c->ell->bytes;
     b += (size_t)c->quad_count0 * 4 * sizeof(uint32_t) + (size_t)c->tri_cap * 3 * sizeof(uint32_t);
     b += (size_t)c->att.cap * 5 * sizeof(uint32_t);
+    b += (size_t)c->lone_cap * 3 * sizeof(uint32_t); /* render.h's */
+    if (c->normal_acc) b += n3;
     return b;
 }
 

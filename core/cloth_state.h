@@ -119,6 +119,14 @@ typedef struct rbc_cloth_state {
     uint32_t torn;
     uint32_t quad_count0;
     rbc_cloth_attachments att;
+    /* Renderers (render.h, 1.10): an imported mesh's leftover triangles (internal
+     * indices, 3 each; tearing drops those with a torn edge), the triangle revision
+     * (1 at creation, +1 whenever a tear or cut removes a face), and the normals'
+     * scratch (3 floats a vertex, allocated on the first read that asks). */
+    uint32_t lone_count, lone_cap;
+    uint32_t *lone_tris;
+    uint32_t tri_revision;
+    float *normal_acc;
 
     size_t state_bytes;
 } rbc_cloth_state;

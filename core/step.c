@@ -490,8 +490,10 @@ static double measure_strain(rbc_solver *s, uint32_t threads) {
 }
 
 /* After a successful step: what the next step starts from, and its stats. */
-static void finish_step(rbc_solver *s, const step_ctx *ctx, uint32_t threads, double start,
-                        double run_ms) {
+/* threads: the count the step asked for (what the probe chose); used: the count it
+ * ran on (fewer on the host's job system when not every item joined in time). */
+static void finish_step(rbc_solver *s, const step_ctx *ctx, uint32_t threads, uint32_t used,
+                        double start, double run_ms) {
     rbc_step_threads_record(s, threads, run_ms / (ctx->substeps ? ctx->substeps : 1));
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         s->cloths[k]->system_valid = 1;
@@ -505,7 +507,7 @@ static void finish_step(rbc_solver *s, const step_ctx *ctx, uint32_t threads, do
     /* Tearing: springs stretched past their limit at the end of the step break. */
     for (uint32_t k = 0; k < s->cloth_count; ++k) rbc_tear_scan(s, s->cloths[k]);
     const double t0 = rbc_now_ms();
-    const double reached = measure_strain(s, threads);
+    const double reached = measure_strain(s, used);
     const double *ms = ctx->stage_ms;
     s->last.integrate = ms[RBC_STAGE_INTEGRATE] + ms[RBC_STAGE_PINS] + ms[RBC_STAGE_WIND];
     s->last.collide = ms[RBC_STAGE_DETECT] + ms[RBC_STAGE_FRICTION] + ms[RBC_STAGE_CLOTH_CONTACT];
@@ -560,13 +562,14 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
 
     const uint32_t threads = rbc_step_threads_choose(s);
     const double run_t0 = rbc_now_ms();
-    rbc_pool_run_n(s->pool, threads, step_spmd, &ctx);
+    /* On the host's job system the threads that joined (1..threads). */
+    const uint32_t used = rbc_pool_run_n(s->pool, threads, step_spmd, &ctx);
     const double run_ms = rbc_now_ms() - run_t0;
-    s->threads_last = threads;
+    s->threads_last = used;
     if (ctx.result != RBC_OK) {
         if (need_snapshot) snapshot(s, 1);
         return ctx.result;
     }
-    finish_step(s, &ctx, threads, start, run_ms);
+    finish_step(s, &ctx, threads, used, start, run_ms);
     return RBC_OK;
 }

@@ -36,6 +36,18 @@ void rbc_tear_finish(rbc_cloth_state *c) {
         if (kept != q) memmove(&c->quads[4 * (size_t)kept], v, 4 * sizeof(uint32_t));
         kept++;
     }
+    /* Leftover triangles of an imported mesh go with any torn edge, as quads do. */
+    uint32_t lone = 0;
+    for (uint32_t k = 0; k < c->lone_count; ++k) {
+        const uint32_t *v = &c->lone_tris[3 * (size_t)k];
+        if (broken_pair(c, v[0], v[1]) || broken_pair(c, v[1], v[2]) ||
+            broken_pair(c, v[2], v[0]))
+            continue;
+        if (lone != k) memmove(&c->lone_tris[3 * (size_t)lone], v, 3 * sizeof(uint32_t));
+        lone++;
+    }
+    if (kept != c->quad_count || lone != c->lone_count) c->tri_revision++;
+    c->lone_count = lone;
     c->quad_count = kept;
     if (c->tris) {
         for (uint32_t q = 0; q < kept; ++q) {

@@ -72,6 +72,12 @@ static const rbc_api_v1 g_api_v1 = {
     rbc_mesh_get_file_map,
     rbc_mesh_to_file_positions,
     rbc_mesh_write_file_obj,
+    rbc_vertex_output_init,
+    rbc_world_read_vertices,
+    rbc_cloth_get_triangles,
+    rbc_cloth_transform,
+    rbc_world_step_begin,
+    rbc_world_step_wait,
 };
 
 RBC_API const void *RBC_CALL rbc_get_api(uint32_t abi_major) {

@@ -107,8 +107,8 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create(rbc_world_id wid, const rbc_cloth_d
     return RBC_OK;
 }
 
-static rbc_result lookup_cloth(rbc_world_id wid, rbc_cloth_id cid, const char *fn,
-                               rbc_world **ow, rbc_cloth_state **oc) {
+rbc_result rbc_plugin_lookup_cloth(rbc_world_id wid, rbc_cloth_id cid, const char *fn,
+                                   rbc_world **ow, rbc_cloth_state **oc) {
     rbc_result rc = rbc_plugin_lookup_world(wid, fn, ow);
     if (rc) return rc;
     *oc = rbc_reg_get(&rbc_plugin_cloths, cid, (*ow)->id, fn);
@@ -152,7 +152,7 @@ static rbc_result check_capacity(rbc_world *w, const char *fn, rbc_cloth_id cid,
 RBC_API rbc_result RBC_CALL rbc_cloth_destroy(rbc_world_id wid, rbc_cloth_id cid) {
     rbc_world *w;
     rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, "rbc_cloth_destroy", &w, &c);
+    rbc_result rc = rbc_plugin_lookup_cloth(wid, cid, "rbc_cloth_destroy", &w, &c);
     if (rc) return rc;
     rbc_solver_remove_cloth(&w->solver, c);
     rbc_cloth_state_destroy(&w->solver.alloc, c);
@@ -165,7 +165,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_get_vertex_count(rbc_world_id wid, rbc_clo
     static const char fn[] = "rbc_cloth_get_vertex_count";
     rbc_world *w;
     rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    rbc_result rc = rbc_plugin_lookup_cloth(wid, cid, fn, &w, &c);
     if (rc) return rc;
     if (!out_count)
         return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: out_count is NULL", fn);
@@ -178,7 +178,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_get_topology(rbc_world_id wid, rbc_cloth_i
                                                    uint32_t *out_color_count) {
     rbc_world *w;
     rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, "rbc_cloth_get_topology", &w, &c);
+    rbc_result rc = rbc_plugin_lookup_cloth(wid, cid, "rbc_cloth_get_topology", &w, &c);
     if (rc) return rc;
     if (out_spring_count) *out_spring_count = c->topo.ns;
     if (out_color_count) *out_color_count = c->topo.ncolors;
@@ -191,7 +191,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_read_positions(rbc_world_id wid, rbc_cloth
     static const char fn[] = "rbc_cloth_read_positions";
     rbc_world *w;
     rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    rbc_result rc = rbc_plugin_lookup_cloth(wid, cid, fn, &w, &c);
     if (rc) return rc;
     size_t need = 3 * (size_t)c->topo.n;
     if (!xyz) {
@@ -209,7 +209,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_set_pin(rbc_world_id wid, rbc_cloth_id cid
     static const char fn[] = "rbc_cloth_set_pin";
     rbc_world *w;
     rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    rbc_result rc = rbc_plugin_lookup_cloth(wid, cid, fn, &w, &c);
     if (rc) return rc;
     if ((rc = check_vertex(w, fn, cid, c, vertex, target, "target"))) return rc;
     rc = rbc_cloth_state_set_pin(&w->solver.alloc, c, vertex, target);
@@ -228,7 +228,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_get_colors(rbc_world_id wid, rbc_cloth_id 
     static const char fn[] = "rbc_cloth_get_colors";
     rbc_world *w;
     rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    rbc_result rc = rbc_plugin_lookup_cloth(wid, cid, fn, &w, &c);
     if (rc) return rc;
     if (!sizes && capacity)
         return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT,
@@ -246,7 +246,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_get_state(rbc_world_id wid, rbc_cloth_id c
     static const char fn[] = "rbc_cloth_get_state";
     rbc_world *w;
     rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    rbc_result rc = rbc_plugin_lookup_cloth(wid, cid, fn, &w, &c);
     if (rc) return rc;
     if ((positions || previous) && (rc = check_capacity(w, fn, cid, c, capacity))) return rc;
     rbc_cloth_state_get(c, positions, previous);
@@ -258,7 +258,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_set_state(rbc_world_id wid, rbc_cloth_id c
     static const char fn[] = "rbc_cloth_set_state";
     rbc_world *w;
     rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    rbc_result rc = rbc_plugin_lookup_cloth(wid, cid, fn, &w, &c);
     if (rc) return rc;
     if (!positions)
         return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT, "%s: positions is NULL", fn);
@@ -285,7 +285,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_attach(rbc_world_id wid, rbc_cloth_id cid,
     static const char fn[] = "rbc_cloth_attach";
     rbc_world *w;
     rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    rbc_result rc = rbc_plugin_lookup_cloth(wid, cid, fn, &w, &c);
     if (rc) return rc;
     if ((rc = check_vertex(w, fn, cid, c, vertex, local, "local point"))) return rc;
     uint32_t k = 0;
@@ -301,7 +301,7 @@ RBC_API rbc_result RBC_CALL rbc_cloth_cut(rbc_world_id wid, rbc_cloth_id cid,
     static const char fn[] = "rbc_cloth_cut";
     rbc_world *w;
     rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    rbc_result rc = rbc_plugin_lookup_cloth(wid, cid, fn, &w, &c);
     if (rc) return rc;
     if (out_cut) *out_cut = 0;
     if (pair_count && !pairs)
@@ -322,7 +322,7 @@ static rbc_result copy_topology(rbc_world_id wid, rbc_cloth_id cid, const char *
                                 uint32_t *dst, size_t capacity, size_t *out_count) {
     rbc_world *w;
     rbc_cloth_state *c;
-    rbc_result rc = lookup_cloth(wid, cid, fn, &w, &c);
+    rbc_result rc = rbc_plugin_lookup_cloth(wid, cid, fn, &w, &c);
     if (rc) return rc;
     size_t need = quads ? rbc_cloth_quads_host(c, NULL, 0) : rbc_cloth_springs_host(c, NULL, 0);
     if (dst && capacity < need)

@@ -18,7 +18,8 @@
 /* ------------------------------------------------------------------------- */
 
 const rbc_struct_sizes rbc_sizes_world_def = {
-    "rbc_world_def", 3, {sizeof(rbc_world_def), RBC_WORLD_DEF_SIZE_V1_1, RBC_WORLD_DEF_SIZE_V1_0}};
+    "rbc_world_def", 4,
+    {sizeof(rbc_world_def), RBC_WORLD_DEF_SIZE_V1_6, RBC_WORLD_DEF_SIZE_V1_1, RBC_WORLD_DEF_SIZE_V1_0}};
 const rbc_struct_sizes rbc_sizes_cloth_def = {
     "rbc_cloth_def", 3, {sizeof(rbc_cloth_def), RBC_CLOTH_DEF_SIZE_V1_1, RBC_CLOTH_DEF_SIZE_V1_0}};
 const rbc_struct_sizes rbc_sizes_collider_def = {
@@ -129,7 +130,7 @@ rbc_result rbc_def_init_common(void *def, uint32_t struct_size, const void *defa
 
 RBC_API rbc_result RBC_CALL rbc_world_def_init(rbc_world_def *def, uint32_t struct_size) {
     rbc_world_def d = rbc_plugin_world_def_defaults();
-    if (struct_size != sizeof d) d.substeps = 1; /* what the 1.0-1.5 headers document */
+    if (struct_size < RBC_WORLD_DEF_SIZE_V1_6) d.substeps = 1; /* what the 1.0-1.5 headers document */
     return rbc_def_init_common(def, struct_size, &d, &rbc_sizes_world_def, "rbc_world_def_init");
 }
 

@@ -46,6 +46,7 @@ RBC_API const char *RBC_CALL rbc_result_string(rbc_result result) {
     case RBC_ERR_STALE_HANDLE: return "RBC_ERR_STALE_HANDLE";
     case RBC_ERR_CALLBACK: return "RBC_ERR_CALLBACK";
     case RBC_ERR_CAPACITY: return "RBC_ERR_CAPACITY";
+    case RBC_ERR_BUSY: return "RBC_ERR_BUSY";
     default: return "unknown result";
     }
 }

@@ -39,6 +39,7 @@
 #include "registry.h"
 #include "replace_file.h"
 #include "rbcloth.h"
+#include "world.h"
 
 #if !defined(_WIN32)
 extern char **environ;
@@ -703,6 +704,14 @@ RBC_API rbc_result RBC_CALL rbc_cloth_create_from_mesh(rbc_world_id world, rbc_m
     def.pins = pins ? pins : m->pins;
     rbc_result rc = rbc_cloth_create(world, &def, out_cloth);
     free(pins);
+    /* The file's triangles that made no quad: drawn (rbc_cloth_get_triangles) and
+     * shaded with the quads; a cloth that cannot keep them is not made. */
+    if (!rc && m->nlt &&
+        (rc = rbc_plugin_cloth_lone_triangles(world, *out_cloth, fn, m->ltris, m->nlt))) {
+        rbc_cloth_destroy(world, *out_cloth);
+        *out_cloth = 0;
+        return rc;
+    }
     if (rc) {
         char inner[RBC_ERROR_CAP];
         snprintf(inner, sizeof inner, "%s", rbc_last_error());

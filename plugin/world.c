@@ -16,6 +16,7 @@
 #include "rbcloth.h"
 #include "solver.h"
 #include "strain.h"
+#include "threads.h"
 #include "world.h"
 
 #define RBC_MAX_WORLDS 1024u
@@ -44,9 +45,26 @@ rbc_result rbc_plugin_world_error(rbc_world *w, rbc_result code, const char *fmt
     return code;
 }
 
-rbc_result rbc_plugin_lookup_world(rbc_world_id id, const char *fn, rbc_world **out) {
+/* The world, stepping or not: step_wait and destroy. */
+static rbc_result lookup_any(rbc_world_id id, const char *fn, rbc_world **out) {
     *out = rbc_reg_get(&rbc_plugin_worlds, id, 0, fn);
     return *out ? RBC_OK : RBC_ERR_STALE_HANDLE;
+}
+
+rbc_result rbc_plugin_lookup_world(rbc_world_id id, const char *fn, rbc_world **out) {
+    rbc_result rc = lookup_any(id, fn, out);
+    if (rc) return rc;
+    if (atomic_load_explicit(&(*out)->stepping, memory_order_acquire)) {
+        /* Not sent to the log hook: the step thread may be calling it right now, and
+         * the hook was promised one thread at a time. */
+        rbc_set_error(RBC_ERR_BUSY,
+                      "%s: world 0x%08x is stepping (rbc_world_step_begin); nothing was "
+                      "changed: call rbc_world_step_wait first",
+                      fn, id);
+        *out = NULL;
+        return RBC_ERR_BUSY;
+    }
+    return RBC_OK;
 }
 
 rbc_result rbc_plugin_create_begin(rbc_world_id wid, const char *fn, uint32_t *out,
@@ -114,7 +132,7 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     /* A host built against a 1.0-1.5 header was promised the paper's fixed counts
      * when it leaves the solver NULL, and no strain warning; a 1.6 host gets the
      * default solve and the warning. */
-    const int def_v16 = def.struct_size == sizeof def;
+    const int def_v16 = def.struct_size >= RBC_WORLD_DEF_SIZE_V1_6;
     if (!def_v16) {
         def.substep_rate = 0.0f;
         def.strain_warning = 0.0f;
@@ -154,6 +172,10 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     if ((def.alloc == NULL) != (def.free == NULL))
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
                              "%s: give both alloc and free hooks, or neither", fn);
+    if ((def.enqueue_task == NULL) != (def.finish_task == NULL))
+        return rbc_set_error(RBC_ERR_INVALID_ARGUMENT,
+                             "%s: give both enqueue_task and finish_task, or neither", fn);
+    const int hosted = def.enqueue_task != NULL;
 
     /* A given solver def starts from the field defaults, as rbc_solver_def_init's. */
     rbc_solver_def sdef =
@@ -180,14 +202,24 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     if (!w) return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: out of memory", fn);
     w->alloc = alloc;
     w->def = def;
-    if (rbc_solver_init(&w->solver, &alloc, threads) != RBC_OK) {
+    /* On the host's job system the world starts no thread: its pool has one, and
+     * the host's workers join it (core/cpu/pool.c, run_hosted). */
+    if (rbc_solver_init(&w->solver, &alloc, hosted ? 1 : threads) != RBC_OK) {
         rbc_mem_free(&alloc, w, sizeof *w);
         return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: could not start %u worker threads", fn,
                              threads);
     }
     /* thread_count 0: the step measures whether its threads pay (core/step_threads.c,
      * threads_for_step); a count the host gives is used as given. */
+    /* On the host's job system too: thread_count 0 asks for every item or none,
+     * whichever the probes measure faster. */
     w->solver.threads_auto = def.thread_count == 0;
+    if (hosted) {
+        const rbc_pool_host h = {(void *(*)(rbc_pool_task_fn, uint32_t, uint32_t, void *,
+                                            void *))def.enqueue_task,
+                                 (void (*)(void *, void *))def.finish_task, def.task_user};
+        rbc_pool_set_host(w->solver.pool, &h, threads);
+    }
     if (rbc_reg_add(&rbc_plugin_worlds, w, 0, &w->id) != RBC_OK) {
         rbc_solver_fini(&w->solver);
         rbc_mem_free(&alloc, w, sizeof *w);
@@ -203,15 +235,20 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     w->solver.public_world_id = w->id;
     *out_world = w->id;
     char msg[128];
-    snprintf(msg, sizeof msg, "world 0x%08x created: CPU backend, %u threads", w->id, threads);
+    snprintf(msg, sizeof msg, "world 0x%08x created: CPU backend, %u threads%s", w->id, threads,
+             hosted ? " on the host's job system" : "");
     rbc_plugin_world_log(w, RBC_LOG_INFO, msg);
     return RBC_OK;
 }
 
+static void step_thread_stop(rbc_world *w);
+
 RBC_API rbc_result RBC_CALL rbc_world_destroy(rbc_world_id id) {
     rbc_world *w;
-    rbc_result rc = rbc_plugin_lookup_world(id, "rbc_world_destroy", &w);
+    rbc_result rc = lookup_any(id, "rbc_world_destroy", &w);
     if (rc) return rc;
+    /* A step in flight finishes first (its result is dropped), then the thread goes. */
+    step_thread_stop(w);
     rbc_solver *sol = &w->solver;
     for (uint32_t k = 0; k < sol->cloth_count; ++k)
         rbc_reg_remove(&rbc_plugin_cloths, sol->cloths[k]->public_id);
@@ -284,16 +321,12 @@ static void strain_advice(const rbc_solver *s, char *out, size_t size) {
                  name, s->last_substeps, s->linear_iterations);
 }
 
-RBC_API rbc_result RBC_CALL rbc_world_step(rbc_world_id id, float dt) {
-    static const char fn[] = "rbc_world_step";
-    rbc_world *w;
-    rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
-    if (rc) return rc;
-    if (!(isfinite(dt) && dt > 0.0f))
-        return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT,
-                                      "%s: dt is %g s; it must be finite and > 0", fn, (double)dt);
+/* A step of a world whose dt was checked, on the calling thread (rbc_world_step's) or
+ * on the world's step thread (rbc_world_step_begin's); fn names the call for the
+ * messages. */
+static rbc_result step_now(rbc_world *w, float dt, const char *fn) {
     char msg[RBC_ERROR_CAP - 64];
-    rc = rbc_solver_step(&w->solver, dt, msg, sizeof msg);
+    rbc_result rc = rbc_solver_step(&w->solver, dt, msg, sizeof msg);
     if (rc) return rbc_plugin_world_error(w, rc, "%s: world 0x%08x: %s", fn, w->id, msg);
     uint64_t clamps = w->solver.energy_clamped_steps;
     /* Warn at the first clamped step and at every power of two after it: the
@@ -341,6 +374,146 @@ RBC_API rbc_result RBC_CALL rbc_world_step(rbc_world_id id, float dt) {
         rbc_plugin_world_log(w, RBC_LOG_WARNING, note);
     }
     return RBC_OK;
+}
+
+static rbc_result check_dt(rbc_world *w, const char *fn, float dt) {
+    if (isfinite(dt) && dt > 0.0f) return RBC_OK;
+    return rbc_plugin_world_error(w, RBC_ERR_INVALID_ARGUMENT,
+                                  "%s: dt is %g s; it must be finite and > 0", fn, (double)dt);
+}
+
+RBC_API rbc_result RBC_CALL rbc_world_step(rbc_world_id id, float dt) {
+    static const char fn[] = "rbc_world_step";
+    rbc_world *w;
+    rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
+    if (rc) return rc;
+    if ((rc = check_dt(w, fn, dt))) return rc;
+    return step_now(w, dt, fn);
+}
+
+/* ------------------------------------------------------------------------- */
+/* The split step (1.10)                                                     */
+/* ------------------------------------------------------------------------- */
+
+/* One thread per world that has used rbc_world_step_begin, asleep between steps. A
+ * mutex and condition variable hand it a dt and hand back the result; a step costs
+ * two wake-ups, microseconds against a step's milliseconds. */
+enum { STEP_IDLE, STEP_RUN, STEP_DONE };
+typedef struct rbc_step_thread {
+    rbc_thread thread;
+    rbc_mutex mu;
+    rbc_cond cv;
+    int state, quit;
+    uint32_t waiters; /* step_wait calls inside step_thread_wait */
+    float dt;
+    rbc_result rc;
+    char msg[RBC_ERROR_CAP];
+} rbc_step_thread;
+
+static void step_thread_main(void *arg) {
+    rbc_world *w = arg;
+    rbc_step_thread *t = w->stepper;
+    rbc_mutex_lock(&t->mu);
+    for (;;) {
+        while (t->state != STEP_RUN && !t->quit) rbc_cond_wait(&t->cv, &t->mu);
+        if (t->quit) break;
+        const float dt = t->dt;
+        rbc_mutex_unlock(&t->mu);
+        const rbc_result rc = step_now(w, dt, "rbc_world_step_begin");
+        rbc_mutex_lock(&t->mu);
+        t->rc = rc;
+        /* The message is in this thread's buffer; step_wait hands it to its own. */
+        if (rc) snprintf(t->msg, sizeof t->msg, "%s", rbc_last_error());
+        t->state = STEP_DONE;
+        rbc_cond_broadcast(&t->cv);
+    }
+    rbc_mutex_unlock(&t->mu);
+}
+
+/* Wait for the step in flight, if any, and take its result: its message becomes this
+ * thread's (under the lock, before `stepping` is cleared: once it is, the host may
+ * begin the next step, whose thread writes t->msg). A step another thread already
+ * took the result of is RBC_OK here. `waiters` lets destroy free the thread only
+ * when no wait is inside. */
+static rbc_result step_thread_wait(rbc_world *w) {
+    rbc_step_thread *t = w->stepper;
+    if (!t || !atomic_load(&w->stepping)) return RBC_OK;
+    rbc_mutex_lock(&t->mu);
+    t->waiters++;
+    while (t->state == STEP_RUN) rbc_cond_wait(&t->cv, &t->mu);
+    rbc_result rc = RBC_OK;
+    if (t->state == STEP_DONE) {
+        rc = t->rc;
+        if (rc) rbc_set_error(rc, "%s", t->msg);
+        t->state = STEP_IDLE;
+        atomic_store_explicit(&w->stepping, 0, memory_order_release);
+    }
+    if (--t->waiters == 0) rbc_cond_broadcast(&t->cv);
+    rbc_mutex_unlock(&t->mu);
+    return rc;
+}
+
+static void step_thread_stop(rbc_world *w) {
+    rbc_step_thread *t = w->stepper;
+    if (!t) return;
+    step_thread_wait(w);
+    rbc_mutex_lock(&t->mu);
+    while (t->waiters) rbc_cond_wait(&t->cv, &t->mu);
+    t->quit = 1;
+    rbc_cond_broadcast(&t->cv);
+    rbc_mutex_unlock(&t->mu);
+    rbc_thread_join(&t->thread);
+    rbc_mutex_destroy(&t->mu);
+    rbc_cond_destroy(&t->cv);
+    rbc_mem_free(&w->alloc, t, sizeof *t);
+    w->stepper = NULL;
+}
+
+RBC_API rbc_result RBC_CALL rbc_world_step_begin(rbc_world_id id, float dt) {
+    static const char fn[] = "rbc_world_step_begin";
+    rbc_world *w;
+    rbc_result rc = rbc_plugin_lookup_world(id, fn, &w);
+    if (rc) return rc;
+    if ((rc = check_dt(w, fn, dt))) return rc;
+    if (!w->stepper) {
+        rbc_step_thread *t = rbc_mem_alloc(&w->alloc, sizeof *t);
+        if (!t)
+            return rbc_plugin_world_error(w, RBC_ERR_OUT_OF_MEMORY,
+                                          "%s: world 0x%08x: out of memory for its step thread",
+                                          fn, w->id);
+        rbc_mutex_init(&t->mu);
+        rbc_cond_init(&t->cv);
+        t->state = STEP_IDLE;
+        w->stepper = t;
+        if (rbc_thread_create(&t->thread, step_thread_main, w) != 0) {
+            rbc_mutex_destroy(&t->mu);
+            rbc_cond_destroy(&t->cv);
+            rbc_mem_free(&w->alloc, t, sizeof *t);
+            w->stepper = NULL;
+            return rbc_plugin_world_error(w, RBC_ERR_OUT_OF_MEMORY,
+                                          "%s: world 0x%08x: could not start its step thread",
+                                          fn, w->id);
+        }
+    }
+    rbc_step_thread *t = w->stepper;
+    /* stepping before the thread can run: the host's next call already sees it. */
+    atomic_store_explicit(&w->stepping, 1, memory_order_release);
+    rbc_mutex_lock(&t->mu);
+    t->dt = dt;
+    t->state = STEP_RUN;
+    rbc_cond_broadcast(&t->cv);
+    rbc_mutex_unlock(&t->mu);
+    return RBC_OK;
+}
+
+RBC_API rbc_result RBC_CALL rbc_world_step_wait(rbc_world_id id) {
+    static const char fn[] = "rbc_world_step_wait";
+    rbc_world *w;
+    rbc_result rc = lookup_any(id, fn, &w);
+    if (rc) return rc;
+    /* The step thread logged a failure already; step_thread_wait made its message
+     * this thread's. */
+    return step_thread_wait(w);
 }
 
 RBC_API rbc_result RBC_CALL rbc_world_set_iterations(rbc_world_id id, uint32_t substeps,

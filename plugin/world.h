@@ -16,11 +16,19 @@
 #include "registry.h"
 #include "solver.h"
 
+struct rbc_step_thread;
+
 typedef struct rbc_world {
     rbc_solver solver;
     rbc_allocator alloc;
     rbc_world_def def;
     uint32_t id;
+    /* The split step (1.10): the world's step thread, started by the first
+     * rbc_world_step_begin (NULL before), and 1 from begin to wait. Written by the
+     * host's thread only; every lookup but step_wait's and destroy's refuses the
+     * world while it is set. */
+    struct rbc_step_thread *stepper;
+    _Atomic int stepping;
 } rbc_world;
 
 /* Ids of worlds, cloths and colliders (registry.h). Cloth and collider ids are
@@ -54,6 +62,18 @@ rbc_result rbc_plugin_create_begin(rbc_world_id wid, const char *fn, uint32_t *o
 /* rbc_plugin_read_def in a call on world w: a refused def also goes to its log hook. */
 rbc_result rbc_plugin_world_read_def(rbc_world *w, void *dst, const rbc_struct_sizes *s,
                                      const void *src, const char *fn, const char *what);
+
+/* cloth.c */
+
+/* Look up a live cloth of world wid: *ow its world, *oc its state. */
+rbc_result rbc_plugin_lookup_cloth(rbc_world_id wid, rbc_cloth_id cid, const char *fn,
+                                   rbc_world **ow, rbc_cloth_state **oc);
+
+/* render.c */
+
+/* Keep an imported mesh's leftover triangles on a cloth made from it. */
+rbc_result rbc_plugin_cloth_lone_triangles(rbc_world_id wid, rbc_cloth_id cid, const char *fn,
+                                           const uint32_t *tris, uint32_t count);
 
 /* collider.c */
 

@@ -237,6 +237,7 @@ static const char *code_name(rbc_result r) {
     case RBC_ERR_STALE_HANDLE: return "RBC_ERR_STALE_HANDLE";
     case RBC_ERR_CALLBACK: return "RBC_ERR_CALLBACK";
     case RBC_ERR_CAPACITY: return "RBC_ERR_CAPACITY";
+    case RBC_ERR_BUSY: return "RBC_ERR_BUSY";
     default: return "(not an rbc_result)";
     }
 }
@@ -247,6 +248,7 @@ static uint32_t size_of(rbc_struct_kind kind) { return rbc_struct_size_for(kind,
 /* Table size of ABI 1.m: what a library reporting minor m must provide at least. */
 static uint32_t table_size_for_minor(uint32_t m) {
     if (m >= RBC_ABI_VERSION_MINOR) return (uint32_t)sizeof(rbc_api_v1);
+    if (m == 9) return RBC_API_V1_SIZE_V1_9;
     if (m >= 7) return RBC_API_V1_SIZE_V1_8;
     if (m >= 4) return RBC_API_V1_SIZE_V1_6;
     if (m == 3) return RBC_API_V1_SIZE_V1_3;
@@ -286,6 +288,9 @@ static const char *const k_entry_names[] = {
     "rbc_world_stats_init",
     /* 1.9 */
     "rbc_mesh_get_file_map", "rbc_mesh_to_file_positions", "rbc_mesh_write_file_obj",
+    /* 1.10 */
+    "rbc_vertex_output_init", "rbc_world_read_vertices", "rbc_cloth_get_triangles",
+    "rbc_cloth_transform", "rbc_world_step_begin", "rbc_world_step_wait",
 };
 #define ENTRY_COUNT (sizeof k_entry_names / sizeof k_entry_names[0])
 #define FIRST_ENTRY offsetof(rbc_api_v1, abi_version_fn)
@@ -562,6 +567,14 @@ static int check_table(lib_handle lib, rbc_get_api_fn get_api) {
         if (!s || strcmp(s, code_name(codes[k])) != 0) {
             names_ok = 0;
             diag("  result_string(%d) = \"%s\"", (int)codes[k], s ? s : "(NULL)");
+        }
+    }
+    /* 1.10 added RBC_ERR_BUSY; an older library may call it unknown. */
+    if ((g_version & 0xFFFFu) >= 10) {
+        const char *s = A->result_string(RBC_ERR_BUSY);
+        if (!s || strcmp(s, "RBC_ERR_BUSY") != 0) {
+            names_ok = 0;
+            diag("  result_string(%d) = \"%s\"", (int)RBC_ERR_BUSY, s ? s : "(NULL)");
         }
     }
     check(names_ok, "table.result_string", "result_string names every rbc_result");
@@ -1594,6 +1607,101 @@ static void check_threads(const grid *g) {
     free(par2);
 }
 
+/* ------------------------------------------------------------------------- */
+/* 1.10: what a game loop reads and does                                     */
+/* ------------------------------------------------------------------------- */
+
+/* Interleaved positions and normals equal read_positions and are unit; a bad entry
+ * is refused by its index with no byte written; triangles are two per quad at
+ * revision 1; a transform that is not a rotation is refused; the split step is the
+ * plain step bitwise, and a stepping world refuses with RBC_ERR_BUSY. */
+static void check_gameloop(const grid *g) {
+    if (!HAS(world_step_wait)) {
+        skip("gameloop", "the library is older than ABI 1.10");
+        return;
+    }
+    scene a, b;
+    if (scene_make(&a, g, 1, 0.3f) || scene_make(&b, g, 1, 0.3f)) {
+        check(0, "gameloop.setup", "two scenes: %s", msg_now());
+        return;
+    }
+    const size_t nv = g->nv;
+    float *pa = malloc(12 * nv), *pb = malloc(12 * nv);
+    unsigned char *buf = malloc(24 * nv);
+    if (!pa || !pb || !buf) abort();
+    int split_same = 1, busy = 1;
+    for (int f = 0; f < 20; f++) {
+        split_same &= A->world_step_begin(a.w, 1.0f / 60.0f) == RBC_OK;
+        if (f == 2) {
+            size_t w = 0;
+            poison_message();
+            busy &= refused(A->cloth_read_positions(a.w, a.c, pa, 3 * nv, &w), RBC_ERR_BUSY,
+                            "gameloop.busy", "read_positions while stepping");
+            busy &= A->world_step(a.w, 0.01f) == RBC_ERR_BUSY;
+        }
+        split_same &= A->world_step_wait(a.w) == RBC_OK;
+        split_same &= A->world_step(b.w, 1.0f / 60.0f) == RBC_OK;
+    }
+    size_t wa = 0, wb = 0;
+    A->cloth_read_positions(a.w, a.c, pa, 3 * nv, &wa);
+    A->cloth_read_positions(b.w, b.c, pb, 3 * nv, &wb);
+    check(split_same && wa == 3 * nv && memcmp(pa, pb, 12 * nv) == 0, "gameloop.split_step",
+          "20 steps of step_begin / step_wait equal 20 of world_step bitwise");
+    check(busy, "gameloop.busy", "a stepping world refuses other calls with RBC_ERR_BUSY");
+
+    rbc_vertex_output o;
+    memset(&o, 0, sizeof o);
+    check(A->vertex_output_init(&o, (uint32_t)sizeof o) == RBC_OK && o.stride == 12 &&
+              o.position_offset == 0 && o.normal_offset == RBC_NO_ATTRIBUTE,
+          "gameloop.output_init", "defaults: stride 12, position at 0, no normal");
+    o.cloth = a.c;
+    o.buffer = buf;
+    o.buffer_size = 24 * nv;
+    o.stride = 24;
+    o.normal_offset = 12;
+    int same = A->world_read_vertices(a.w, &o, 1) == RBC_OK, unit = same;
+    for (size_t v = 0; same && v < nv; v++) {
+        float n[3];
+        same &= memcmp(buf + 24 * v, &pa[3 * v], 12) == 0;
+        memcpy(n, buf + 24 * v + 12, 12);
+        const double l = sqrt((double)n[0] * n[0] + (double)n[1] * n[1] + (double)n[2] * n[2]);
+        unit &= fabs(l - 1.0) <= 1e-6;
+    }
+    check(same, "gameloop.read_vertices", "stride 24: positions equal read_positions");
+    check(unit, "gameloop.normals", "every normal of the grid is unit (within 1e-6)");
+    memset(buf, 0xA5, 24 * nv);
+    rbc_vertex_output two[2] = {o, o};
+    two[1].buffer_size = 24 * nv - 1;
+    poison_message();
+    refused(A->world_read_vertices(a.w, two, 2), RBC_ERR_INVALID_ARGUMENT, "gameloop.refused",
+            "read_vertices with a buffer one byte short");
+    int untouched = 1;
+    for (size_t k = 0; k < 24 * nv; k++) untouched &= buf[k] == 0xA5;
+    check(untouched && strstr(msg_now(), "outputs[1]") != NULL, "gameloop.refused",
+          "the bad entry is named (outputs[1]) and no buffer was written");
+
+    size_t nt = 0;
+    uint32_t rev = 0;
+    const rbc_result tr = A->cloth_get_triangles(a.w, a.c, NULL, 0, &nt, &rev);
+    check(tr == RBC_OK && nt == 6 * (size_t)g->nq && rev == 1,
+          "gameloop.triangles", "%zu triangle indices (want %u) at revision %u (want 1)", nt,
+          6 * g->nq, rev);
+    const float t[3] = {0.0f, 1.0f, 0.0f}, not_unit[4] = {0.0f, 0.0f, 0.0f, 2.0f};
+    poison_message();
+    refused(A->cloth_transform(a.w, a.c, t, not_unit, 0), RBC_ERR_INVALID_ARGUMENT,
+            "gameloop.transform", "cloth_transform with a quaternion of norm 2");
+    const float id[4] = {0.0f, 0.0f, 0.0f, 1.0f};
+    check(A->cloth_transform(a.w, a.c, t, id, RBC_TRANSFORM_RESET_VELOCITY) == RBC_OK &&
+              A->cloth_read_positions(a.w, a.c, pb, 3 * nv, &wb) == RBC_OK &&
+              fabsf(pb[1] - (pa[1] + 1.0f)) <= 1e-6f,
+          "gameloop.transform", "a translation by 1 m up moves vertex 0 by 1 m");
+    A->world_destroy(a.w);
+    A->world_destroy(b.w);
+    free(pa);
+    free(pb);
+    free(buf);
+}
+
 static void check_determinism(void) {
     grid g;
     if (grid_make(&g, 64, 1.0f)) return;
@@ -1780,6 +1888,8 @@ int main(int argc, char **argv) {
     check_import();
     g_stage = "threads";
     check_threads(&g);
+    g_stage = "gameloop";
+    check_gameloop(&g);
     g_stage = "determinism";
     check_determinism();
     g_stage = "stdout";

@@ -57,9 +57,35 @@ static void futex_wake(_Atomic uint32_t *word, int all) {
  * is woken by the last arrival and preempts the busy loop at once. */
 #define SPIN_BEFORE_FUTEX 2000
 
+/* Host tasks (rbc_pool_set_host): the joined count and the seal share one word, so a
+ * late item either joins before the seal or sees it and returns. */
+#define HOST_SEALED 0x80000000u
+#define HOST_COUNT 0x0000FFFFu
+/* The caller waits for items to start at most a quarter of the last run of the same
+ * function, within these bounds (ms): long enough for a woken worker, short enough
+ * that a job system whose workers are all busy costs little. */
+#define HOST_WAIT_FIRST_MS 0.05
+#define HOST_WAIT_MIN_MS 0.02
+#define HOST_WAIT_MAX_MS 1.0
+/* An item that started while enqueue had not returned leaves after this (ms) if it is
+ * still not sealed: a job system whose enqueue waits for its items would otherwise
+ * wait on the caller, which waits inside enqueue. */
+#define HOST_LEAVE_MS 1.0
+#define HOST_FNS 4
+
 struct rbc_pool {
     rbc_allocator alloc;
     uint32_t n;
+    /* Host tasks: the job system, the participants, and the state of the current
+     * run (set, joined, go, next tid, finished) and the last run time per function. */
+    int hosted;
+    uint32_t host_n;
+    rbc_pool_host host;
+    _Alignas(64) _Atomic uint32_t h_state;
+    _Atomic uint32_t h_go, h_tid, h_done;
+    _Atomic int h_in_enqueue;
+    rbc_pool_fn h_fn[HOST_FNS];
+    double h_ms[HOST_FNS];
     rbc_thread *threads;
     rbc_mutex mu;
     rbc_cond cv;
@@ -196,21 +222,114 @@ void rbc_pool_destroy(rbc_pool *pool) {
     rbc_mem_free(&a, pool, sizeof *pool);
 }
 
-uint32_t rbc_pool_size(const rbc_pool *pool) { return pool->n; }
+uint32_t rbc_pool_size(const rbc_pool *pool) { return pool->hosted ? pool->host_n : pool->n; }
 
-void rbc_pool_run(rbc_pool *pool, rbc_pool_fn fn, void *ctx) {
-    rbc_pool_run_n(pool, pool->n, fn, ctx);
+void rbc_pool_set_host(rbc_pool *pool, const rbc_pool_host *host, uint32_t participants) {
+    pool->hosted = 1;
+    pool->host = *host;
+    pool->host_n = participants < 1 ? 1 : participants > HOST_COUNT ? HOST_COUNT : participants;
 }
 
-void rbc_pool_run_n(rbc_pool *pool, uint32_t n, rbc_pool_fn fn, void *ctx) {
+/* The pool whose enqueue call this thread is inside, if any: a serial executor that
+ * runs an item inside enqueue runs it on the caller's own thread, which must not wait
+ * for itself. */
+#if defined(_MSC_VER) && !defined(__clang__)
+static __declspec(thread) const rbc_pool *tls_enqueuing;
+#else
+static _Thread_local const rbc_pool *tls_enqueuing;
+#endif
+
+/* One item of the host's: join the run unless it is sealed, wait for the go, run fn
+ * as the next thread id. The range is one participant however many items it holds. */
+static void host_entry(uint32_t begin, uint32_t end, uint32_t worker, void *arg) {
+    (void)begin, (void)end, (void)worker;
+    rbc_pool *pool = arg;
+    if (tls_enqueuing == pool) return;
+    uint32_t s = atomic_load(&pool->h_state);
+    do {
+        if (s & HOST_SEALED) return;
+    } while (!atomic_compare_exchange_weak(&pool->h_state, &s, s + 1));
+    uint32_t spins = 0;
+    double since = 0.0;
+    while (!atomic_load_explicit(&pool->h_go, memory_order_acquire)) {
+        if (atomic_load(&pool->h_in_enqueue)) {
+            const double now = rbc_now_ms();
+            if (since == 0.0) {
+                since = now;
+            } else if (now - since > HOST_LEAVE_MS) {
+                /* Leave, unless the seal counted this item already. */
+                s = atomic_load(&pool->h_state);
+                while (!(s & HOST_SEALED))
+                    if (atomic_compare_exchange_weak(&pool->h_state, &s, s - 1)) return;
+            }
+        }
+        rbc_pool_spin(&spins);
+    }
+    const uint32_t tid = atomic_fetch_add(&pool->h_tid, 1);
+    pool->fn(pool->ctx, tid, pool->active);
+    atomic_fetch_add_explicit(&pool->h_done, 1, memory_order_release);
+}
+
+static double *host_last_ms(rbc_pool *pool, rbc_pool_fn fn) {
+    for (int k = 0; k < HOST_FNS; ++k)
+        if (pool->h_fn[k] == fn || !pool->h_fn[k]) {
+            pool->h_fn[k] = fn;
+            return &pool->h_ms[k];
+        }
+    return &pool->h_ms[0];
+}
+
+static uint32_t run_hosted(rbc_pool *pool, uint32_t n, rbc_pool_fn fn, void *ctx) {
+    pool->fn = fn;
+    pool->ctx = ctx;
+    atomic_store(&pool->h_state, 0);
+    atomic_store(&pool->h_go, 0);
+    atomic_store(&pool->h_tid, 1);
+    atomic_store(&pool->h_done, 0);
+    atomic_store(&pool->h_in_enqueue, 1);
+    /* Restored, not cleared: a serial executor may step another hosted world from
+     * inside this enqueue, on this thread. */
+    const rbc_pool *outer = tls_enqueuing;
+    tls_enqueuing = pool;
+    void *handle = pool->host.enqueue(host_entry, n - 1, 1, pool, pool->host.user);
+    tls_enqueuing = outer;
+    atomic_store(&pool->h_in_enqueue, 0);
+    double *last = host_last_ms(pool, fn);
+    double wait = *last > 0.0 ? 0.25 * *last : HOST_WAIT_FIRST_MS;
+    wait = wait < HOST_WAIT_MIN_MS ? HOST_WAIT_MIN_MS : wait > HOST_WAIT_MAX_MS ? HOST_WAIT_MAX_MS : wait;
+    const double t0 = rbc_now_ms();
+    for (uint32_t spins = 0; (atomic_load(&pool->h_state) & HOST_COUNT) < n - 1; ++spins) {
+        if ((spins & 63) == 63 && rbc_now_ms() - t0 >= wait) break;
+        CPU_RELAX();
+    }
+    const uint32_t joined = atomic_fetch_or(&pool->h_state, HOST_SEALED) & HOST_COUNT;
+    pool->active = joined + 1;
+    atomic_store_explicit(&pool->h_go, 1, memory_order_release);
+    const double r0 = rbc_now_ms();
+    fn(ctx, 0, joined + 1);
+    for (uint32_t spins = 0; atomic_load_explicit(&pool->h_done, memory_order_acquire) < joined;)
+        rbc_pool_spin(&spins);
+    *last = rbc_now_ms() - r0;
+    /* Every item has returned or will return at once (sealed); finish_task waits for
+     * the late ones, so none reads this run's state when the next run resets it. */
+    if (handle) pool->host.finish(handle, pool->host.user);
+    return joined + 1;
+}
+
+void rbc_pool_run(rbc_pool *pool, rbc_pool_fn fn, void *ctx) {
+    rbc_pool_run_n(pool, rbc_pool_size(pool), fn, ctx);
+}
+
+uint32_t rbc_pool_run_n(rbc_pool *pool, uint32_t n, rbc_pool_fn fn, void *ctx) {
     if (n < 1) n = 1;
-    if (n > pool->n) n = pool->n;
+    if (n > rbc_pool_size(pool)) n = rbc_pool_size(pool);
     if (n == 1) {
         /* Barriers see active 1 and return at once; the workers stay asleep. */
         pool->active = 1;
         fn(ctx, 0, 1);
-        return;
+        return 1;
     }
+    if (pool->hosted) return run_hosted(pool, n, fn, ctx);
     pool->fn = fn;
     pool->ctx = ctx;
     pool->active = n;
@@ -238,6 +357,7 @@ void rbc_pool_run_n(rbc_pool *pool, uint32_t n, rbc_pool_fn fn, void *ctx) {
             futex_wait(&pool->done, d);
         atomic_store(&pool->done_sleeper, 0);
     }
+    return n;
 }
 
 void rbc_pool_barrier(rbc_pool *pool) {

@@ -12,15 +12,31 @@
 typedef struct rbc_pool rbc_pool;
 typedef void (*rbc_pool_fn)(void *ctx, uint32_t tid, uint32_t nthreads);
 
+/* The host's job system (ABI 1.10, rbc_world_def.enqueue_task / finish_task): the
+ * same shapes as the ABI's callbacks, which the plugin casts to these. */
+typedef void (*rbc_pool_task_fn)(uint32_t begin, uint32_t end, uint32_t worker, void *ctx);
+typedef struct rbc_pool_host {
+    void *(*enqueue)(rbc_pool_task_fn task, uint32_t items, uint32_t min_range, void *task_ctx,
+                     void *user);
+    void (*finish)(void *handle, void *user);
+    void *user;
+} rbc_pool_host;
+
 /* nthreads >= 1; 1 starts no thread. Returns 0, or -1 (out of memory or no thread). */
 int rbc_pool_create(rbc_pool **out, uint32_t nthreads, const rbc_allocator *a);
 void rbc_pool_destroy(rbc_pool *pool);
 uint32_t rbc_pool_size(const rbc_pool *pool);
+/* A pool of one thread (rbc_pool_create with 1) made to run on the host's job system
+ * with up to `participants` threads, the caller's included: each run hands the host
+ * participants - 1 items and shares fn with those that start within a short wait
+ * (docs/design/threads.md, "Host tasks"). rbc_pool_size is then `participants`. */
+void rbc_pool_set_host(rbc_pool *pool, const rbc_pool_host *host, uint32_t participants);
 /* Run fn(ctx, tid, n) on all n threads; returns when every thread has returned. */
 void rbc_pool_run(rbc_pool *pool, rbc_pool_fn fn, void *ctx);
 /* The same on the first n threads only (1 <= n <= the pool's size; clamped):
- * barriers inside count n. */
-void rbc_pool_run_n(rbc_pool *pool, uint32_t n, rbc_pool_fn fn, void *ctx);
+ * barriers inside count n. Returns the number of threads fn ran on: n, or on the
+ * host's job system those that joined in time (1..n). */
+uint32_t rbc_pool_run_n(rbc_pool *pool, uint32_t n, rbc_pool_fn fn, void *ctx);
 /* Inside fn: wait until all n threads arrive. */
 void rbc_pool_barrier(rbc_pool *pool);
 /* One round of a spin-wait (the lattice wavefront waits on its neighbour's row with

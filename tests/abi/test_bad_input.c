@@ -143,6 +143,7 @@ static void test_result_strings(void) {
         {RBC_ERR_STALE_HANDLE, "RBC_ERR_STALE_HANDLE"},
         {RBC_ERR_CALLBACK, "RBC_ERR_CALLBACK"},
         {RBC_ERR_CAPACITY, "RBC_ERR_CAPACITY"},
+        {RBC_ERR_BUSY, "RBC_ERR_BUSY"},
     };
     const size_t n = sizeof codes / sizeof codes[0];
     for (size_t a = 0; a < n; a++) {
@@ -163,7 +164,7 @@ static void test_result_strings(void) {
         }
     }
     /* Codes that do not exist: "unknown result". */
-    const rbc_result unknown[] = {1, -11, -100, RBC_RESULT_FORCE32, INT32_MIN};
+    const rbc_result unknown[] = {1, -12, -100, RBC_RESULT_FORCE32, INT32_MIN};
     for (size_t k = 0; k < sizeof unknown / sizeof unknown[0]; k++) {
         const char *s = rbc_result_string(unknown[k]);
         CHECK(s != NULL && strcmp(s, "unknown result") == 0);

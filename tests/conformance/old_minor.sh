@@ -1,11 +1,11 @@
 #!/usr/bin/env bash
-# old_minor.sh SRC WORK KIT COMMIT: rbcloth-conformance against the library of an
+# old_minor.sh SRC WORK KIT COMMIT MINOR: rbcloth-conformance against the library of an
 # older ABI minor, built here from the repository's history: COMMIT's tree (git
 # archive) configured and built (target rbcloth alone) in WORK, then the kit of this
 # tree run against it; every check must pass. Exit 77 (skip) where SRC has no git
 # history holding COMMIT (a source tarball, a shallow clone).
 set -uo pipefail
-src=$1 work=$2 kit=$3 commit=$4
+src=$1 work=$2 kit=$3 commit=$4 minor=$5
 if ! git -C "$src" cat-file -e "$commit^{commit}" 2>/dev/null; then
   echo "SKIP: $commit is not in $src's git history (a tarball or a shallow clone); fetch it with git fetch --unshallow"
   exit 77
@@ -24,6 +24,6 @@ lib=$(find "$work/build" -name 'librbcloth.so*' -type f | head -n 1)
 "$kit" "$lib" >"$work/conformance.txt"
 rc=$?
 cat "$work/conformance.txt"
-grep -q "^# library: ABI 1\.8," "$work/conformance.txt" || { echo "FAIL: $commit's library does not report ABI 1.8"; exit 1; }
-[ $rc -eq 0 ] || { echo "FAIL: rbcloth-conformance exited $rc on ABI 1.8"; exit 1; }
+grep -qF "# library: ABI $minor," "$work/conformance.txt" || { echo "FAIL: $commit's library does not report ABI $minor"; exit 1; }
+[ $rc -eq 0 ] || { echo "FAIL: rbcloth-conformance exited $rc on ABI $minor"; exit 1; }
 echo PASS

@@ -452,3 +452,42 @@ def test_masses():
         with pytest.raises(rbcloth.Error) as e:
             a.cloth(p, q, masses=bad)
         assert "5" in e.value.message
+
+
+def test_game_loop_readback_triangles_transform_split_step():
+    """ABI 1.10 from Python: interleaved vertices equal positions(), a flat sheet's
+    normals are (0, -1, 0) ((c - a) x (d - b) of the grid's quads points down), the
+    triangles are (a b c)(a c d) per quad with a revision a cut moves, a translation
+    moves every vertex, and the split step equals the plain one bitwise."""
+    p, q = grid(6, 5, 0.1, (0.0, 1.0, 0.0))
+    with rbcloth.World() as w, rbcloth.World() as twin:
+        c = w.cloth(p, q, pins=[0, 5])
+        t = twin.cloth(p, q, pins=[0, 5])
+        n = c.normals()
+        assert np.array_equal(n[:, [0, 2]], np.zeros((30, 2), np.float32))
+        assert np.allclose(n[:, 1], -1.0, atol=2.4e-7)
+        tris, rev = c.triangles()
+        assert rev == 1 and tris.shape == (2 * len(q), 3)
+        assert np.array_equal(tris[0::2], q[:, [0, 1, 2]])
+        assert np.array_equal(tris[1::2], q[:, [0, 2, 3]])
+        for _ in range(5):
+            w.step_begin(DT)
+            with pytest.raises(rbcloth.Error) as e:
+                c.positions()
+            assert e.value.name == "RBC_ERR_BUSY"
+            w.step_wait()
+            twin.step(DT)
+        assert np.array_equal(c.positions(), t.positions())
+        v = c.vertices()
+        assert v.shape == (30, 6) and np.array_equal(v[:, :3], c.positions())
+        assert np.allclose(np.linalg.norm(v[:, 3:], axis=1), 1.0, atol=2.4e-7)
+        before = c.positions()
+        c.transform((0.0, 2.0, 0.0), reset_velocity=True)
+        assert np.allclose(c.positions() - before, [0.0, 2.0, 0.0], atol=2.4e-7)
+        with pytest.raises(rbcloth.Error) as e:
+            c.transform((0.0, 0.0, 0.0), (0.0, 0.0, 0.0, 2.0))
+        assert "not a unit quaternion" in e.value.message
+        assert c.cut([[7, 8]]) == 1
+        tris, rev = c.triangles()
+        assert rev == 2 and tris.shape == (2 * len(q) - 4, 3)
+        assert c.vertices(normals=False).shape == (30, 3) and c.triangle_revision == 2

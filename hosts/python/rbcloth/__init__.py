@@ -353,6 +353,15 @@ class World(_Owned):
         for _ in range(steps):
             api("world_step", self.id, ctypes.c_float(dt))
 
+    def step_begin(self, dt):
+        """rbc_world_step_begin (ABI 1.10): the step runs on the world's step thread
+        until step_wait(); other calls on the world raise RBC_ERR_BUSY meanwhile."""
+        api("world_step_begin", self.id, ctypes.c_float(dt))
+
+    def step_wait(self):
+        """rbc_world_step_wait: the result of the step step_begin started."""
+        api("world_step_wait", self.id)
+
     def set_gravity(self, gravity):
         api("world_set_gravity", self.id, _ptr(_vec(gravity, 3, "gravity"), _F32))
 
@@ -484,6 +493,46 @@ class Cloth:
         api("cloth_read_positions", self.world.id, self.id, _ptr(out, _F32), out.size,
             ctypes.byref(written))
         return out
+
+    def vertices(self, normals=True):
+        """rbc_world_read_vertices (ABI 1.10): float32 (n, 6), position then unit
+        normal per row (one interleaved buffer, stride 24), or (n, 3) positions
+        with normals=False."""
+        cols = 6 if normals else 3
+        out = np.empty((self.vertex_count, cols), np.float32)
+        o = _abi.rbc_vertex_output()
+        api("vertex_output_init", ctypes.byref(o), ctypes.sizeof(o))
+        o.cloth, o.buffer, o.buffer_size = self.id, out.ctypes.data, out.nbytes
+        o.stride, o.position_offset = 4 * cols, 0
+        if normals:
+            o.normal_offset = 12
+        api("world_read_vertices", self.world.id, ctypes.byref(o), 1)
+        self.triangle_revision = o.triangle_revision
+        return out
+
+    def normals(self):
+        """Area-weighted unit normals, float32 (n, 3) (ABI 1.10)."""
+        return self.vertices()[:, 3:].copy()
+
+    def triangles(self):
+        """(uint32 (k, 3) triangles, revision) (ABI 1.10): two per remaining quad and
+        an import's own triangles; the revision grows when a tear or cut removes one."""
+        n, rev = ctypes.c_size_t(), ctypes.c_uint32()
+        api("cloth_get_triangles", self.world.id, self.id, None, 0, ctypes.byref(n),
+            ctypes.byref(rev))
+        out = np.empty((n.value // 3, 3), np.uint32)
+        api("cloth_get_triangles", self.world.id, self.id, _ptr(out, _U32), out.size,
+            ctypes.byref(n), ctypes.byref(rev))
+        return out, rev.value
+
+    def transform(self, translation, rotation=(0.0, 0.0, 0.0, 1.0), reset_velocity=False):
+        """rbc_cloth_transform (ABI 1.10): p -> R p + t for the whole cloth (rotation a
+        unit quaternion x y z w), keeping its velocity or, reset_velocity, at rest."""
+        api("cloth_transform", self.world.id, self.id,
+            _ptr(_vec(translation, 3, "translation"), _F32),
+            _ptr(_vec(rotation, 4, "rotation"), _F32),
+            CONSTANTS["RBC_TRANSFORM_RESET_VELOCITY" if reset_velocity
+                      else "RBC_TRANSFORM_KEEP_VELOCITY"])
 
     def state(self):
         """(positions, previous positions), float32 (n, 3) each."""
