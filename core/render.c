@@ -25,43 +25,39 @@ int rbc_cloth_normals_reserve(const rbc_allocator *al, rbc_cloth_state *c) {
     return c->normal_acc ? 0 : -1;
 }
 
-/* Twice the vector area of a face, summed at each corner: SoA accumulators (nx, ny,
- * nz, n floats each, in the scratch), so that the normalisation below is one loop
- * the compiler vectorizes (render.c builds with -fno-math-errno). */
-static inline void add_at(float *nx, float *ny, float *nz, uint32_t i, float x, float y,
-                          float z) {
-    nx[i] += x;
-    ny[i] += y;
-    nz[i] += z;
+/* Twice the vector area of the face a b c d, (c - a) x (d - b): the diagonals' cross
+ * product, the same from whichever corner it is taken, planar or not. A triangle
+ * a b c is the face a b c a: (c - a) x (a - b) = (b - a) x (c - a). */
+static inline void face_area2(const float *restrict x, const float *restrict y,
+                              const float *restrict z, uint32_t a, uint32_t b, uint32_t c,
+                              uint32_t d, float m[3]) {
+    const float e0 = x[c] - x[a], e1 = y[c] - y[a], e2 = z[c] - z[a];
+    const float f0 = x[d] - x[b], f1 = y[d] - y[b], f2 = z[d] - z[b];
+    m[0] = e1 * f2 - e2 * f1;
+    m[1] = e2 * f0 - e0 * f2;
+    m[2] = e0 * f1 - e1 * f0;
 }
 
+/* Summed at each corner into SoA accumulators (nx, ny, nz, n floats each, in the
+ * scratch), so that the normalisation below is one loop the compiler vectorizes
+ * (render.c builds without errno or trapping math). */
 const float *rbc_cloth_normals(rbc_cloth_state *c) {
     const size_t n = c->topo.n;
     float *restrict nx = c->normal_acc, *restrict ny = nx + n, *restrict nz = ny + n;
-    const float *restrict x = c->x[0], *restrict y = c->x[1], *restrict z = c->x[2];
+    const float *x = c->x[0], *y = c->x[1], *z = c->x[2];
     memset(nx, 0, 3 * n * sizeof(float));
+    /* Quads and triangles apart: one loop with a branch per face was slower. */
     for (uint32_t q = 0; q < c->quad_count; ++q) {
         const uint32_t *v = &c->quads[4 * (size_t)q];
-        const uint32_t a = v[0], b = v[1], cc = v[2], d = v[3];
-        /* The diagonals' cross product: twice the vector area of the quad, planar or
-         * not, the same from whichever corner it is taken. */
-        const float e0 = x[cc] - x[a], e1 = y[cc] - y[a], e2 = z[cc] - z[a];
-        const float f0 = x[d] - x[b], f1 = y[d] - y[b], f2 = z[d] - z[b];
-        const float m0 = e1 * f2 - e2 * f1, m1 = e2 * f0 - e0 * f2, m2 = e0 * f1 - e1 * f0;
-        add_at(nx, ny, nz, a, m0, m1, m2);
-        add_at(nx, ny, nz, b, m0, m1, m2);
-        add_at(nx, ny, nz, cc, m0, m1, m2);
-        add_at(nx, ny, nz, d, m0, m1, m2);
+        float m[3];
+        face_area2(x, y, z, v[0], v[1], v[2], v[3], m);
+        for (int k = 0; k < 4; ++k) nx[v[k]] += m[0], ny[v[k]] += m[1], nz[v[k]] += m[2];
     }
-    for (uint32_t k = 0; k < c->lone_count; ++k) {
-        const uint32_t *v = &c->lone_tris[3 * (size_t)k];
-        const uint32_t a = v[0], b = v[1], cc = v[2];
-        const float e0 = x[b] - x[a], e1 = y[b] - y[a], e2 = z[b] - z[a];
-        const float f0 = x[cc] - x[a], f1 = y[cc] - y[a], f2 = z[cc] - z[a];
-        const float m0 = e1 * f2 - e2 * f1, m1 = e2 * f0 - e0 * f2, m2 = e0 * f1 - e1 * f0;
-        add_at(nx, ny, nz, a, m0, m1, m2);
-        add_at(nx, ny, nz, b, m0, m1, m2);
-        add_at(nx, ny, nz, cc, m0, m1, m2);
+    for (uint32_t t = 0; t < c->lone_count; ++t) {
+        const uint32_t *v = &c->lone_tris[3 * (size_t)t];
+        float m[3];
+        face_area2(x, y, z, v[0], v[1], v[2], v[0], m);
+        for (int k = 0; k < 3; ++k) nx[v[k]] += m[0], ny[v[k]] += m[1], nz[v[k]] += m[2];
     }
     for (size_t i = 0; i < n; ++i) {
         const float l2 = nx[i] * nx[i] + ny[i] * ny[i] + nz[i] * nz[i];

@@ -453,6 +453,15 @@ static rbc_result step_thread_wait(rbc_world *w) {
     return rc;
 }
 
+/* The thread's record, once no thread runs on it (stopped, or never started). */
+static void step_thread_free(rbc_world *w) {
+    rbc_step_thread *t = w->stepper;
+    rbc_mutex_destroy(&t->mu);
+    rbc_cond_destroy(&t->cv);
+    rbc_mem_free(&w->alloc, t, sizeof *t);
+    w->stepper = NULL;
+}
+
 static void step_thread_stop(rbc_world *w) {
     rbc_step_thread *t = w->stepper;
     if (!t) return;
@@ -463,10 +472,7 @@ static void step_thread_stop(rbc_world *w) {
     rbc_cond_broadcast(&t->cv);
     rbc_mutex_unlock(&t->mu);
     rbc_thread_join(&t->thread);
-    rbc_mutex_destroy(&t->mu);
-    rbc_cond_destroy(&t->cv);
-    rbc_mem_free(&w->alloc, t, sizeof *t);
-    w->stepper = NULL;
+    step_thread_free(w);
 }
 
 RBC_API rbc_result RBC_CALL rbc_world_step_begin(rbc_world_id id, float dt) {
@@ -486,10 +492,7 @@ RBC_API rbc_result RBC_CALL rbc_world_step_begin(rbc_world_id id, float dt) {
         t->state = STEP_IDLE;
         w->stepper = t;
         if (rbc_thread_create(&t->thread, step_thread_main, w) != 0) {
-            rbc_mutex_destroy(&t->mu);
-            rbc_cond_destroy(&t->cv);
-            rbc_mem_free(&w->alloc, t, sizeof *t);
-            w->stepper = NULL;
+            step_thread_free(w);
             return rbc_plugin_world_error(w, RBC_ERR_OUT_OF_MEMORY,
                                           "%s: world 0x%08x: could not start its step thread",
                                           fn, w->id);

@@ -203,12 +203,6 @@ static void test_interleaved(void) {
      * to either buffer (entry 0 is good in every case). */
     memset(b1, 0xCD, s1);
     memset(b2, 0xCD, s2);
-    struct {
-        const char *what;
-        rbc_result code;
-        const char *says;
-        void (*spoil)(rbc_vertex_output *);
-    } cases[8];
     int ncase = 0;
 #define BAD(W, C, S, BODY)                                                   \
     do {                                                                     \
@@ -225,7 +219,6 @@ static void test_interleaved(void) {
         CHECK(test_bytes_are(b1, 0, s1, 0xCD) && test_bytes_are(b2, 0, s2, 0xCD)); \
         ncase++;                                                             \
     } while (0)
-    (void)cases;
     BAD("stride", RBC_ERR_INVALID_ARGUMENT, "stride is 8", x->stride = 8);
     BAD("offset", RBC_ERR_INVALID_ARGUMENT, "past the stride", x->position_offset = 24);
     BAD("overlap", RBC_ERR_INVALID_ARGUMENT, "overlap", x->normal_offset = 8);
