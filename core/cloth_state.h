@@ -127,6 +127,9 @@ typedef struct rbc_cloth_state {
     uint32_t *lone_tris;
     uint32_t tri_revision;
     float *normal_acc;
+    /* The cloth's copy on its world's backend (backend.h), made at its first step
+     * there; NULL on the CPU pool. */
+    struct rbc_dcloth *dev;
 
     size_t state_bytes;
 } rbc_cloth_state;

@@ -33,42 +33,22 @@ void rbc_csr_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, floa
     const uint8_t *restrict pinned = c->pinned;
     float *px = c->p[0], *py = c->p[1], *pz = c->p[2];
     float *sx = c->alt[0], *sy = c->alt[1], *sz = c->alt[2];
-    for (uint32_t i = c0 + b; i < c0 + e; ++i) {
-        if (pinned[i]) continue;
-        float gx, gy, gz;
-        rbc_k_eq6b(i, adj_start, adj_nbr, adj_k, bx, by, bz, inv_denom, px, py, pz, &gx, &gy,
-                   &gz);
-        if (v == RBC_GS_PLAIN) {
-            px[i] = gx;
-            py[i] = gy;
-            pz[i] = gz;
-        } else if (v == RBC_GS_SOR) {
-            px[i] += omega * (gx - px[i]);
-            py[i] += omega * (gy - py[i]);
-            pz[i] += omega * (gz - pz[i]);
-        } else { /* RBC_GS_STASH */
-            sx[i] = px[i];
-            sy[i] = py[i];
-            sz[i] = pz[i];
-            px[i] = gx;
-            py[i] = gy;
-            pz[i] = gz;
-        }
-    }
+    /* rbc_gs_variant numbers the kernel's variants (asserted below). */
+    for (uint32_t i = c0 + b; i < c0 + e; ++i)
+        rbc_k_gs(i, (int)v, omega, adj_start, adj_nbr, adj_k, bx, by, bz, inv_denom, pinned, px,
+                 py, pz, sx, sy, sz);
 }
+
+_Static_assert(RBC_GS_PLAIN == RBC_K_GS_PLAIN && RBC_GS_SOR == RBC_K_GS_SOR &&
+                   RBC_GS_STASH == RBC_K_GS_STASH,
+               "rbc_gs_variant numbers the kernel's variants");
 
 void rbc_global_chebyshev_blend(rbc_cloth_state *c, float omega, uint32_t tid, uint32_t nt) {
     uint32_t b, e;
     rbc_split(c->topo.n, tid, nt, &b, &e);
-    for (int a = 0; a < 3; ++a) {
-        float *p = c->p[a], *q = c->prev[a];
-        const float *old = c->alt[a];
-        for (uint32_t i = b; i < e; ++i) {
-            if (c->pinned[i]) continue;
-            p[i] = omega * (p[i] - q[i]) + q[i];
-            q[i] = old[i];
-        }
-    }
+    for (int a = 0; a < 3; ++a)
+        for (uint32_t i = b; i < e; ++i)
+            rbc_k_cheb_blend(i, omega, c->pinned, c->p[a], c->prev[a], c->alt[a]);
 }
 
 void rbc_csr_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst[3], int chebyshev,
@@ -80,29 +60,9 @@ void rbc_csr_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst[3]
     const float *sx = src[0], *sy = src[1], *sz = src[2];
     float *ox = dst[0], *oy = dst[1], *oz = dst[2];
     float *qx = c->prev[0], *qy = c->prev[1], *qz = c->prev[2];
-    for (uint32_t i = b; i < e; ++i) {
-        if (pinned[i]) {
-            ox[i] = sx[i];
-            oy[i] = sy[i];
-            oz[i] = sz[i];
-            continue;
-        }
-        float gx, gy, gz;
-        rbc_k_eq6b(i, t->adj_start, t->adj_nbr, t->adj_k, c->bx, c->by, c->bz, c->inv_denom, sx,
-                   sy, sz, &gx, &gy, &gz);
-        if (chebyshev) {
-            ox[i] = omega * (gx - qx[i]) + qx[i];
-            oy[i] = omega * (gy - qy[i]) + qy[i];
-            oz[i] = omega * (gz - qz[i]) + qz[i];
-            qx[i] = sx[i];
-            qy[i] = sy[i];
-            qz[i] = sz[i];
-        } else {
-            ox[i] = gx;
-            oy[i] = gy;
-            oz[i] = gz;
-        }
-    }
+    for (uint32_t i = b; i < e; ++i)
+        rbc_k_jacobi(i, chebyshev, omega, t->adj_start, t->adj_nbr, t->adj_k, c->bx, c->by, c->bz,
+                     c->inv_denom, pinned, sx, sy, sz, ox, oy, oz, qx, qy, qz);
 }
 
 void rbc_csr_gs_serial(rbc_cloth_state *c) {

@@ -1,6 +1,7 @@
 /* solver.c -- a world of the core: its life cycle, its cloths and colliders, the
  * global solver's settings and the host callbacks (solver.h). The step is step.c. */
 #include "solver.h"
+#include "backend_step.h"
 
 #include <math.h>
 #include <string.h>
@@ -28,7 +29,18 @@ int32_t rbc_solver_init(rbc_solver *s, const rbc_allocator *a, uint32_t nthreads
     return RBC_OK;
 }
 
+void rbc_solver_set_backend(rbc_solver *s, const rbc_backend_handle *bk) {
+    if (s->backend.ops) {
+        for (uint32_t k = 0; k < s->cloth_count; ++k)
+            rbc_backend_cloth_free(&s->backend, &s->alloc, s->cloths[k]);
+        s->backend.ops->close(s->backend.be);
+    }
+    s->backend.ops = bk ? bk->ops : NULL;
+    s->backend.be = bk ? bk->be : NULL;
+}
+
 void rbc_solver_fini(rbc_solver *s) {
+    rbc_solver_set_backend(s, NULL);
     for (uint32_t k = 0; k < s->cloth_count; ++k) rbc_cloth_state_destroy(&s->alloc, s->cloths[k]);
     rbc_mem_free(&s->alloc, s->cloths, sizeof(*s->cloths) * s->cloth_cap);
     rbc_mem_free(&s->alloc, s->cb_list, sizeof(*s->cb_list) * s->cloth_cap);
@@ -81,6 +93,7 @@ int32_t rbc_solver_add_cloth(rbc_solver *s, rbc_cloth_state *c) {
 void rbc_solver_remove_cloth(rbc_solver *s, rbc_cloth_state *c) {
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         if (s->cloths[k] != c) continue;
+        if (s->backend.ops) rbc_backend_cloth_free(&s->backend, &s->alloc, c);
         /* Keep creation order (stable iteration order for hosts and tests). */
         memmove(&s->cloths[k], &s->cloths[k + 1], sizeof(*s->cloths) * (s->cloth_count - k - 1));
         s->cloth_count--;

@@ -12,6 +12,7 @@
 
 #include "../abi/rbcloth.h"
 #include "alloc.h"
+#include "backend.h"
 #include "contact_list.h"
 #include "cloth.h"
 #include "cpu/pool.h"
@@ -145,6 +146,9 @@ typedef struct rbc_solver {
     uint32_t strain_warn_cloth, strain_warn_spring;
     int strain_warn_last;
     uint64_t strain_warn_steps;
+    /* The backend the step's substeps run on (backend_step.h); ops NULL: the CPU
+     * pool's stages (step.c). Owned: closed by rbc_solver_fini. */
+    rbc_backend_handle backend;
 } rbc_solver;
 
 /* Solver life cycle. nthreads >= 1. */
@@ -184,5 +188,8 @@ int32_t rbc_solver_set_contact_callback(rbc_solver *s, rbc_contact_fn fn, void *
  * RBC_ERR_CALLBACK) every cloth is as it was before the call and err says which
  * cloth, vertex and substep. */
 int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen);
+/* Run this world's steps on bk (taken over: closed by rbc_solver_fini), or, with ops
+ * NULL, on the CPU pool again. Cloths' copies on the old backend are released. */
+void rbc_solver_set_backend(rbc_solver *s, const rbc_backend_handle *bk);
 
 #endif

@@ -96,4 +96,20 @@ static inline int rbc_step_guarded(const step_ctx *ctx) {
 }
 /* Per-cloth parameters are kept for the first 64 cloths; later ones share the last. */
 static inline uint32_t rbc_step_slot(uint32_t cloth) { return cloth < 64 ? cloth : 63; }
+/* The blow-up guard: an iterative solver that does not converge can inject energy
+ * until the positions are huge but still finite. No cloth is stretched to
+ * RBC_BLOWUP_STRETCH times its rest length (the mean rest length for shorter
+ * springs) by physics the solver resolved, so a spring past that counts as
+ * divergence, like a NaN (docs/design/blowup-guard.md). */
+#define RBC_BLOWUP_STRETCH 1000.0f
+
+/* Gauss-Seidel sweeps (red-black, multicolor, serial) and the exact solve only lower
+ * the PD objective, so they cannot run away: the spring bound is checked for the
+ * solvers that can, once per step (the last substep; a step that fails is undone
+ * whole, and a run-away is still there, larger, at its end). */
+static inline int rbc_step_can_run_away(rbc_solver_kind kind) {
+    return kind == RBC_SOLVER_JACOBI || kind == RBC_SOLVER_JACOBI_CHEBYSHEV ||
+           kind == RBC_SOLVER_RBGS_SOR || kind == RBC_SOLVER_RBGS_CHEBYSHEV;
+}
+
 #endif

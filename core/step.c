@@ -37,6 +37,7 @@
 #include "energy.h"
 #include "energy_guard.h"
 #include "global.h"
+#include "backend_step.h"
 #include "lattice.h"
 #include "host_callbacks.h"
 #include "kernels/pd_kernels.h"
@@ -96,10 +97,8 @@ static void stage_pins(step_ctx *ctx, const rbc_step_at *at) {
         for (uint32_t m = 0; m < c->pin_count; ++m) {
             uint32_t i = c->pin_idx[m];
             if (i < b || i >= e) continue;
-            for (int a = 0; a < 3; ++a) {
-                float st = c->pin_start[3 * m + a], tg = c->pin_target[3 * m + a];
-                c->p[a][i] = last ? tg : st + (tg - st) * f;
-            }
+            rbc_k_pin(m, c->pin_idx, c->pin_start, c->pin_target, f, last, c->p[0], c->p[1],
+                      c->p[2]);
         }
     }
     rbc_pool_barrier(s->pool);
@@ -139,22 +138,6 @@ static void stage_local(step_ctx *ctx, const rbc_step_at *at) {
             rbc_global_rhs(c, at->tid, at->nt);
     }
     rbc_pool_barrier(s->pool);
-}
-
-/* The blow-up guard: an iterative solver that does not converge can inject energy
- * until the positions are huge but still finite. No cloth is stretched to
- * RBC_BLOWUP_STRETCH times its rest length (the mean rest length for shorter
- * springs) by physics the solver resolved, so a spring past that counts as
- * divergence, like a NaN (docs/design/blowup-guard.md). */
-#define RBC_BLOWUP_STRETCH 1000.0f
-
-/* Gauss-Seidel sweeps (red-black, multicolor, serial) and the exact solve only lower
- * the PD objective, so they cannot run away: the spring bound is checked for the
- * solvers that can, once per step (the last substep; a step that fails is undone
- * whole, and a run-away is still there, larger, at its end). */
-static int can_run_away(rbc_solver_kind kind) {
-    return kind == RBC_SOLVER_JACOBI || kind == RBC_SOLVER_JACOBI_CHEBYSHEV ||
-           kind == RBC_SOLVER_RBGS_SOR || kind == RBC_SOLVER_RBGS_CHEBYSHEV;
 }
 
 /* This thread's first spring past the bound: 1 and ctx->bad set if one is. */
@@ -248,7 +231,7 @@ static void stage_check(step_ctx *ctx, const rbc_step_at *at) {
         for (uint32_t k = 0; k < s->cloth_count; ++k)
             rbc_energy_blocks(s->cloths[k], s->cloths[k]->p, s->cloths[k]->x, s->gravity, 0,
                               at->tid, at->nt);
-    if (!(last && can_run_away(s->settings.kind) && check_springs(ctx, at->tid, at->nt)))
+    if (!(last && rbc_step_can_run_away(s->settings.kind) && check_springs(ctx, at->tid, at->nt)))
         check_particles(ctx, at->tid, at->nt);
     rbc_pool_barrier(s->pool);
     if (at->tid == 0) {
@@ -496,7 +479,8 @@ static void finish_step(rbc_solver *s, const step_ctx *ctx, uint32_t threads, ui
                         double start, double run_ms) {
     rbc_step_threads_record(s, threads, run_ms / (ctx->substeps ? ctx->substeps : 1));
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
-        s->cloths[k]->system_valid = 1;
+        /* A backend leaves the host's y, d and w of the last substep stale. */
+        s->cloths[k]->system_valid = !s->backend.ops;
         s->cloths[k]->h_last = ctx->h;
     }
     for (uint32_t k = 0; k < s->collider_count; ++k) {
@@ -533,6 +517,10 @@ static void finish_step(rbc_solver *s, const step_ctx *ctx, uint32_t threads, ui
 int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     const double start = rbc_now_ms();
     step_ctx ctx = {.s = s, .result = RBC_OK, .err = err, .errlen = errlen, .start_ms = start};
+    if (s->backend.ops) { /* before anything changes */
+        int32_t rc = rbc_backend_scene_check(s, s->backend.ops->name, err, errlen);
+        if (rc != RBC_OK) return rc;
+    }
     const int from_rate = choose_substeps(s, &ctx, dt);
     ctx.h = dt / (float)ctx.substeps;
     if (!(ctx.h > 0.0f))
@@ -556,14 +544,18 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     for (uint32_t k = 0; (s->settings.mode == RBC_ITERATE_TARGET || from_rate) && k < s->cloth_count;
          ++k)
         rescale |= s->cloths[k]->h_last > 0.0f && s->cloths[k]->h_last != ctx.h;
-    const int need_snapshot = ctx.substeps > 1 || rescale;
+    /* A backend writes the host's state only at the end, but a readback that fails
+     * half-way leaves it mixed. */
+    const int need_snapshot = ctx.substeps > 1 || rescale || s->backend.ops;
     if (need_snapshot) snapshot(s, 0);
     if (rescale) rescale_velocities(s, ctx.h);
 
     const uint32_t threads = rbc_step_threads_choose(s);
     const double run_t0 = rbc_now_ms();
     /* On the host's job system the threads that joined (1..threads). */
-    const uint32_t used = rbc_pool_run_n(s->pool, threads, step_spmd, &ctx);
+    const uint32_t used = s->backend.ops ? (rbc_backend_run(&s->backend, &ctx), 1u)
+                                         : rbc_pool_run_n(s->pool, threads, step_spmd, &ctx);
+    if (s->backend.ops) ctx.stage_ms[RBC_STAGE_GLOBAL] = rbc_now_ms() - run_t0;
     const double run_ms = rbc_now_ms() - run_t0;
     s->threads_last = used;
     if (ctx.result != RBC_OK) {

@@ -172,4 +172,105 @@ RBC_HD void rbc_k_residual(uint32_t i, const uint32_t *adj_start, const uint32_t
     *r2 += rx * rx + ry * ry + rz * rz;
     *b2 += bx * bx + by * by + bz * bz;
 }
+/* The Gauss-Seidel variants of one color's update (Eq. 6 in place): plain, over-relaxed
+ * (SOR: p += omega (g - p)), or plain with the old value kept in s for Chebyshev's
+ * blend after the sweeps. */
+#define RBC_K_GS_PLAIN 0
+#define RBC_K_GS_SOR 1
+#define RBC_K_GS_STASH 2
+
+/* One Gauss-Seidel update of particle i of a color (pinned particles stay). */
+RBC_HD void rbc_k_gs(uint32_t i, int variant, float omega, const uint32_t *adj_start,
+                     const uint32_t *adj_nbr, const float *adj_k, const float *bx,
+                     const float *by, const float *bz, const float *inv_denom,
+                     const uint8_t *pinned, float *px, float *py, float *pz, float *sx,
+                     float *sy, float *sz) {
+    if (pinned[i]) return;
+    float gx, gy, gz;
+    rbc_k_eq6b(i, adj_start, adj_nbr, adj_k, bx, by, bz, inv_denom, px, py, pz, &gx, &gy, &gz);
+    if (variant == RBC_K_GS_PLAIN) {
+        px[i] = gx;
+        py[i] = gy;
+        pz[i] = gz;
+    } else if (variant == RBC_K_GS_SOR) {
+        px[i] += omega * (gx - px[i]);
+        py[i] += omega * (gy - py[i]);
+        pz[i] += omega * (gz - pz[i]);
+    } else {
+        sx[i] = px[i];
+        sy[i] = py[i];
+        sz[i] = pz[i];
+        px[i] = gx;
+        py[i] = gy;
+        pz[i] = gz;
+    }
+}
+
+/* One Jacobi update of particle i from iterate s into o (pinned particles are copied).
+ * Chebyshev: o = omega (g - q) + q with q = p^(k-1), and q becomes s. */
+RBC_HD void rbc_k_jacobi(uint32_t i, int chebyshev, float omega, const uint32_t *adj_start,
+                         const uint32_t *adj_nbr, const float *adj_k, const float *bx,
+                         const float *by, const float *bz, const float *inv_denom,
+                         const uint8_t *pinned, const float *sx, const float *sy,
+                         const float *sz, float *ox, float *oy, float *oz, float *qx,
+                         float *qy, float *qz) {
+    if (pinned[i]) {
+        ox[i] = sx[i];
+        oy[i] = sy[i];
+        oz[i] = sz[i];
+        return;
+    }
+    float gx, gy, gz;
+    rbc_k_eq6b(i, adj_start, adj_nbr, adj_k, bx, by, bz, inv_denom, sx, sy, sz, &gx, &gy, &gz);
+    if (chebyshev) {
+        ox[i] = omega * (gx - qx[i]) + qx[i];
+        oy[i] = omega * (gy - qy[i]) + qy[i];
+        oz[i] = omega * (gz - qz[i]) + qz[i];
+        qx[i] = sx[i];
+        qy[i] = sy[i];
+        qz[i] = sz[i];
+    } else {
+        ox[i] = gx;
+        oy[i] = gy;
+        oz[i] = gz;
+    }
+}
+
+/* Chebyshev's blend after a Gauss-Seidel iteration, one coordinate of particle i:
+ * p = omega (p - q) + q with q = p^(k-1), and q becomes the stashed old value. */
+RBC_HD void rbc_k_cheb_blend(uint32_t i, float omega, const uint8_t *pinned, float *p, float *q,
+                             const float *old) {
+    if (pinned[i]) return;
+    p[i] = omega * (p[i] - q[i]) + q[i];
+    q[i] = old[i];
+}
+
+/* Pin m on its path from where it was at the step's start to its target, reached at
+ * the step's last substep (f = (substep + 1) / substeps). */
+RBC_HD void rbc_k_pin(uint32_t m, const uint32_t *pin_idx, const float *pin_start,
+                      const float *pin_target, float f, int last, float *px, float *py,
+                      float *pz) {
+    uint32_t i = pin_idx[m];
+    float *p[3] = {px, py, pz};
+    for (int a = 0; a < 3; ++a) {
+        float st = pin_start[3 * m + a], tg = pin_target[3 * m + a];
+        p[a][i] = last ? tg : st + (tg - st) * f;
+    }
+}
+
+/* Whether particle i's position is finite (x - x is 0 exactly then, NaN otherwise). */
+RBC_HD int rbc_k_finite(uint32_t i, const float *px, const float *py, const float *pz) {
+    return (px[i] - px[i]) + (py[i] - py[i]) + (pz[i] - pz[i]) == 0.0f;
+}
+/* Whether spring s is within the blow-up bound: |p_a - p_b| <= max(stretch L_s, floor)
+ * (a NaN compares true here: the finiteness check names it). */
+RBC_HD int rbc_k_spring_ok(uint32_t s, const uint32_t *sa, const uint32_t *sb, const float *rest,
+                           float stretch, float floor_len, const float *px, const float *py,
+                           const float *pz) {
+    uint32_t i = sa[s], j = sb[s];
+    float ex = px[i] - px[j], ey = py[i] - py[j], ez = pz[i] - pz[j];
+    float lim = stretch * rest[s];
+    if (lim < floor_len) lim = floor_len;
+    return !(ex * ex + ey * ey + ez * ez > lim * lim);
+}
 #endif
