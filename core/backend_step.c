@@ -16,9 +16,14 @@
 #include "report.h"
 #include "stage.h"
 
-int32_t rbc_backend_scene_check(const rbc_solver *s, const char *backend, char *err,
-                                size_t errlen) {
-    const rbc_solver_settings *st = &s->settings;
+static int32_t refuse(const char *backend, const char *what, char *err, size_t errlen) {
+    return rbc_fail(err, errlen, RBC_ERR_UNSUPPORTED,
+                    "the %s backend does not run %s yet; nothing was run elsewhere", backend,
+                    what);
+}
+
+/* The first setting a backend does not run, or NULL. */
+static const char *settings_refused(const rbc_solver_settings *st) {
     const char *what = NULL;
     if (st->kind == RBC_SOLVER_GAUSS_SEIDEL)
         what = "the serial Gauss-Seidel solver (RBC_SOLVER_GAUSS_SEIDEL has no parallel "
@@ -30,6 +35,20 @@ int32_t rbc_backend_scene_check(const rbc_solver *s, const char *backend, char *
                "need the residual or strain on the device)";
     else if (st->energy_guard != RBC_ENERGY_GUARD_OFF)
         what = "the energy guard (set the solver's energy_guard to RBC_ENERGY_GUARD_OFF)";
+    return what;
+}
+
+int32_t rbc_backend_settings_check(const rbc_solver_settings *st, const char *backend,
+                                   char *err, size_t errlen) {
+    const char *what = settings_refused(st);
+    return what ? refuse(backend, what, err, errlen) : RBC_OK;
+}
+
+int32_t rbc_backend_scene_check(const rbc_solver *s, const char *backend, char *err,
+                                size_t errlen) {
+    const char *what = settings_refused(&s->settings);
+    if (what)
+        ;
     else if (s->collider_count)
         what = "colliders";
     else if (s->callback)
@@ -49,10 +68,7 @@ int32_t rbc_backend_scene_check(const rbc_solver *s, const char *backend, char *
         else if (c->torn)
             what = "cut or torn springs (the backend's copy of the topology is not updated)";
     }
-    if (!what) return RBC_OK;
-    return rbc_fail(err, errlen, RBC_ERR_UNSUPPORTED,
-                    "the %s backend does not run %s yet; nothing was run elsewhere", backend,
-                    what);
+    return what ? refuse(backend, what, err, errlen) : RBC_OK;
 }
 
 /* ------------------------------------------------------------------------- */
@@ -369,4 +385,18 @@ void rbc_backend_run(const rbc_backend_handle *bk, step_ctx *ctx) {
     if (rc == RBC_OK)
         ctx->linear_done = ctx->substeps * s->nonlinear_iterations * s->linear_iterations;
     ctx->result = rc;
+}
+
+void rbc_solver_set_backend(rbc_solver *s, const rbc_backend_handle *bk) {
+    if (s->backend.ops) {
+        for (uint32_t k = 0; k < s->cloth_count; ++k)
+            rbc_backend_cloth_free(&s->backend, &s->alloc, s->cloths[k]);
+        s->backend.ops->close(s->backend.be);
+    }
+    s->backend.ops = bk ? bk->ops : NULL;
+    s->backend.be = bk ? bk->be : NULL;
+}
+
+void rbc_solver_release_backend_copy(rbc_solver *s, rbc_cloth_state *c) {
+    rbc_backend_cloth_free(&s->backend, &s->alloc, c);
 }

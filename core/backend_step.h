@@ -10,8 +10,11 @@
 #include "solver.h"
 #include "stage.h"
 
-/* RBC_OK, or RBC_ERR_UNSUPPORTED naming the first feature of this world's scene that
- * the backends do not run yet (backend: its name, for the message). */
+/* RBC_OK, or RBC_ERR_UNSUPPORTED naming the first feature of these solver settings,
+ * or of this world's whole scene, that the backends do not run yet (backend: its
+ * name, for the message). */
+int32_t rbc_backend_settings_check(const rbc_solver_settings *st, const char *backend,
+                                   char *err, size_t errlen);
 int32_t rbc_backend_scene_check(const rbc_solver *s, const char *backend, char *err,
                                 size_t errlen);
 /* Every substep of ctx's step on bk, then the state back into the host's x and q;

@@ -1,7 +1,6 @@
 /* solver.c -- a world of the core: its life cycle, its cloths and colliders, the
  * global solver's settings and the host callbacks (solver.h). The step is step.c. */
 #include "solver.h"
-#include "backend_step.h"
 
 #include <math.h>
 #include <string.h>
@@ -27,16 +26,6 @@ int32_t rbc_solver_init(rbc_solver *s, const rbc_allocator *a, uint32_t nthreads
     rbc_solver_target_reset(s);
     if (rbc_pool_create(&s->pool, nthreads, a) != 0) return RBC_ERR_OUT_OF_MEMORY;
     return RBC_OK;
-}
-
-void rbc_solver_set_backend(rbc_solver *s, const rbc_backend_handle *bk) {
-    if (s->backend.ops) {
-        for (uint32_t k = 0; k < s->cloth_count; ++k)
-            rbc_backend_cloth_free(&s->backend, &s->alloc, s->cloths[k]);
-        s->backend.ops->close(s->backend.be);
-    }
-    s->backend.ops = bk ? bk->ops : NULL;
-    s->backend.be = bk ? bk->be : NULL;
 }
 
 void rbc_solver_fini(rbc_solver *s) {
@@ -93,7 +82,7 @@ int32_t rbc_solver_add_cloth(rbc_solver *s, rbc_cloth_state *c) {
 void rbc_solver_remove_cloth(rbc_solver *s, rbc_cloth_state *c) {
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         if (s->cloths[k] != c) continue;
-        if (s->backend.ops) rbc_backend_cloth_free(&s->backend, &s->alloc, c);
+        if (s->backend.ops) rbc_solver_release_backend_copy(s, c);
         /* Keep creation order (stable iteration order for hosts and tests). */
         memmove(&s->cloths[k], &s->cloths[k + 1], sizeof(*s->cloths) * (s->cloth_count - k - 1));
         s->cloth_count--;

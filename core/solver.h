@@ -191,5 +191,7 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen);
 /* Run this world's steps on bk (taken over: closed by rbc_solver_fini), or, with ops
  * NULL, on the CPU pool again. Cloths' copies on the old backend are released. */
 void rbc_solver_set_backend(rbc_solver *s, const rbc_backend_handle *bk);
+/* Release cloth c's copy on the world's backend (removal). Both in backend_step.c. */
+void rbc_solver_release_backend_copy(rbc_solver *s, rbc_cloth_state *c);
 
 #endif

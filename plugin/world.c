@@ -18,6 +18,8 @@
 #include "strain.h"
 #include "threads.h"
 #include "world.h"
+#include "backend_step.h"
+#include "cuda.h"
 
 #define RBC_MAX_WORLDS 1024u
 #define RBC_MAX_THREADS 64u
@@ -158,11 +160,6 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
         def.backend != RBC_BACKEND_CUDA)
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: backend %d is not an rbc_backend",
                              fn, (int)def.backend);
-    if (def.backend == RBC_BACKEND_CUDA)
-        return rbc_set_error(RBC_ERR_BACKEND_UNAVAILABLE,
-                             "%s: this build of librbcloth has no CUDA backend; use "
-                             "RBC_BACKEND_CPU or RBC_BACKEND_AUTO",
-                             fn);
     if (def.thread_count > RBC_MAX_THREADS)
         return rbc_set_error(RBC_ERR_INVALID_ARGUMENT, "%s: thread_count is %u; at most %u", fn,
                              def.thread_count, RBC_MAX_THREADS);
@@ -186,6 +183,24 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
         return rc;
     if ((rc = rbc_plugin_solver_settings_from(NULL, fn, &sdef, &settings))) return rc;
 
+    /* RBC_BACKEND_CUDA: the module and a device, then what the scene asks of it
+     * (backend_step.h), before anything is made. RBC_BACKEND_AUTO is the CPU: the
+     * scene size above which the GPU is faster has not been measured on a device
+     * yet (docs/design/backends.md). */
+    rbc_backend_handle dev = {NULL, NULL};
+    if (def.backend == RBC_BACKEND_CUDA) {
+        char why[768];
+        rc = rbc_plugin_cuda_open(&dev, why, sizeof why);
+        if (rc != RBC_OK)
+            return rbc_set_error(rc, "%s: RBC_BACKEND_CUDA is unavailable: %s; use "
+                                 "RBC_BACKEND_CPU or RBC_BACKEND_AUTO", fn, why);
+        char err[512];
+        if ((rc = rbc_backend_settings_check(&settings, dev.ops->name, err, sizeof err))) {
+            dev.ops->close(dev.be);
+            return rbc_set_error(rc, "%s: %s", fn, err);
+        }
+    }
+
     rbc_allocator alloc = rbc_allocator_default();
     if (def.alloc) {
         alloc.alloc = (void *(*)(void *, size_t, size_t))def.alloc;
@@ -199,16 +214,21 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     }
 
     rbc_world *w = rbc_mem_alloc(&alloc, sizeof *w);
-    if (!w) return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: out of memory", fn);
+    if (!w) {
+        if (dev.ops) dev.ops->close(dev.be);
+        return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: out of memory", fn);
+    }
     w->alloc = alloc;
     w->def = def;
     /* On the host's job system the world starts no thread: its pool has one, and
      * the host's workers join it (core/cpu/pool.c, run_hosted). */
     if (rbc_solver_init(&w->solver, &alloc, hosted ? 1 : threads) != RBC_OK) {
         rbc_mem_free(&alloc, w, sizeof *w);
+        if (dev.ops) dev.ops->close(dev.be);
         return rbc_set_error(RBC_ERR_OUT_OF_MEMORY, "%s: could not start %u worker threads", fn,
                              threads);
     }
+    if (dev.ops) rbc_solver_set_backend(&w->solver, &dev); /* the solver closes it */
     /* thread_count 0: the step measures whether its threads pay (core/step_threads.c,
      * threads_for_step); a count the host gives is used as given. */
     /* On the host's job system too: thread_count 0 asks for every item or none,
@@ -234,9 +254,13 @@ RBC_API rbc_result RBC_CALL rbc_world_create(const rbc_world_def *user_def,
     w->solver.substep_rate = def.substep_rate;
     w->solver.public_world_id = w->id;
     *out_world = w->id;
-    char msg[128];
-    snprintf(msg, sizeof msg, "world 0x%08x created: CPU backend, %u threads%s", w->id, threads,
-             hosted ? " on the host's job system" : "");
+    char msg[320];
+    if (dev.ops)
+        snprintf(msg, sizeof msg, "world 0x%08x created: CUDA backend, %.200s", w->id,
+                 dev.ops->describe(dev.be));
+    else
+        snprintf(msg, sizeof msg, "world 0x%08x created: CPU backend, %u threads%s", w->id,
+                 threads, hosted ? " on the host's job system" : "");
     rbc_plugin_world_log(w, RBC_LOG_INFO, msg);
     return RBC_OK;
 }
@@ -586,7 +610,7 @@ RBC_API rbc_result RBC_CALL rbc_world_get_stats(rbc_world_id id, rbc_world_stats
     st.cloth_count = s->cloth_count;
     st.collider_count = s->collider_count;
     st.thread_count = s->threads_last ? s->threads_last : rbc_pool_size(s->pool);
-    st.backend = RBC_BACKEND_CPU;
+    st.backend = s->backend.ops ? RBC_BACKEND_CUDA : RBC_BACKEND_CPU;
     st.step_count = s->step_count;
     for (uint32_t k = 0; k < s->cloth_count; ++k) {
         const rbc_cloth_state *c = s->cloths[k];
@@ -699,6 +723,11 @@ RBC_API rbc_result RBC_CALL rbc_world_set_solver(rbc_world_id id, const rbc_solv
         return rc;
     rbc_solver_settings st;
     if ((rc = rbc_plugin_solver_settings_from(w, fn, &def, &st))) return rc;
+    if (w->solver.backend.ops) { /* what the world's backend does not run is refused here */
+        char err[512];
+        rc = rbc_backend_settings_check(&st, w->solver.backend.ops->name, err, sizeof err);
+        if (rc) return rbc_plugin_world_error(w, rc, "%s: %s", fn, err);
+    }
     if ((rc = rbc_solver_set_settings(&w->solver, &st)))
         return rbc_plugin_world_error(w, rc, "%s: out of memory for the solver's buffers", fn);
     return RBC_OK;

@@ -1,6 +1,10 @@
-/* The step through the backend seam (core/backend.h) on the CPU backend against the
- * CPU pool's own stages (step.c), on every machine: the schedule the CUDA backend
- * runs (backend_step.c) is this one.
+/* The step through the backend seam (core/backend.h) against the CPU pool's own
+ * stages (step.c). Without an argument on the CPU backend, on every machine: the
+ * schedule the CUDA backend runs (backend_step.c) is this one. With the CUDA module's
+ * path (test cuda_parity), on the CUDA backend: the same checks, bit for bit too
+ * (the module rounds as the CPU does: no FMA contraction, IEEE division and square
+ * root); without a CUDA device it says so and exits 77, which CTest reports as
+ * skipped.
  *
  *  1. For every solver a backend runs (rbgs, multicolor, SOR, Chebyshev-RBGS,
  *     Jacobi, Chebyshev-Jacobi), on a lattice, a cube (valence 3 corners, the ELL
@@ -17,6 +21,7 @@
  *     tolerance mode, the direct solver) is refused with RBC_ERR_UNSUPPORTED naming
  *     it, and nothing changes.
  */
+#include <dlfcn.h>
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -25,6 +30,10 @@
 #include "meshes.h"
 #include "rbcloth.h"
 #include "solver.h"
+
+/* The backend under test: the CPU's, or the CUDA module's open function. */
+static rbc_backend_open_fn *cuda_open;
+static const char *backend_name = "cpu";
 
 typedef struct world {
     rbc_solver s;
@@ -48,7 +57,11 @@ static void make(world *w, const test_mesh *m, rbc_solver_kind kind, int on_back
     CHECK_EQ(rbc_solver_set_settings(&w->s, &st), RBC_OK);
     if (on_backend) {
         rbc_backend_handle bk;
-        CHECK_EQ(rbc_backend_cpu_open(&bk), RBC_OK);
+        char why[512];
+        if (cuda_open)
+            CHECK_EQ(cuda_open(RBC_BACKEND_INTERFACE, &bk, why, sizeof why), RBC_OK);
+        else
+            CHECK_EQ(rbc_backend_cpu_open(&bk), RBC_OK);
         rbc_solver_set_backend(&w->s, &bk);
     }
 }
@@ -179,7 +192,9 @@ static void refused(void) {
     rbc_collider_update_frame(&col);
     CHECK_EQ(rbc_solver_add_collider(&b.s, &col), RBC_OK);
     CHECK_EQ(rbc_solver_step(&b.s, 1.0f / 60.0f, err, sizeof err), RBC_ERR_UNSUPPORTED);
-    CHECK(strstr(err, "colliders") != NULL && strstr(err, "cpu backend") != NULL);
+    char named[64];
+    snprintf(named, sizeof named, "%s backend", backend_name);
+    CHECK(strstr(err, "colliders") != NULL && strstr(err, named) != NULL);
     fprintf(stderr, "  (message: %s)\n", err);
     CHECK(!memcmp(x0, b.c->x[1], n * sizeof(float)));
     CHECK_EQ(b.s.step_count, steps);
@@ -190,7 +205,31 @@ static void refused(void) {
     mesh_free(&m);
 }
 
-int main(void) {
+int main(int argc, char **argv) {
+    if (argc > 1) {
+        void *h = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
+        if (!h) {
+            fprintf(stderr, "FAIL: the CUDA module %s does not load: %s\n", argv[1], dlerror());
+            return 1;
+        }
+        cuda_open = (rbc_backend_open_fn *)dlsym(h, RBC_BACKEND_OPEN_SYMBOL);
+        if (!cuda_open) {
+            fprintf(stderr, "FAIL: %s has no %s\n", argv[1], RBC_BACKEND_OPEN_SYMBOL);
+            return 1;
+        }
+        rbc_backend_handle probe;
+        char why[512];
+        int32_t rc = cuda_open(RBC_BACKEND_INTERFACE, &probe, why, sizeof why);
+        if (rc == RBC_ERR_BACKEND_UNAVAILABLE) {
+            printf("SKIP: the CUDA backend is unavailable here (%s); parity not run\n", why);
+            return 77;
+        }
+        CHECK_EQ(rc, RBC_OK);
+        if (rc != RBC_OK) return check_report("cuda_parity");
+        fprintf(stderr, "  CUDA device: %s\n", probe.ops->describe(probe.be));
+        probe.ops->close(probe.be);
+        backend_name = "cuda";
+    }
     static const struct {
         rbc_solver_kind kind;
         const char *name;
@@ -211,5 +250,5 @@ int main(void) {
     for (int m = 0; m < 4; ++m) mesh_free(&meshes[m]);
     failure_restores();
     refused();
-    return check_report("core_backend_seam");
+    return check_report(cuda_open ? "cuda_parity" : "core_backend_seam");
 }
