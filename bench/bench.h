@@ -29,6 +29,8 @@ typedef struct cli_bench_options {
     long threads;
     /// Fewer frames, budgets and cases: a smoke run for the tests.
     int quick;
+    /// perf only: the worlds' rbc_backend (--backend cpu|cuda). Default RBC_BACKEND_CPU.
+    int backend;
 } cli_bench_options;
 
 /// `rbcloth bench accuracy`: the paper's Fig. 3/4 experiments for every solver.

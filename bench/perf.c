@@ -513,6 +513,11 @@ static rbc_result perf_world_create(const perf_ctx *ctx, const bench_mesh *m, ui
     wd.linear_iterations = PERF_ITERATIONS;
     wd.thread_count = threads;
     wd.solver = &sd;
+    /* --backend cuda: what the CUDA backend runs (docs/design/backends.md). */
+    if (ctx->run.opt->backend == RBC_BACKEND_CUDA) {
+        wd.backend = RBC_BACKEND_CUDA;
+        sd.energy_guard = RBC_ENERGY_GUARD_OFF;
+    }
     rbc_world_id world;
     if ((r = api->world_create(&wd, &world)) != RBC_OK)
         return r;
@@ -1151,6 +1156,33 @@ int cli_bench_perf(const cli_plugin *plugin, const cli_bench_options *options) {
     uint32_t side_count = options->quick ? 3 : 6;
     const uint32_t *irr = options->quick ? quick_irregular : full_irregular;
     uint32_t irr_count = options->quick ? 1 : 3;
+    /* --backend cuda: 10K, 100K, 1M and 4M particles on one host thread (the issue's
+     * range), after a world is known to open: without a device the bench says why
+     * and measures nothing. */
+    static const uint32_t cuda_sides[] = {100, 316, 1000, 2000};
+    const int cuda = options->backend == RBC_BACKEND_CUDA;
+    if (cuda) {
+        bench_mesh probe;
+        rbc_world_id w = 0;
+        rbc_cloth_id c = 0;
+        double setup = 0.0;
+        rbc_result r = perf_mesh_grid(&probe, 8) ? RBC_ERR_OUT_OF_MEMORY
+                                                  : perf_world_create(ctx, &probe, 0, 1, &w, &c, &setup);
+        if (r == RBC_OK) ctx->run.api->world_destroy(w);
+        else
+            fprintf(stderr, "rbcloth: bench perf --backend cuda: %s\n", ctx->run.api->last_error());
+        bench_mesh_free(&probe);
+        if (r != RBC_OK) {
+            free(ctx);
+            return 1;
+        }
+        sides = cuda_sides;
+        side_count = options->quick ? 1 : 4;
+        irr_count = options->quick ? 0 : 1;
+        irr = full_irregular + 2;
+        ctx->thread_count = 1;
+        ctx->thread_list[0] = 1;
+    }
     ctx->solver_side = 100;
 
     double start = bench_now();
@@ -1169,12 +1201,13 @@ int cli_bench_perf(const cli_plugin *plugin, const cli_bench_options *options) {
             break;
         }
         rc = run_threads(ctx, &m, PERF_GRID, 0, sides[k]);
-        if (!rc && sides[k] <= 500) rc = run_readback(ctx, &m, sides[k]);
-        /* Jacobi and serial Gauss-Seidel on the same grid, at equal iterations. */
+        if (!rc && sides[k] <= 500 && !cuda) rc = run_readback(ctx, &m, sides[k]);
+        /* Jacobi and serial Gauss-Seidel on the same grid, at equal iterations (the
+         * CUDA backend: Jacobi only). */
         if (!rc && sides[k] == ctx->solver_side) {
             for (uint32_t s = 0; s < BENCH_SOLVER_COUNT && !rc; ++s)
                 if (bench_solvers[s].kind == RBC_SOLVER_JACOBI ||
-                    bench_solvers[s].kind == RBC_SOLVER_GAUSS_SEIDEL)
+                    (bench_solvers[s].kind == RBC_SOLVER_GAUSS_SEIDEL && !cuda))
                     rc = run_threads(ctx, &m, PERF_GRID, s, sides[k]);
         }
         bench_mesh_free(&m);

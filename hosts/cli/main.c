@@ -155,7 +155,9 @@ static const char bench_usage[] =
     "                       stability 200, peers 500, scenes the scene's)\n"
     "  --threads N          worker threads of every world; 0 = one per core (perf,\n"
     "                       scenes: 1 thread and N, default 2; peers, defaults: 1)\n"
-    "  --quick              fewer frames, budgets and cases (the tests' smoke runs)\n";
+    "  --quick              fewer frames, budgets and cases (the tests' smoke runs)\n"
+    "  --backend cpu|cuda   perf: the worlds' backend (cuda: 10K .. 4M particles,\n"
+    "                       the energy guard off; refused where no CUDA device is)\n";
 
 static const char info_usage[] =
     "Usage: rbcloth info\n"
@@ -177,7 +179,7 @@ static const char *const batch_option_names[] = {"--jobs", "--out", "--template"
                                                  "--job-timeout", "--term-grace", "--help",
                                                  NULL};
 static const char *const bench_option_names[] = {"--out", "--frames", "--threads", "--quick",
-                                                 "--help", NULL};
+                                                 "--backend", "--help", NULL};
 
 /* "rbcloth: unknown WHAT 'ARG'WHERE[; did you mean 'X'?]", exit code 2. */
 static int unknown(const char *what, const char *arg, const char *where,
@@ -535,6 +537,15 @@ static int parse_bench_args(int argc, char **argv, cli_bench_options *o) {
         const char *eq = strchr(arg, '=');
         size_t name_len = eq ? (size_t)(eq - arg) : strlen(arg);
         const char *value = eq ? eq + 1 : NULL;
+        if (string_option(arg, "--backend", argc, argv, &i, &value)) {
+            if (value && !strcmp(value, "cpu"))
+                o->backend = RBC_BACKEND_CPU;
+            else if (value && !strcmp(value, "cuda"))
+                o->backend = RBC_BACKEND_CUDA;
+            else
+                return usage_error("--backend is 'cpu' or 'cuda', not '%s'", value ? value : "");
+            continue;
+        }
         if (string_option(arg, "--out", argc, argv, &i, &value)) {
             if (!value || !value[0])
                 return usage_error("%s needs a directory", "--out");
@@ -557,6 +568,7 @@ static int command_bench(int argc, char **argv) {
         .frames = -1,
         .threads = -1,
         .quick = 0,
+        .backend = RBC_BACKEND_CPU,
     };
     help_hint = "bench --help";
     if (help_asked(argc, argv, bench_usage))
@@ -585,6 +597,8 @@ static int command_bench(int argc, char **argv) {
     int rc = parse_bench_args(argc - 1, argv + 1, &options);
     if (rc != EXIT_OK)
         return rc;
+    if (options.backend != RBC_BACKEND_CPU && run != cli_bench_perf)
+        return usage_error("%s", "only bench perf takes --backend");
 
     cli_plugin plugin;
     if (open_plugin(&plugin))

@@ -9,7 +9,8 @@
  *  1. For every solver a backend runs (rbgs, multicolor, SOR, Chebyshev-RBGS,
  *     Jacobi, Chebyshev-Jacobi), on a lattice, a cube (valence 3 corners, the ELL
  *     path), a triangle mesh split into quads and an odd torus (three colors), with
- *     moving pins, 3 substeps, 2 non-linear iterations: 12 steps on both give the
+ *     moving pins, 3 substeps (and, for two cases, 8 from the default 480 Hz rate),
+ *     2 non-linear iterations: 12 steps on both give the
  *     same positions and previous positions, bit for bit. Both run the same float
  *     operations in the same order (the pool's ELL sweeps are bitwise the CSR rows'
  *     result, and the seam's kernels are those rows; the grid's lattice rows are
@@ -34,6 +35,8 @@
 /* The backend under test: the CPU's, or the CUDA module's open function. */
 static rbc_backend_open_fn *cuda_open;
 static const char *backend_name = "cpu";
+/* 1: substeps from the rate (480 Hz: 8 a 1/60 s step), as the default world def. */
+static int from_rate;
 
 typedef struct world {
     rbc_solver s;
@@ -43,7 +46,8 @@ typedef struct world {
 static void make(world *w, const test_mesh *m, rbc_solver_kind kind, int on_backend) {
     rbc_allocator a = rbc_allocator_default();
     CHECK_EQ(rbc_solver_init(&w->s, &a, 1), RBC_OK);
-    w->s.substeps = 3;
+    w->s.substeps = from_rate ? 0 : 3;
+    w->s.substep_rate = 480.0f;
     w->s.nonlinear_iterations = 2;
     w->s.linear_iterations = 7;
     uint32_t pins[2] = {0, m->nv - 1};
@@ -247,6 +251,10 @@ int main(int argc, char **argv) {
     for (int m = 0; m < 4; ++m)
         for (size_t k = 0; k < sizeof kinds / sizeof kinds[0]; ++k)
             parity(names[m], &meshes[m], kinds[k].kind, kinds[k].name);
+    from_rate = 1;
+    parity("grid 24x20 at 480 Hz", &meshes[0], RBC_SOLVER_RBGS, "rbgs");
+    parity("torus 9x7 at 480 Hz", &meshes[3], RBC_SOLVER_JACOBI_CHEBYSHEV, "jacobi-chebyshev");
+    from_rate = 0;
     for (int m = 0; m < 4; ++m) mesh_free(&meshes[m]);
     failure_restores();
     refused();
