@@ -1,0 +1,17 @@
+#!/bin/sh
+# device_check.sh BUILD OUT -- what to run when a machine with a CUDA device is lent
+# (issue 22, item 5), in one go and within a few minutes: the device tests, then the
+# bench on the device, its output in OUT for docs/results/cuda.md.
+#   cmake -S . -B build -DCMAKE_BUILD_TYPE=RelWithDebInfo && cmake --build build -j
+#   sh tests/cuda/device_check.sh build "$OUT"
+set -u
+build=$1
+out=$2
+mkdir -p "$out"
+nvidia-smi > "$out/nvidia-smi.txt" 2>&1
+(cd "$build" && ctest -R '^cuda_' -V) > "$out/ctest_cuda.txt" 2>&1
+echo "ctest cuda_*: exit $?" | tee "$out/summary.txt"
+grep -E "cuda_parity|cuda_abi|CUDA against|CUDA device" "$out/ctest_cuda.txt" | tee -a "$out/summary.txt"
+"$build/bin/rbcloth" bench perf --backend cuda --out "$out/perf_cuda" > "$out/perf_cuda.txt" 2>&1
+echo "bench perf --backend cuda: exit $?" | tee -a "$out/summary.txt"
+tail -40 "$out/perf_cuda.txt"
