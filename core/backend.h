@@ -67,6 +67,15 @@ typedef struct rbc_kargs {
     float stretch, floor_len; /* SPRINGS: the blow-up bound (step.c) */
 } rbc_kargs;
 
+/* A launch passes both by value as kernel arguments, which CUDA limits to 4 KB. */
+#ifdef __cplusplus
+static_assert(sizeof(rbc_dcloth) + sizeof(rbc_kargs) + 16 <= 4096,
+              "a launch's arguments must stay under CUDA's 4 KB");
+#else
+_Static_assert(sizeof(rbc_dcloth) + sizeof(rbc_kargs) + 16 <= 4096,
+               "a launch's arguments must stay under CUDA's 4 KB");
+#endif
+
 typedef struct rbc_backend_ops {
     const char *name;
     /* Memory of the backend (NULL: out of memory; bytes > 0), and its release. */

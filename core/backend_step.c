@@ -196,6 +196,9 @@ static int32_t cloth_upload(const rbc_backend_handle *bk, rbc_solver *s, rbc_clo
             rc = up(bk, d->pin_target, c->pin_target, 3 * c->pin_count * sizeof(float));
     }
     if (rc == RBC_OK) rc = up(bk, d->pinned, c->pinned, d->n);
+    /* The weights change only with h here: masses and stiffness change only by
+     * tearing and cuts, which the scene check refuses (their topology would need a
+     * new upload too). */
     if (rc == RBC_OK && d->h != h) {
         rc = up(bk, d->w, c->w, nf);
         if (rc == RBC_OK) rc = up(bk, d->inv_denom, c->inv_denom, nf);
@@ -388,6 +391,7 @@ void rbc_backend_run(const rbc_backend_handle *bk, step_ctx *ctx) {
 }
 
 void rbc_solver_set_backend(rbc_solver *s, const rbc_backend_handle *bk) {
+    if (bk && bk->ops == s->backend.ops && bk->be == s->backend.be) return; /* already */
     if (s->backend.ops) {
         for (uint32_t k = 0; k < s->cloth_count; ++k)
             rbc_backend_cloth_free(&s->backend, &s->alloc, s->cloths[k]);

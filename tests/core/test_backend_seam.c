@@ -25,6 +25,7 @@
 #include <dlfcn.h>
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "check.h"
@@ -225,6 +226,15 @@ int main(int argc, char **argv) {
         char why[512];
         int32_t rc = cuda_open(RBC_BACKEND_INTERFACE, &probe, why, sizeof why);
         if (rc == RBC_ERR_BACKEND_UNAVAILABLE) {
+            /* On a machine that has a GPU, a skip would hide a driver too old for the
+             * module's runtime: RBC_REQUIRE_CUDA=1 (tests/cuda/device_check.sh) makes
+             * it a failure. */
+            const char *req = getenv("RBC_REQUIRE_CUDA");
+            if (req && !strcmp(req, "1")) {
+                fprintf(stderr, "FAIL: RBC_REQUIRE_CUDA=1 and the CUDA backend is "
+                                "unavailable: %s\n", why);
+                return 1;
+            }
             printf("SKIP: the CUDA backend is unavailable here (%s); parity not run\n", why);
             return 77;
         }

@@ -148,6 +148,12 @@ int main(int argc, char **argv) {
      * no device as unavailable. */
     const int device = r == RBC_ERR_UNSUPPORTED;
     if (w) rbc_world_destroy(w);
+    const char *req = getenv("RBC_REQUIRE_CUDA");
+    if (req && !strcmp(req, "1") && !strcmp(mode, "module") && !device) {
+        fprintf(stderr, "FAIL: RBC_REQUIRE_CUDA=1 and no CUDA world opens: %s\n",
+                rbc_last_error());
+        return 1;
+    }
     if (!strcmp(mode, "standin")) {
         CHECK(device);
         if (!device) fprintf(stderr, "the stand-in did not open: %s\n", rbc_last_error());
