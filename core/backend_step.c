@@ -169,8 +169,8 @@ static int32_t cloth_create(const rbc_backend_handle *bk, rbc_solver *s, rbc_clo
 }
 
 /* What changes between steps: the state, pins and (with h) the weights. */
-static int32_t cloth_upload(const rbc_backend_handle *bk, rbc_solver *s, rbc_cloth_state *c, float h,
-                            char *err, size_t errlen) {
+static int32_t cloth_upload(const rbc_backend_handle *bk, rbc_cloth_state *c, float h, char *err,
+                            size_t errlen) {
     rbc_dcloth *d = c->dev;
     const size_t nf = (size_t)d->n * sizeof(float);
     int32_t rc = RBC_OK;
@@ -213,7 +213,6 @@ static int32_t cloth_upload(const rbc_backend_handle *bk, rbc_solver *s, rbc_clo
     if (rc != RBC_OK)
         return rbc_fail(err, errlen, rc, "cloth 0x%08x: upload to the %s backend failed: %s",
                         c->public_id, bk->ops->name, bk->ops->last_error(bk->be));
-    (void)s;
     return RBC_OK;
 }
 
@@ -351,7 +350,7 @@ void rbc_backend_run(const rbc_backend_handle *bk, step_ctx *ctx) {
     for (uint32_t k = 0; rc == RBC_OK && k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
         if (!c->dev) rc = cloth_create(bk, s, c, ctx->err, ctx->errlen);
-        if (rc == RBC_OK) rc = cloth_upload(bk, s, c, ctx->h, ctx->err, ctx->errlen);
+        if (rc == RBC_OK) rc = cloth_upload(bk, c, ctx->h, ctx->err, ctx->errlen);
     }
     for (uint32_t k = 0; rc == RBC_OK && k < s->cloth_count; ++k) {
         rc = cloth_step(bk, ctx, k);

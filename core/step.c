@@ -148,16 +148,12 @@ static int check_springs(step_ctx *ctx, uint32_t tid, uint32_t nt) {
         const rbc_topology *t = &c->topo;
         uint32_t b, e;
         rbc_split(t->ns, tid, nt, &b, &e);
-        const float *px = c->p[0], *py = c->p[1], *pz = c->p[2];
         const float floor_len = RBC_BLOWUP_STRETCH * c->mean_rest;
         for (uint32_t sp = b; sp < e; ++sp) {
-            uint32_t i = t->sa[sp], j = t->sb[sp];
-            float ex = px[i] - px[j], ey = py[i] - py[j], ez = pz[i] - pz[j];
-            float lim = RBC_BLOWUP_STRETCH * t->rest_len[sp];
-            if (lim < floor_len) lim = floor_len;
             if (c->torn && t->stiff[sp] == 0.0f) continue; /* broken: no bound */
-            /* NaN compares false here; the particle check names it. */
-            if (ex * ex + ey * ey + ez * ez > lim * lim) {
+            /* A NaN passes here; the particle check names it. */
+            if (!rbc_k_spring_ok(sp, t->sa, t->sb, t->rest_len, RBC_BLOWUP_STRETCH, floor_len,
+                                 c->p[0], c->p[1], c->p[2])) {
                 ctx->bad[tid][0] = k;
                 ctx->bad[tid][1] = sp;
                 ctx->bad[tid][2] = 2;
