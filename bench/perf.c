@@ -513,11 +513,8 @@ static rbc_result perf_world_create(const perf_ctx *ctx, const bench_mesh *m, ui
     wd.linear_iterations = PERF_ITERATIONS;
     wd.thread_count = threads;
     wd.solver = &sd;
-    /* --backend cuda: what the CUDA backend runs (docs/design/backends.md). */
-    if (ctx->run.opt->backend == RBC_BACKEND_CUDA) {
-        wd.backend = RBC_BACKEND_CUDA;
-        sd.energy_guard = RBC_ENERGY_GUARD_OFF;
-    }
+    /* --backend cuda: the same worlds (the energy guard included) on the device. */
+    if (ctx->run.opt->backend == RBC_BACKEND_CUDA) wd.backend = RBC_BACKEND_CUDA;
     rbc_world_id world;
     if ((r = api->world_create(&wd, &world)) != RBC_OK)
         return r;

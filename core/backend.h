@@ -15,7 +15,7 @@
 #include "topology.h" /* RBC_MAX_COLORS */
 
 /* The version of this interface: a CUDA module built from another tree is refused. */
-#define RBC_BACKEND_INTERFACE 1
+#define RBC_BACKEND_INTERFACE 2
 
 typedef enum rbc_kernel {
     RBC_KERNEL_PREDICT,    /* rbc_k_predict over particles */
@@ -28,6 +28,13 @@ typedef enum rbc_kernel {
     RBC_KERNEL_COPY,       /* dst = src, each coordinate (Chebyshev's first p^(k-1)) */
     RBC_KERNEL_CHECK,      /* the lowest non-finite particle into bad[0] (index + 1) */
     RBC_KERNEL_SPRINGS,    /* the lowest spring past the blow-up bound into bad[1] */
+    /* The measurements the iteration modes and the energy guard decide on; each
+     * writes into the cloth's sums or blocks, which the host reads back. */
+    RBC_KERNEL_RESIDUAL,   /* rbc_k_residual over particles: += sums[0], sums[1] */
+    RBC_KERNEL_STRAIN,     /* per block of RBC_STRAIN_BLOCK springs of pos: strain_blk */
+    RBC_KERNEL_ENERGY,     /* per block of RBC_ENERGY_BLOCK particles, pos against
+                              prev: e_blk (energy.h's particle terms) */
+    RBC_KERNEL_PIN_WORK,   /* the pins' work, prev (before) to pos (after): += sums[2] */
     RBC_KERNEL_COUNT
 } rbc_kernel;
 
@@ -52,6 +59,15 @@ typedef struct rbc_dcloth {
      * second iterate and Chebyshev's stash, prev Chebyshev's p^(k-1). */
     float *x[3], *q[3], *p[3], *y[3], *d[3], *b[3], *alt[3], *prev[3];
     int32_t *bad;          /* [2]: index + 1 of what the checks found (0: nothing) */
+    /* The measurements (allocated with the topology): the residual's |r|^2 and
+     * |b|^2 and the energy guard's budget with the pins' work added (sums[0..2], in
+     * double), the strain and energy blocks (strain.h, energy.h), and what the
+     * energy and pin work read. */
+    double *sums, *strain_blk, *e_blk;
+    uint32_t strain_blocks, energy_blocks;
+    float *mass, *stiff;
+    uint32_t *pin_springs; /* springs with a pinned end (uploaded with the pins) */
+    uint32_t pin_spring_count, pin_spring_cap;
 } rbc_dcloth;
 
 /* A launch: kernel k over elements [first, first + count) of cloth c. */
@@ -65,6 +81,8 @@ typedef struct rbc_kargs {
     float omega;           /* GS (SOR), JACOBI and CHEB_BLEND (Chebyshev) */
     float *src[3], *dst[3]; /* JACOBI, COPY */
     float stretch, floor_len; /* SPRINGS: the blow-up bound (step.c) */
+    float *pos[3], *prev[3];  /* STRAIN (pos), ENERGY and PIN_WORK (pos against prev) */
+    float g[3];               /* ENERGY: gravity, m/s^2 */
 } rbc_kargs;
 
 /* A launch passes both by value as kernel arguments, which CUDA limits to 4 KB. */

@@ -11,10 +11,15 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "energy.h"
+#include "energy_guard.h"
 #include "global.h"
 #include "kernels/pd_kernels.h"
 #include "report.h"
 #include "stage.h"
+#include "strain.h"
+#include "sweep.h"
+#include "target.h"
 
 static int32_t refuse(const char *backend, const char *what, char *err, size_t errlen) {
     return rbc_fail(err, errlen, RBC_ERR_UNSUPPORTED,
@@ -30,11 +35,6 @@ static const char *settings_refused(const rbc_solver_settings *st) {
                "form; use rbgs or multicolor)";
     else if (st->kind == RBC_SOLVER_DIRECT)
         what = "the direct solver (RBC_SOLVER_DIRECT)";
-    else if (st->mode != RBC_ITERATE_FIXED)
-        what = "an iteration mode other than RBC_ITERATE_FIXED (tolerance, budget and target "
-               "need the residual or strain on the device)";
-    else if (st->energy_guard != RBC_ENERGY_GUARD_OFF)
-        what = "the energy guard (set the solver's energy_guard to RBC_ENERGY_GUARD_OFF)";
     return what;
 }
 
@@ -57,6 +57,9 @@ int32_t rbc_backend_scene_check(const rbc_solver *s, const char *backend, char *
         what = "the host contact callback (rbc_contact_fn)";
     else if (s->wind_drag != 0.0f || s->wind_lift != 0.0f)
         what = "wind";
+    else if (rbc_guard_on(s) && s->collider_count)
+        what = "the energy guard with colliders (their work is not summed on a backend yet; "
+               "set energy_guard to RBC_ENERGY_GUARD_OFF)";
     for (uint32_t k = 0; !what && k < s->cloth_count; ++k) {
         const rbc_cloth_state *c = s->cloths[k];
         if (c->collision_flags && c->thickness > 0.0f)
@@ -86,7 +89,9 @@ void rbc_backend_cloth_free(const rbc_backend_handle *bk, const rbc_allocator *a
     if (!d) return;
     void *const ptrs[] = {d->adj_start, d->adj_nbr, d->adj_k, d->sa, d->sb, d->he_a, d->he_b,
                           d->rest, d->ux, d->uy, d->uz, d->w, d->inv_denom, d->pinned,
-                          d->pin_idx, d->pin_start, d->pin_target, d->bad};
+                          d->pin_idx, d->pin_start, d->pin_target, d->bad,
+                          d->sums, d->strain_blk, d->e_blk, d->mass, d->stiff,
+                          d->pin_springs};
     for (size_t k = 0; k < sizeof ptrs / sizeof ptrs[0]; ++k)
         if (ptrs[k]) bk->ops->release(bk->be, ptrs[k]);
     float **sets[] = {d->x, d->q, d->p, d->y, d->d, d->b, d->alt, d->prev};
@@ -131,6 +136,13 @@ static int32_t cloth_create(const rbc_backend_handle *bk, rbc_solver *s, rbc_clo
     d->inv_denom = dalloc(bk, nf, &ok);
     d->pinned = dalloc(bk, n, &ok);
     d->bad = dalloc(bk, 2 * sizeof(int32_t), &ok);
+    d->strain_blocks = (t->ns + RBC_STRAIN_BLOCK - 1u) / RBC_STRAIN_BLOCK;
+    d->energy_blocks = rbc_energy_blocks_of(t->n);
+    d->sums = dalloc(bk, 3 * sizeof(double), &ok);
+    d->strain_blk = dalloc(bk, 2 * (size_t)d->strain_blocks * sizeof(double), &ok);
+    d->e_blk = dalloc(bk, (size_t)RBC_EPB * d->energy_blocks * sizeof(double), &ok);
+    d->mass = dalloc(bk, nf, &ok);
+    d->stiff = dalloc(bk, ns * sizeof(float), &ok);
     for (int a = 0; a < 3; ++a) {
         d->x[a] = dalloc(bk, nf, &ok);
         d->q[a] = dalloc(bk, nf, &ok);
@@ -160,6 +172,8 @@ static int32_t cloth_create(const rbc_backend_handle *bk, rbc_solver *s, rbc_clo
     if (rc == RBC_OK) rc = up(bk, d->ux, t->ux, ns * sizeof(float));
     if (rc == RBC_OK) rc = up(bk, d->uy, t->uy, ns * sizeof(float));
     if (rc == RBC_OK) rc = up(bk, d->uz, t->uz, ns * sizeof(float));
+    if (rc == RBC_OK) rc = up(bk, d->mass, t->mass, nf);
+    if (rc == RBC_OK) rc = up(bk, d->stiff, t->stiff, ns * sizeof(float));
     if (rc != RBC_OK) {
         rbc_fail(err, errlen, rc, "cloth 0x%08x: upload to the %s backend failed: %s",
                  c->public_id, bk->ops->name, bk->ops->last_error(bk->be));
@@ -169,8 +183,8 @@ static int32_t cloth_create(const rbc_backend_handle *bk, rbc_solver *s, rbc_clo
 }
 
 /* What changes between steps: the state, pins and (with h) the weights. */
-static int32_t cloth_upload(const rbc_backend_handle *bk, rbc_cloth_state *c, float h, char *err,
-                            size_t errlen) {
+static int32_t cloth_upload(const rbc_backend_handle *bk, rbc_cloth_state *c, float h, int guard,
+                            char *err, size_t errlen) {
     rbc_dcloth *d = c->dev;
     const size_t nf = (size_t)d->n * sizeof(float);
     int32_t rc = RBC_OK;
@@ -196,6 +210,28 @@ static int32_t cloth_upload(const rbc_backend_handle *bk, rbc_cloth_state *c, fl
             rc = up(bk, d->pin_target, c->pin_target, 3 * c->pin_count * sizeof(float));
     }
     if (rc == RBC_OK) rc = up(bk, d->pinned, c->pinned, d->n);
+    /* The energy guard: the springs the pins' work is summed over (they change with
+     * the pins), and the budget the device adds that work to, substep by substep in
+     * the pool's order. */
+    d->pin_spring_count = 0;
+    if (rc == RBC_OK && guard && c->pin_spring_count) {
+        if (c->pin_spring_count > d->pin_spring_cap) {
+            if (d->pin_springs) bk->ops->release(bk->be, d->pin_springs);
+            int ok = 1;
+            d->pin_springs = dalloc(bk, c->pin_spring_count * sizeof(uint32_t), &ok);
+            d->pin_spring_cap = ok ? c->pin_spring_count : 0;
+            if (!ok)
+                return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY,
+                                "cloth 0x%08x: out of %s memory for %u springs at pins",
+                                c->public_id, bk->ops->name, c->pin_spring_count);
+        }
+        rc = up(bk, d->pin_springs, c->pin_springs, c->pin_spring_count * sizeof(uint32_t));
+        d->pin_spring_count = c->pin_spring_count;
+    }
+    if (rc == RBC_OK && guard) {
+        const double sums[3] = {0.0, 0.0, c->guard.step_budget};
+        rc = up(bk, d->sums, sums, sizeof sums);
+    }
     /* The weights change only with h here: masses and stiffness change only by
      * tearing and cuts, which the scene check refuses (their topology would need a
      * new upload too). */
@@ -220,6 +256,10 @@ static int32_t cloth_upload(const rbc_backend_handle *bk, rbc_cloth_state *c, fl
 /* The schedule                                                               */
 /* ------------------------------------------------------------------------- */
 
+/* Stage by stage over every cloth, in the pool's order (step.c, sweep.c): what the
+ * modes decide on (the residual and strain summed over all cloths) then reads the
+ * same iterates the pool's checks read. */
+
 static int32_t launch(const rbc_backend_handle *bk, rbc_kernel k, rbc_kargs *a, uint32_t first,
                       uint32_t count) {
     a->first = first;
@@ -227,94 +267,218 @@ static int32_t launch(const rbc_backend_handle *bk, rbc_kernel k, rbc_kargs *a, 
     return bk->ops->launch(bk->be, k, a);
 }
 
-/* One global step of cloth c (linear iterations of the selected solver). */
-static int32_t global_step(const rbc_backend_handle *bk, const step_ctx *ctx, uint32_t slot,
-                           rbc_dcloth *d) {
+static rbc_dcloth *dev(const rbc_solver *s, uint32_t k) { return s->cloths[k]->dev; }
+
+static int is_jacobi(rbc_solver_kind kind) {
+    return kind == RBC_SOLVER_JACOBI || kind == RBC_SOLVER_JACOBI_CHEBYSHEV;
+}
+
+/* Linear iteration k of the selected solver on every cloth. */
+static int32_t linear_iteration(const rbc_backend_handle *bk, const step_ctx *ctx, uint32_t k) {
     const rbc_solver *s = ctx->s;
     const rbc_solver_kind kind = s->settings.kind;
-    const uint32_t count = s->linear_iterations;
-    rbc_kargs a = {.c = d};
     int32_t rc = RBC_OK;
-    const int cheb = kind == RBC_SOLVER_JACOBI_CHEBYSHEV || kind == RBC_SOLVER_RBGS_CHEBYSHEV;
-    if (cheb) {
-        for (int ax = 0; ax < 3; ++ax) {
-            a.src[ax] = d->p[ax];
-            a.dst[ax] = d->prev[ax];
-        }
-        rc = launch(bk, RBC_KERNEL_COPY, &a, 0, d->n);
-    }
-    if (kind == RBC_SOLVER_JACOBI || kind == RBC_SOLVER_JACOBI_CHEBYSHEV) {
-        a.variant = kind == RBC_SOLVER_JACOBI_CHEBYSHEV;
-        for (uint32_t k = 0; rc == RBC_OK && k < count; ++k) {
+    if (is_jacobi(kind)) {
+        for (uint32_t q = 0; rc == RBC_OK && q < s->cloth_count; ++q) {
+            rbc_dcloth *d = dev(s, q);
+            rbc_kargs a = {.c = d, .variant = kind == RBC_SOLVER_JACOBI_CHEBYSHEV};
             a.omega = a.variant ? rbc_chebyshev_omega(k, s->settings.chebyshev_delay,
-                                                      ctx->cheb_rho[slot])
+                                                      ctx->cheb_rho[rbc_step_slot(q)])
                                 : 1.0f;
-            for (int ax = 0; ax < 3; ++ax) {
+            for (int ax = 0; ax < 3; ++ax) { /* even k reads p and writes alt */
                 a.src[ax] = (k & 1) ? d->alt[ax] : d->p[ax];
                 a.dst[ax] = (k & 1) ? d->p[ax] : d->alt[ax];
             }
             rc = launch(bk, RBC_KERNEL_JACOBI, &a, 0, d->n);
         }
-        if (count & 1) /* the last iteration wrote alt: make it p */
-            for (int ax = 0; ax < 3; ++ax) {
-                float *tmp = d->p[ax];
-                d->p[ax] = d->alt[ax];
-                d->alt[ax] = tmp;
-            }
         return rc;
     }
-    a.variant = kind == RBC_SOLVER_RBGS_SOR         ? RBC_K_GS_SOR
-                : kind == RBC_SOLVER_RBGS_CHEBYSHEV ? RBC_K_GS_STASH
-                                                    : RBC_K_GS_PLAIN;
-    a.omega = ctx->sor_omega[slot];
-    for (uint32_t k = 0; rc == RBC_OK && k < count; ++k) {
-        for (uint32_t color = 0; rc == RBC_OK && color < d->ncolors; ++color)
+    const int variant = kind == RBC_SOLVER_RBGS_SOR         ? RBC_K_GS_SOR
+                        : kind == RBC_SOLVER_RBGS_CHEBYSHEV ? RBC_K_GS_STASH
+                                                            : RBC_K_GS_PLAIN;
+    for (uint32_t color = 0; rc == RBC_OK && color < ctx->ncolors; ++color)
+        for (uint32_t q = 0; rc == RBC_OK && q < s->cloth_count; ++q) {
+            rbc_dcloth *d = dev(s, q);
+            if (color >= d->ncolors) continue;
+            rbc_kargs a = {.c = d, .variant = variant, .omega = ctx->sor_omega[rbc_step_slot(q)]};
             rc = launch(bk, RBC_KERNEL_GS, &a, d->color_start[color],
                         d->color_start[color + 1] - d->color_start[color]);
-        if (rc == RBC_OK && a.variant == RBC_K_GS_STASH) {
-            rbc_kargs bl = {.c = d};
-            bl.omega = rbc_chebyshev_omega(k, s->settings.chebyshev_delay, ctx->cheb_rho[slot]);
-            rc = launch(bk, RBC_KERNEL_CHEB_BLEND, &bl, 0, d->n);
         }
+    for (uint32_t q = 0; rc == RBC_OK && variant == RBC_K_GS_STASH && q < s->cloth_count; ++q) {
+        rbc_kargs bl = {.c = dev(s, q)};
+        bl.omega = rbc_chebyshev_omega(k, s->settings.chebyshev_delay,
+                                       ctx->cheb_rho[rbc_step_slot(q)]);
+        rc = launch(bk, RBC_KERNEL_CHEB_BLEND, &bl, 0, bl.c->n);
     }
     return rc;
 }
 
-/* Every substep of cloth k; its state comes back to the host only if all are
- * finite. */
-static int32_t cloth_step(const rbc_backend_handle *bk, step_ctx *ctx, uint32_t k) {
+static int32_t readback(const rbc_backend_handle *bk, void *dst, const void *src, size_t bytes) {
+    return bk->ops->download(bk->be, dst, src, bytes);
+}
+
+/* RBC_ITERATE_TOLERANCE after iteration k: the relative residual of every cloth's
+ * rows (sweep.c's tolerance_check: the same rows, the same p). */
+static int32_t tolerance_check(const rbc_backend_handle *bk, step_ctx *ctx, uint32_t k,
+                               uint32_t limit) {
     rbc_solver *s = ctx->s;
-    rbc_cloth_state *c = s->cloths[k];
-    rbc_dcloth *d = c->dev;
+    static const double zero[2] = {0.0, 0.0};
+    int32_t rc = RBC_OK;
+    for (uint32_t q = 0; rc == RBC_OK && q < s->cloth_count; ++q) {
+        rbc_dcloth *d = dev(s, q);
+        rc = up(bk, d->sums, zero, sizeof zero);
+        rbc_kargs a = {.c = d};
+        const uint32_t end = rbc_sweep_residual_colors(s->settings.kind, d->ncolors);
+        if (rc == RBC_OK) rc = launch(bk, RBC_KERNEL_RESIDUAL, &a, 0, d->color_start[end]);
+    }
+    double R = 0.0, B = 0.0;
+    for (uint32_t q = 0; rc == RBC_OK && q < s->cloth_count; ++q) {
+        double rb[2];
+        rc = readback(bk, rb, dev(s, q)->sums, sizeof rb);
+        R += rb[0];
+        B += rb[1];
+    }
+    const double tol = s->settings.tolerance;
+    ctx->stop = k >= limit || R <= tol * tol * B;
+    return rc;
+}
+
+/* RBC_ITERATE_TARGET's check after iteration k: every cloth's strain blocks of the
+ * latest iterate into the host's blocks, then target.c decides. */
+static int32_t target_check(const rbc_backend_handle *bk, step_ctx *ctx, uint32_t k,
+                            uint32_t limit, int alt) {
+    rbc_solver *s = ctx->s;
+    int32_t rc = RBC_OK;
+    for (uint32_t q = 0; rc == RBC_OK && q < s->cloth_count; ++q) {
+        rbc_dcloth *d = dev(s, q);
+        rbc_kargs a = {.c = d};
+        for (int ax = 0; ax < 3; ++ax) a.pos[ax] = alt ? d->alt[ax] : d->p[ax];
+        rc = launch(bk, RBC_KERNEL_STRAIN, &a, 0, d->strain_blocks);
+    }
+    for (uint32_t q = 0; rc == RBC_OK && q < s->cloth_count; ++q)
+        rc = readback(bk, s->cloths[q]->strain_blk, dev(s, q)->strain_blk,
+                      2 * (size_t)dev(s, q)->strain_blocks * sizeof(double));
+    if (rc == RBC_OK) rbc_target_decide(ctx, k, limit);
+    return rc;
+}
+
+/* The global step of one non-linear iteration (segment of nsegments) on every
+ * cloth: iterate until the mode says stop, as sweep.c's global_step plans it. */
+static int32_t global_step(const rbc_backend_handle *bk, step_ctx *ctx, uint32_t segment,
+                           uint32_t nsegments) {
+    rbc_solver *s = ctx->s;
+    const rbc_solver_settings *st = &s->settings;
+    const int jac = is_jacobi(st->kind);
+    int32_t rc = RBC_OK;
+    if (st->kind == RBC_SOLVER_JACOBI_CHEBYSHEV || st->kind == RBC_SOLVER_RBGS_CHEBYSHEV)
+        for (uint32_t q = 0; rc == RBC_OK && q < s->cloth_count; ++q) {
+            rbc_dcloth *d = dev(s, q);
+            rbc_kargs a = {.c = d};
+            for (int ax = 0; ax < 3; ++ax) {
+                a.src[ax] = d->p[ax];
+                a.dst[ax] = d->prev[ax];
+            }
+            rc = launch(bk, RBC_KERNEL_COPY, &a, 0, d->n);
+        }
+    const rbc_sweep_plan pl = rbc_sweep_plan_global(ctx, segment, nsegments);
+    const double deadline = ctx->start_ms + (double)st->budget_ms * (segment + 1) / nsegments;
+    uint32_t k = 0;
+    while (rc == RBC_OK) {
+        const double t0 = rbc_now_ms();
+        rc = linear_iteration(bk, ctx, k);
+        k++;
+        if (rc != RBC_OK) break;
+        if (pl.fixed) {
+            if (k >= pl.limit) break;
+            continue;
+        }
+        if (st->mode == RBC_ITERATE_TARGET) {
+            if (k < pl.first && k < pl.limit) continue;
+            rc = target_check(bk, ctx, k, pl.limit, jac && (k & 1));
+        } else if (st->mode == RBC_ITERATE_TOLERANCE) {
+            rc = tolerance_check(bk, ctx, k, pl.limit);
+        } else {
+            /* The budget: an iteration's time is what the device took for it, so wait
+             * for it (a sync per iteration: this mode pays a launch's latency). */
+            rc = bk->ops->sync(bk->be);
+            const double t1 = rbc_now_ms();
+            ctx->stop = k >= pl.limit || t1 + (t1 - t0) > deadline;
+        }
+        if (ctx->stop) break;
+    }
+    ctx->linear_done += k;
+    if (jac && (k & 1)) /* the last iteration wrote alt: make it p */
+        for (uint32_t q = 0; q < s->cloth_count; ++q)
+            for (int ax = 0; ax < 3; ++ax) {
+                rbc_dcloth *d = dev(s, q);
+                float *tmp = d->p[ax];
+                d->p[ax] = d->alt[ax];
+                d->alt[ax] = tmp;
+            }
+    return rc;
+}
+
+/* Every substep of every cloth; the state comes back to the host only if all are
+ * finite. */
+static int32_t substeps(const rbc_backend_handle *bk, step_ctx *ctx, int guard) {
+    rbc_solver *s = ctx->s;
     const float h = ctx->h, h2 = h * h;
-    float keep = 1.0f - c->damping * h;
-    if (keep < 0.0f) keep = 0.0f; /* as stage_integrate */
+    const uint32_t nseg = ctx->substeps * s->nonlinear_iterations;
     int32_t rc = RBC_OK;
     for (uint32_t sub = 0; rc == RBC_OK && sub < ctx->substeps; ++sub) {
-        rbc_kargs a = {.c = d, .keep = keep};
-        for (int ax = 0; ax < 3; ++ax) a.g_h2[ax] = s->gravity[ax] * h2;
-        rc = launch(bk, RBC_KERNEL_PREDICT, &a, 0, d->n);
-        a.f = (float)(sub + 1) / (float)ctx->substeps;
-        a.last = sub + 1 == ctx->substeps;
-        if (rc == RBC_OK) rc = launch(bk, RBC_KERNEL_PINS, &a, 0, d->pin_count);
+        const int last = sub + 1 == ctx->substeps;
+        for (uint32_t q = 0; rc == RBC_OK && q < s->cloth_count; ++q) {
+            rbc_cloth_state *c = s->cloths[q];
+            rbc_dcloth *d = c->dev;
+            float keep = 1.0f - c->damping * h;
+            if (keep < 0.0f) keep = 0.0f; /* as stage_integrate */
+            rbc_kargs a = {.c = d, .keep = keep};
+            for (int ax = 0; ax < 3; ++ax) a.g_h2[ax] = s->gravity[ax] * h2;
+            rc = launch(bk, RBC_KERNEL_PREDICT, &a, 0, d->n);
+            a.f = (float)(sub + 1) / (float)ctx->substeps;
+            a.last = last;
+            if (rc == RBC_OK) rc = launch(bk, RBC_KERNEL_PINS, &a, 0, d->pin_count);
+            if (rc == RBC_OK && d->pin_spring_count) { /* the pins moved from x to p */
+                for (int ax = 0; ax < 3; ++ax) {
+                    a.pos[ax] = d->p[ax];
+                    a.prev[ax] = d->x[ax];
+                }
+                rc = launch(bk, RBC_KERNEL_PIN_WORK, &a, 0, 1);
+            }
+        }
         for (uint32_t nl = 0; rc == RBC_OK && nl < s->nonlinear_iterations; ++nl) {
-            rc = launch(bk, RBC_KERNEL_LOCAL, &a, 0, d->ns);
-            if (rc == RBC_OK) rc = launch(bk, RBC_KERNEL_RHS, &a, 0, d->n);
-            if (rc == RBC_OK) rc = global_step(bk, ctx, rbc_step_slot(k), d);
+            for (uint32_t q = 0; rc == RBC_OK && q < s->cloth_count; ++q) {
+                rbc_kargs a = {.c = dev(s, q)};
+                rc = launch(bk, RBC_KERNEL_LOCAL, &a, 0, a.c->ns);
+                if (rc == RBC_OK) rc = launch(bk, RBC_KERNEL_RHS, &a, 0, a.c->n);
+            }
+            if (rc == RBC_OK) rc = global_step(bk, ctx, sub * s->nonlinear_iterations + nl, nseg);
         }
-        /* Non-finite values stay so in later substeps (every kernel reads them), so
-         * the check's verdict is read once, after the last. */
-        if (rc == RBC_OK) rc = launch(bk, RBC_KERNEL_CHECK, &a, 0, d->n);
-        if (rc == RBC_OK && a.last && rbc_step_can_run_away(s->settings.kind)) {
-            a.stretch = RBC_BLOWUP_STRETCH;
-            a.floor_len = RBC_BLOWUP_STRETCH * c->mean_rest;
-            rc = launch(bk, RBC_KERNEL_SPRINGS, &a, 0, d->ns);
-        }
-        for (int ax = 0; ax < 3; ++ax) { /* commit: q <- x <- p */
-            float *old_q = d->q[ax];
-            d->q[ax] = d->x[ax];
-            d->x[ax] = d->p[ax];
-            d->p[ax] = old_q;
+        for (uint32_t q = 0; rc == RBC_OK && q < s->cloth_count; ++q) {
+            rbc_dcloth *d = dev(s, q);
+            rbc_kargs a = {.c = d};
+            /* Non-finite values stay so in later substeps (every kernel reads them),
+             * so the check's verdict is read once, after the last. */
+            rc = launch(bk, RBC_KERNEL_CHECK, &a, 0, d->n);
+            if (rc == RBC_OK && last && rbc_step_can_run_away(s->settings.kind)) {
+                a.stretch = RBC_BLOWUP_STRETCH;
+                a.floor_len = RBC_BLOWUP_STRETCH * s->cloths[q]->mean_rest;
+                rc = launch(bk, RBC_KERNEL_SPRINGS, &a, 0, d->ns);
+            }
+            if (rc == RBC_OK && last && guard) { /* the guard's energy of p against x */
+                for (int ax = 0; ax < 3; ++ax) {
+                    a.pos[ax] = d->p[ax];
+                    a.prev[ax] = d->x[ax];
+                    a.g[ax] = s->gravity[ax];
+                }
+                rc = launch(bk, RBC_KERNEL_ENERGY, &a, 0, d->energy_blocks);
+            }
+            for (int ax = 0; ax < 3; ++ax) { /* commit: q <- x <- p */
+                float *old_q = d->q[ax];
+                d->q[ax] = d->x[ax];
+                d->x[ax] = d->p[ax];
+                d->p[ax] = old_q;
+            }
         }
     }
     return rc;
@@ -343,33 +507,59 @@ static int32_t report_bad(step_ctx *ctx, uint32_t k, const int32_t bad[2]) {
                     (double)RBC_BLOWUP_STRETCH);
 }
 
+/* The energy guard's decision (energy_guard.c) from the device's sums: each cloth's
+ * budget with the pins' work, and its energy blocks at the last substep. */
+static int32_t guard_decide(const rbc_backend_handle *bk, step_ctx *ctx) {
+    rbc_solver *s = ctx->s;
+    int32_t rc = RBC_OK;
+    for (uint32_t q = 0; rc == RBC_OK && q < s->cloth_count; ++q) {
+        rbc_cloth_state *c = s->cloths[q];
+        double sums[3];
+        rc = readback(bk, sums, c->dev->sums, sizeof sums);
+        if (rc == RBC_OK) c->guard.step_budget = sums[2];
+        if (rc == RBC_OK)
+            rc = readback(bk, c->e_blk, c->dev->e_blk,
+                          (size_t)RBC_EPB * c->dev->energy_blocks * sizeof(double));
+    }
+    if (rc != RBC_OK) return rc;
+    ctx->result = RBC_OK;
+    rbc_guard_decide(ctx); /* the failure mode's verdict goes into ctx->result */
+    return RBC_OK;
+}
+
 void rbc_backend_run(const rbc_backend_handle *bk, step_ctx *ctx) {
     rbc_solver *s = ctx->s;
     const char *name = bk->ops->name;
+    const int guard = rbc_guard_on(s);
     int32_t rc = RBC_OK;
     for (uint32_t k = 0; rc == RBC_OK && k < s->cloth_count; ++k) {
         rbc_cloth_state *c = s->cloths[k];
         if (!c->dev) rc = cloth_create(bk, s, c, ctx->err, ctx->errlen);
-        if (rc == RBC_OK) rc = cloth_upload(bk, c, ctx->h, ctx->err, ctx->errlen);
+        if (rc == RBC_OK) rc = cloth_upload(bk, c, ctx->h, guard, ctx->err, ctx->errlen);
     }
-    for (uint32_t k = 0; rc == RBC_OK && k < s->cloth_count; ++k) {
-        rc = cloth_step(bk, ctx, k);
-        if (rc != RBC_OK)
-            rbc_fail(ctx->err, ctx->errlen, rc, "cloth 0x%08x: a launch on the %s backend "
-                     "failed: %s", s->cloths[k]->public_id, name, bk->ops->last_error(bk->be));
-    }
+    if (rc == RBC_OK && (rc = substeps(bk, ctx, guard)) != RBC_OK)
+        rbc_fail(ctx->err, ctx->errlen, rc, "a launch or readback on the %s backend failed: %s",
+                 name, bk->ops->last_error(bk->be));
     if (rc == RBC_OK && (rc = bk->ops->sync(bk->be)) != RBC_OK)
         rbc_fail(ctx->err, ctx->errlen, rc, "the %s backend's step failed: %s", name,
                  bk->ops->last_error(bk->be));
     /* The verdicts first: the host's state changes only when every cloth passed. */
     for (uint32_t k = 0; rc == RBC_OK && k < s->cloth_count; ++k) {
         int32_t bad[2];
-        rc = bk->ops->download(bk->be, bad, s->cloths[k]->dev->bad, sizeof bad);
+        rc = readback(bk, bad, s->cloths[k]->dev->bad, sizeof bad);
         if (rc != RBC_OK)
             rbc_fail(ctx->err, ctx->errlen, rc, "readback from the %s backend failed: %s",
                      name, bk->ops->last_error(bk->be));
         else if (bad[0] || bad[1])
             rc = report_bad(ctx, k, bad);
+    }
+    if (rc == RBC_OK && guard) {
+        rc = guard_decide(bk, ctx);
+        if (rc != RBC_OK)
+            rbc_fail(ctx->err, ctx->errlen, rc, "readback from the %s backend failed: %s",
+                     name, bk->ops->last_error(bk->be));
+        else
+            rc = ctx->result;
     }
     /* Readback of x and q into the host's arrays; a failure half-way is the snapshot's
      * to undo (rbc_solver_step restores it on any failed step). */
@@ -377,15 +567,16 @@ void rbc_backend_run(const rbc_backend_handle *bk, step_ctx *ctx) {
         rbc_cloth_state *c = s->cloths[k];
         const size_t nf = (size_t)c->topo.n * sizeof(float);
         for (int a = 0; rc == RBC_OK && a < 3; ++a) {
-            rc = bk->ops->download(bk->be, c->x[a], c->dev->x[a], nf);
-            if (rc == RBC_OK) rc = bk->ops->download(bk->be, c->q[a], c->dev->q[a], nf);
+            rc = readback(bk, c->x[a], c->dev->x[a], nf);
+            if (rc == RBC_OK) rc = readback(bk, c->q[a], c->dev->q[a], nf);
         }
         if (rc != RBC_OK)
             rbc_fail(ctx->err, ctx->errlen, rc, "readback from the %s backend failed: %s",
                      name, bk->ops->last_error(bk->be));
     }
-    if (rc == RBC_OK)
-        ctx->linear_done = ctx->substeps * s->nonlinear_iterations * s->linear_iterations;
+    /* The guard's clamp, on the committed state the host now holds (the device's
+     * copy is uploaded again next step). */
+    if (rc == RBC_OK && guard && ctx->clamp) rbc_guard_apply_committed(s);
     ctx->result = rc;
 }
 

@@ -4,65 +4,66 @@
 #include <math.h>
 #include <string.h>
 
+#include "kernels/measure_kernels.h"
 #include "simd.h"
 #include "cloth_state.h"
 
+/* One block of particles [i0, i1): its sums into out[RBC_EPB] (the collider-work slot
+ * left alone). Exported for the CPU backend's energy kernel, which must sum as the
+ * pool does (this file's flags let the sums be reassociated into vector lanes). */
 RBC_VECTOR_CLONES
+void rbc_energy_particle_block(float *const pos[3], float *const prev[3], const float *w,
+                               const float *mass, const uint8_t *pinned, const float g[3],
+                               uint32_t i0, uint32_t i1, double *o) {
+    const double gx = g[0], gy = g[1], gz = g[2];
+    const double gn = sqrt(gx * gx + gy * gy + gz * gz);
+    /* Branch-free, per-particle terms in float (each is exact to a float ulp, far
+     * inside the tolerance), sums in double. Upper bounds stand in for norms in the
+     * tolerance terms (|a|+|b|+|c| >= |(a, b, c)|): no square roots. */
+    double ke = 0.0, ug = 0.0, mag = 0.0, wsum = 0.0, md = 0.0;
+    const float *restrict X = pos[0], *restrict Y = pos[1], *restrict Z = pos[2];
+    const float *restrict QX = prev[0], *restrict QY = prev[1], *restrict QZ = prev[2];
+    const float *restrict W = w, *restrict M = mass;
+    const uint8_t *restrict pin = pinned;
+    const float gxf = g[0], gyf = g[1], gzf = g[2];
+    /* Largest |coordinate|: the bits of a non-negative float order as integers. */
+    uint32_t xbits = 0;
+    for (uint32_t i = i0; i < i1; ++i) {
+        uint32_t bx, by, bz;
+        memcpy(&bx, &X[i], 4);
+        memcpy(&by, &Y[i], 4);
+        memcpy(&bz, &Z[i], 4);
+        bx &= 0x7FFFFFFFu, by &= 0x7FFFFFFFu, bz &= 0x7FFFFFFFu;
+        uint32_t bm = bx > by ? bx : by;
+        bm = bm > bz ? bm : bz;
+        xbits = xbits > bm ? xbits : bm;
+    }
+    float xmax;
+    memcpy(&xmax, &xbits, 4);
+    for (uint32_t i = i0; i < i1; ++i)
+        rbc_k_energy_terms(i, X, Y, Z, QX, QY, QZ, W, M, pin, gxf, gyf, gzf, &ke, &ug, &mag,
+                           &md, &wsum);
+    mag *= gn;
+    o[RBC_E_KE] = 0.5 * ke;
+    o[RBC_E_UG] = ug;
+    o[RBC_E_MAG] = mag;
+    o[RBC_E_WSUM] = wsum;
+    o[RBC_E_MD] = md;
+    o[RBC_E_XMAX] = xmax;
+}
+
 void rbc_energy_blocks(rbc_cloth_state *c, float *const pos[3], float *const prev[3],
                        const float g[3], int springs, uint32_t tid, uint32_t nt) {
     const rbc_topology *t = &c->topo;
     const uint32_t nbp = rbc_energy_blocks_of(t->n), nbs = rbc_energy_blocks_of(t->ns);
     double *pb = c->e_blk, *sbk = c->e_blk + (size_t)RBC_EPB * nbp;
-    const double gx = g[0], gy = g[1], gz = g[2];
-    const double gn = sqrt(gx * gx + gy * gy + gz * gz);
     uint32_t b0, b1;
     rbc_energy_block_range(nbp, tid, nt, &b0, &b1);
     for (uint32_t b = b0; b < b1; ++b) {
         uint32_t i0 = b * RBC_ENERGY_BLOCK, i1 = i0 + RBC_ENERGY_BLOCK;
         if (i1 > t->n) i1 = t->n;
-        /* Branch-free, per-particle terms in float (each is exact to a float ulp,
-         * far inside the tolerance), sums in double. Upper bounds stand in for norms
-         * in the tolerance terms (|a|+|b|+|c| >= |(a, b, c)|): no square roots. */
-        double ke = 0.0, ug = 0.0, mag = 0.0, wsum = 0.0, md = 0.0;
-        const float *restrict X = pos[0], *restrict Y = pos[1], *restrict Z = pos[2];
-        const float *restrict QX = prev[0], *restrict QY = prev[1], *restrict QZ = prev[2];
-        const float *restrict W = c->w, *restrict M = t->mass;
-        const uint8_t *restrict pin = c->pinned;
-        const float gxf = g[0], gyf = g[1], gzf = g[2];
-        /* Largest |coordinate|: the bits of a non-negative float order as integers. */
-        uint32_t xbits = 0;
-        for (uint32_t i = i0; i < i1; ++i) {
-            uint32_t bx, by, bz;
-            memcpy(&bx, &X[i], 4);
-            memcpy(&by, &Y[i], 4);
-            memcpy(&bz, &Z[i], 4);
-            bx &= 0x7FFFFFFFu, by &= 0x7FFFFFFFu, bz &= 0x7FFFFFFFu;
-            uint32_t bm = bx > by ? bx : by;
-            bm = bm > bz ? bm : bz;
-            xbits = xbits > bm ? xbits : bm;
-        }
-        float xmax;
-        memcpy(&xmax, &xbits, 4);
-        for (uint32_t i = i0; i < i1; ++i) {
-            float f = (float)(1 - (int)pin[i]);
-            float vx = X[i] - QX[i], vy = Y[i] - QY[i], vz = Z[i] - QZ[i];
-            float w = f * W[i], m = f * M[i];
-            ke += (double)(w * (vx * vx + vy * vy + vz * vz));
-            /* In double: |g . x| is large against the energies that move (a 1 m
-             * drop holds ~10 J/kg), so its rounding must stay far below theirs. */
-            ug -= (double)m * ((double)gxf * X[i] + (double)gyf * Y[i] + (double)gzf * Z[i]);
-            mag += (double)(m * (fabsf(X[i]) + fabsf(Y[i]) + fabsf(Z[i])));
-            md += (double)(m * (fabsf(vx) + fabsf(vy) + fabsf(vz)));
-            wsum += (double)w;
-        }
-        mag *= gn;
-        double *o = pb + (size_t)RBC_EPB * b;
-        o[RBC_E_KE] = 0.5 * ke;
-        o[RBC_E_UG] = ug;
-        o[RBC_E_MAG] = mag;
-        o[RBC_E_WSUM] = wsum;
-        o[RBC_E_MD] = md;
-        o[RBC_E_XMAX] = xmax;
+        rbc_energy_particle_block(pos, prev, c->w, t->mass, c->pinned, g, i0, i1,
+                                  pb + (size_t)RBC_EPB * b);
     }
     if (!springs) return;
     rbc_energy_block_range(nbs, tid, nt, &b0, &b1);
@@ -143,26 +144,26 @@ double rbc_energy_sum_work(const rbc_cloth_state *c) {
     return w;
 }
 
-static double spring_energy_at(const rbc_topology *t, uint32_t k, const uint8_t *pinned,
-                               float *const before[3], float *const after[3]) {
-    uint32_t a = t->sa[k], b = t->sb[k];
-    float *const *pa = pinned[a] ? after : before;
-    float *const *pb = pinned[b] ? after : before;
-    double ex = (double)pa[0][a] - pb[0][b], ey = (double)pa[1][a] - pb[1][b],
-           ez = (double)pa[2][a] - pb[2][b];
-    double v = sqrt(ex * ex + ey * ey + ez * ez) - t->rest_len[k];
-    return 0.5 * t->stiff[k] * v * v;
+double rbc_energy_pin_work_list(const uint32_t *list, uint32_t count, const uint32_t *sa,
+                                const uint32_t *sb, const float *rest, const float *stiff,
+                                const uint8_t *pinned, float *const before[3],
+                                float *const after[3]) {
+    double w = 0.0;
+    for (uint32_t m = 0; m < count; ++m) {
+        uint32_t k = list[m];
+        w += rbc_k_spring_energy_at(k, sa, sb, rest, stiff, pinned, before[0], before[1],
+                                    before[2], after[0], after[1], after[2]) -
+             rbc_k_spring_energy_at(k, sa, sb, rest, stiff, pinned, before[0], before[1],
+                                    before[2], before[0], before[1], before[2]);
+    }
+    return w;
 }
 
 double rbc_energy_pin_work(const rbc_cloth_state *c, float *const before[3],
                            float *const after[3]) {
-    double w = 0.0;
-    for (uint32_t m = 0; m < c->pin_spring_count; ++m) {
-        uint32_t k = c->pin_springs[m];
-        w += spring_energy_at(&c->topo, k, c->pinned, before, after) -
-             spring_energy_at(&c->topo, k, c->pinned, before, before);
-    }
-    return w;
+    const rbc_topology *t = &c->topo;
+    return rbc_energy_pin_work_list(c->pin_springs, c->pin_spring_count, t->sa, t->sb,
+                                    t->rest_len, t->stiff, c->pinned, before, after);
 }
 
 int rbc_energy_rebuild_pin_springs(rbc_cloth_state *c, const rbc_allocator *a) {

@@ -55,6 +55,18 @@ rbc_energy rbc_energy_sum(const struct rbc_cloth_state *c, float h, const float 
 /* Zero / sum the collider-work slots (J). */
 void rbc_energy_clear_work(struct rbc_cloth_state *c, uint32_t tid, uint32_t nt);
 double rbc_energy_sum_work(const struct rbc_cloth_state *c);
+/* One block of particles [i0, i1) of positions pos against prev into out[RBC_EPB]
+ * (w = m/h^2; the collider-work slot left alone): what rbc_energy_blocks does per
+ * block, for the CPU backend's energy kernel. */
+void rbc_energy_particle_block(float *const pos[3], float *const prev[3], const float *w,
+                               const float *mass, const uint8_t *pinned, const float g[3],
+                               uint32_t i0, uint32_t i1, double *out);
+/* rbc_energy_pin_work over a list of springs with a pinned end, from plain arrays
+ * (the CPU backend's pin-work kernel). */
+double rbc_energy_pin_work_list(const uint32_t *list, uint32_t count, const uint32_t *sa,
+                                const uint32_t *sb, const float *rest, const float *stiff,
+                                const uint8_t *pinned, float *const before[3],
+                                float *const after[3]);
 /* Work of moving pins on the springs that touch them: spring energy with the pinned
  * particles at `after` minus at `before`, free particles at `before` (both in
  * internal order). Serial; O(springs at pins). */

@@ -5,6 +5,7 @@
 #include <stdio.h>
 
 #include "energy.h"
+#include "kernels/measure_kernels.h"
 #include "report.h"
 
 int rbc_guard_on(const rbc_solver *s) {
@@ -133,12 +134,18 @@ void rbc_guard_apply(step_ctx *ctx, uint32_t tid, uint32_t nt) {
         const float f = c->guard.scale;
         uint32_t b, e;
         rbc_split(c->topo.n, tid, nt, &b, &e);
-        for (int a = 0; a < 3; ++a) {
-            float *x = c->x[a];
-            const float *p = c->p[a];
-            for (uint32_t i = b; i < e; ++i)
-                if (!c->pinned[i]) x[i] = p[i] - f * (p[i] - x[i]);
-        }
+        for (int a = 0; a < 3; ++a)
+            for (uint32_t i = b; i < e; ++i) rbc_k_guard_scale(i, f, c->pinned, c->p[a], c->x[a]);
+    }
+}
+
+void rbc_guard_apply_committed(rbc_solver *s) {
+    for (uint32_t k = 0; k < s->cloth_count; ++k) {
+        rbc_cloth_state *c = s->cloths[k];
+        if (c->guard.scale == 1.0f) continue;
+        for (int a = 0; a < 3; ++a)
+            for (uint32_t i = 0; i < c->topo.n; ++i)
+                rbc_k_guard_scale(i, c->guard.scale, c->pinned, c->x[a], c->q[a]);
     }
 }
 

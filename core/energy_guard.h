@@ -21,6 +21,9 @@ void rbc_guard_budget_add(step_ctx *ctx, double sign, uint32_t tid, uint32_t nt)
 void rbc_guard_decide(step_ctx *ctx);
 /* All threads: the clamp's velocity scaling (before the commit). */
 void rbc_guard_apply(step_ctx *ctx, uint32_t tid, uint32_t nt);
+/* The same clamp after the commit (a backend's step: x is the solve's p, q the
+ * substep's start): q = x - scale (x - q) for every cloth's free particles. */
+void rbc_guard_apply_committed(rbc_solver *s);
 /* After a successful step: each cloth's account for the next one, and the stats. */
 void rbc_guard_commit(rbc_solver *s, const step_ctx *ctx);
 #endif

@@ -318,6 +318,13 @@ static void step_spmd(void *arg, uint32_t tid, uint32_t nt) {
     }
 }
 
+/* A backend's step: the energy guard's budget at the start, on the pool (the host
+ * holds the state between steps), as the first stage of step_spmd. */
+static void budget_spmd(void *arg, uint32_t tid, uint32_t nt) {
+    rbc_step_at at = {0, 0, tid, nt};
+    run_stage(arg, RBC_STAGE_BUDGET, &at);
+}
+
 /* The stages this world's scene needs. */
 static uint32_t stages_used(const rbc_solver *s, const step_ctx *ctx) {
     const int guard = rbc_guard_on(s);
@@ -549,6 +556,8 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     const uint32_t threads = rbc_step_threads_choose(s);
     const double run_t0 = rbc_now_ms();
     /* On the host's job system the threads that joined (1..threads). */
+    if (s->backend.ops && rbc_step_uses(&ctx, RBC_STAGE_BUDGET))
+        rbc_pool_run_n(s->pool, threads, budget_spmd, &ctx);
     const uint32_t used = s->backend.ops ? (rbc_backend_run(&s->backend, &ctx), 1u)
                                          : rbc_pool_run_n(s->pool, threads, step_spmd, &ctx);
     if (s->backend.ops) ctx.stage_ms[RBC_STAGE_GLOBAL] = rbc_now_ms() - run_t0;

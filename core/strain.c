@@ -4,6 +4,7 @@
 #include <math.h>
 
 #include "report.h"
+#include "kernels/measure_kernels.h"
 #include "simd.h"
 #include "cloth_state.h"
 
@@ -29,19 +30,14 @@ static double block_sum(const uint32_t *restrict sa, const uint32_t *restrict sb
     return sum;
 }
 
-/* One spring's relative strain in float, 0 for a spring that does not count (broken,
- * or L = 0); inlined into the vector loops below. */
-static inline float rel_strain_f(float ex, float ey, float ez, float L, int live) {
-    return live ? sqrtf(ex * ex + ey * ey + ez * ez) / L - 1.0f : 0.0f;
-}
-
 /* The same in float (the squares summed in double): for the checks inside a solve,
  * about an order of magnitude cheaper (the gathers and square roots vectorize in
  * float lanes). Each relative strain is off by at most about 2 sqrt(3) ulp(|p|) / L
  * + 3 ulp(1) from the double value (a float subtraction of coordinates up to |p|,
- * a float square root and division), 1e-5 for 1 m coordinates and 1 cm springs. */
+ * a float square root and division), 1e-5 for 1 m coordinates and 1 cm springs.
+ * Exported for the CPU backend's strain kernel, which must sum as the pool does. */
 RBC_VECTOR_CLONES
-static double block_sum_f(const uint32_t *restrict sa, const uint32_t *restrict sb,
+double rbc_strain_block_sum_f(const uint32_t *restrict sa, const uint32_t *restrict sb,
                           const float *restrict rest, const float *restrict stiff, int torn,
                           const float *restrict px, const float *restrict py,
                           const float *restrict pz, uint32_t b, uint32_t e, double *count) {
@@ -52,7 +48,7 @@ static double block_sum_f(const uint32_t *restrict sa, const uint32_t *restrict 
         float ex = px[i] - px[j], ey = py[i] - py[j], ez = pz[i] - pz[j];
         float L = rest[k];
         int live = L > 0.0f && !(torn && stiff[k] == 0.0f);
-        float r = rel_strain_f(ex, ey, ez, L, live);
+        float r = rbc_k_rel_strain_f(ex, ey, ez, L, live);
         sum += (double)(r * r);
         n += live ? 1.0f : 0.0f;
     }
@@ -81,7 +77,7 @@ static inline float spring_strain_f(const rbc_topology *t, int torn, const float
     uint32_t i = t->sa[k], j = t->sb[k];
     float L = t->rest_len[k];
     int live = L > 0.0f && !(torn && t->stiff[k] == 0.0f);
-    return fabsf(rel_strain_f(px[i] - px[j], py[i] - py[j], pz[i] - pz[j], L, live));
+    return fabsf(rbc_k_rel_strain_f(px[i] - px[j], py[i] - py[j], pz[i] - pz[j], L, live));
 }
 
 /* The block's largest strain. No index is kept: the spring is looked up again only
@@ -99,7 +95,7 @@ static float block_max_f(const uint32_t *restrict sa, const uint32_t *restrict s
         uint32_t i = sa[k], j = sb[k];
         float L = rest[k];
         int live = L > 0.0f && !(torn && stiff[k] == 0.0f);
-        float r = fabsf(rel_strain_f(px[i] - px[j], py[i] - py[j], pz[i] - pz[j], L, live));
+        float r = fabsf(rbc_k_rel_strain_f(px[i] - px[j], py[i] - py[j], pz[i] - pz[j], L, live));
         m = r > m ? r : m;
     }
     return m;
@@ -124,7 +120,7 @@ static void blocks(rbc_cloth_state *c, float *const p[3], uint32_t tid, uint32_t
         double n = 0.0;
         c->strain_blk[2 * (size_t)k] =
             kind == SUM_FLOAT
-                ? block_sum_f(t->sa, t->sb, t->rest_len, t->stiff, torn, p[0], p[1], p[2], s0, s1, &n)
+                ? rbc_strain_block_sum_f(t->sa, t->sb, t->rest_len, t->stiff, torn, p[0], p[1], p[2], s0, s1, &n)
                 : block_sum(t->sa, t->sb, t->rest_len, t->stiff, torn, p[0], p[1], p[2], s0, s1, &n);
         c->strain_blk[2 * (size_t)k + 1] = n;
     }

@@ -32,6 +32,12 @@ void rbc_strain_blocks(struct rbc_cloth_state *c, float *const p[3], uint32_t ti
  * (strain.c gives its error bound). */
 void rbc_strain_blocks_fast(struct rbc_cloth_state *c, float *const p[3], uint32_t tid,
                             uint32_t nt);
+/* One block of springs [b, e): what rbc_strain_blocks_fast sums per block (the
+ * squares, and in *count the springs counted), from plain arrays (the CPU backend's
+ * strain kernel). torn: skip springs of stiffness 0. */
+double rbc_strain_block_sum_f(const uint32_t *sa, const uint32_t *sb, const float *rest,
+                              const float *stiff, int torn, const float *px, const float *py,
+                              const float *pz, uint32_t b, uint32_t e, double *count);
 /* The largest relative strain | |p_a - p_b| / L - 1 | of this thread's blocks (live
  * springs with L > 0), in float, into c->strain_max_blk: the strain warning's pass
  * at the end of a step (rbc_world_def.strain_warning). Call on every thread, then

@@ -213,6 +213,11 @@ static void wavefront(step_ctx *ctx, uint32_t count, uint32_t tid, uint32_t nt) 
     }
 }
 
+uint32_t rbc_sweep_residual_colors(rbc_solver_kind kind, uint32_t ncolors) {
+    return !is_jacobi(kind) && ncolors > 1 && kind != RBC_SOLVER_GAUSS_SEIDEL ? ncolors - 1
+                                                                              : ncolors;
+}
+
 /* RBC_ITERATE_TOLERANCE: stop at the relative residual, checked over all colors but
  * the last one a Gauss-Seidel sweep just solved exactly (its rows have zero residual
  * up to rounding). */
@@ -220,14 +225,11 @@ static void tolerance_check(step_ctx *ctx, uint32_t k, uint32_t limit, uint32_t 
                             uint32_t nt) {
     rbc_solver *s = ctx->s;
     const rbc_solver_settings *st = &s->settings;
-    int gs_family = !is_jacobi(st->kind);
     double r2 = 0.0, b2 = 0.0;
     for (uint32_t q = 0; q < s->cloth_count; ++q) {
         const rbc_cloth_state *c = s->cloths[q];
-        uint32_t end = gs_family && c->topo.ncolors > 1 && st->kind != RBC_SOLVER_GAUSS_SEIDEL
-                           ? c->topo.ncolors - 1
-                           : c->topo.ncolors;
-        rbc_global_residual(c, end, tid, nt, &r2, &b2);
+        rbc_global_residual(c, rbc_sweep_residual_colors(st->kind, c->topo.ncolors), tid, nt,
+                            &r2, &b2);
     }
     ctx->part[tid].r2 = r2;
     ctx->part[tid].b2 = b2;
@@ -243,20 +245,10 @@ static void tolerance_check(step_ctx *ctx, uint32_t k, uint32_t limit, uint32_t 
     }
 }
 
-/* The linear iterations the global step of this non-linear iteration runs. */
-typedef struct sweep_plan {
-    int fixed;          /* a fixed count: limit iterations */
-    int target_check;   /* the target mode's checked global step (the step's last) */
-    uint32_t limit;     /* the count, or the cap */
-    uint32_t first;     /* the target's first checked iteration */
-    uint32_t pre;       /* iterations run as the wavefront before the loop */
-    int wave;           /* the whole global step is the wavefront */
-} sweep_plan;
-
-static sweep_plan plan_global_step(const step_ctx *ctx, uint32_t segment, uint32_t nsegments) {
+rbc_sweep_plan rbc_sweep_plan_global(const step_ctx *ctx, uint32_t segment, uint32_t nsegments) {
     const rbc_solver *s = ctx->s;
     const rbc_solver_settings *st = &s->settings;
-    sweep_plan pl;
+    rbc_sweep_plan pl;
     /* RBC_ITERATE_TARGET: every global step of a step but its last runs the count
      * the last one of the previous step needed (a fixed count, so the wavefront
      * serves it); the last one checks the strain from a quarter below that count on,
@@ -327,7 +319,7 @@ static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uin
         }
         rbc_pool_barrier(s->pool);
     }
-    const sweep_plan pl = plan_global_step(ctx, segment, nsegments);
+    const rbc_sweep_plan pl = rbc_sweep_plan_global(ctx, segment, nsegments);
     if (pl.wave || pl.pre) wavefront(ctx, pl.wave ? pl.limit : pl.pre, tid, nt);
     if (pl.wave) {
         if (tid == 0) ctx->linear_done += pl.limit;

@@ -38,7 +38,11 @@ void rbc_target_check(step_ctx *ctx, uint32_t k, uint32_t limit, int alt, uint32
         rbc_strain_blocks_fast(c, alt ? c->alt : c->p, tid, nt);
     }
     rbc_pool_barrier(s->pool);
-    if (tid != 0) return;
+    if (tid == 0) rbc_target_decide(ctx, k, limit);
+}
+
+void rbc_target_decide(step_ctx *ctx, uint32_t k, uint32_t limit) {
+    rbc_solver *s = ctx->s;
     double worst = 0.0;
     for (uint32_t q = 0; q < s->cloth_count; ++q) {
         double r = rbc_strain_sum(s->cloths[q]);

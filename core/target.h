@@ -26,6 +26,10 @@ void rbc_target_begin(rbc_solver *s, step_ctx *ctx);
  * the latest iterate (alt: the Jacobi destination buffer) decides ctx->stop. */
 void rbc_target_check(step_ctx *ctx, uint32_t k, uint32_t limit, int alt, uint32_t tid,
                       uint32_t nt);
+/* The decision of that check from every cloth's strain blocks (c->strain_blk, filled
+ * as rbc_strain_blocks_fast fills them): one thread, after they are complete. A
+ * backend's step fills them with its own strain kernel and calls this. */
+void rbc_target_decide(step_ctx *ctx, uint32_t k, uint32_t limit);
 /* After a successful step that reached `reached`: the next step's counts. */
 void rbc_target_end(rbc_solver *s, const step_ctx *ctx, double reached);
 #endif

@@ -8,7 +8,9 @@
 #include <string.h>
 
 #include "../../abi/rbcloth.h"
+#include "../energy.h"
 #include "../kernels/pd_kernels.h"
+#include "../strain.h"
 
 static void *cpu_alloc(void *be, size_t bytes) {
     (void)be;
@@ -92,6 +94,42 @@ static int32_t cpu_launch(void *be, rbc_kernel k, const rbc_kargs *a) {
                 if (c->bad[1] == 0 || v < c->bad[1]) c->bad[1] = v;
                 break;
             }
+        break;
+    case RBC_KERNEL_RESIDUAL: {
+        /* As rbc_global_residual on one thread: the range's sums, then added. */
+        double r = 0.0, bb = 0.0;
+        for (uint32_t i = b; i < e; ++i)
+            if (!c->pinned[i])
+                rbc_k_residual(i, c->adj_start, c->adj_nbr, c->adj_k, c->b[0], c->b[1], c->b[2],
+                               c->inv_denom, c->p[0], c->p[1], c->p[2], c->pinned, &r, &bb);
+        c->sums[0] += r;
+        c->sums[1] += bb;
+        break;
+    }
+    case RBC_KERNEL_STRAIN:
+        /* strain.c's own block sum (its flags reassociate it): the pool's value. */
+        for (uint32_t k2 = b; k2 < e; ++k2) {
+            uint32_t s0 = k2 * RBC_STRAIN_BLOCK, s1 = s0 + RBC_STRAIN_BLOCK;
+            if (s1 > c->ns) s1 = c->ns;
+            double n = 0.0;
+            c->strain_blk[2 * (size_t)k2] = rbc_strain_block_sum_f(
+                c->sa, c->sb, c->rest, c->stiff, 0, a->pos[0], a->pos[1], a->pos[2], s0, s1, &n);
+            c->strain_blk[2 * (size_t)k2 + 1] = n;
+        }
+        break;
+    case RBC_KERNEL_ENERGY:
+        for (uint32_t k2 = b; k2 < e; ++k2) {
+            uint32_t i0 = k2 * RBC_ENERGY_BLOCK, i1 = i0 + RBC_ENERGY_BLOCK;
+            if (i1 > c->n) i1 = c->n;
+            rbc_energy_particle_block(a->pos, a->prev, c->w, c->mass, c->pinned, a->g, i0, i1,
+                                      c->e_blk + (size_t)RBC_EPB * k2);
+        }
+        break;
+    case RBC_KERNEL_PIN_WORK:
+        if (a->count)
+            c->sums[2] += rbc_energy_pin_work_list(c->pin_springs, c->pin_spring_count, c->sa,
+                                                   c->sb, c->rest, c->stiff, c->pinned, a->prev,
+                                                   a->pos);
         break;
     default: return RBC_ERR_INVALID_ARGUMENT;
     }

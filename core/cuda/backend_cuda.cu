@@ -18,7 +18,10 @@
 extern "C" {
 #include "../../abi/rbcloth.h"
 #include "../backend.h"
+#include "../energy.h" /* RBC_ENERGY_BLOCK, the blocks' layout */
+#include "../strain.h" /* RBC_STRAIN_BLOCK */
 }
+#include "../kernels/measure_kernels.h"
 #include "../kernels/pd_kernels.h"
 
 namespace {
@@ -92,6 +95,88 @@ __global__ void stage_kernel(rbc_kernel k, rbc_dcloth c, rbc_kargs a) {
     }
 }
 
+/* The residual's sums: each thread its particle's terms, a warp's sum by shuffles,
+ * one atomicAdd per warp (double atomics: sm_60 and later). The order differs from
+ * the CPU's, so the sums agree to rounding; they only decide when to stop. */
+__global__ void residual_kernel(rbc_dcloth c, rbc_kargs a) {
+    const uint32_t t = blockIdx.x * blockDim.x + threadIdx.x;
+    double r = 0.0, bb = 0.0;
+    if (t < a.count && !c.pinned[a.first + t])
+        rbc_k_residual(a.first + t, c.adj_start, c.adj_nbr, c.adj_k, c.b[0], c.b[1], c.b[2],
+                       c.inv_denom, c.p[0], c.p[1], c.p[2], c.pinned, &r, &bb);
+    for (int off = 16; off > 0; off >>= 1) {
+        r += __shfl_down_sync(0xFFFFFFFFu, r, off);
+        bb += __shfl_down_sync(0xFFFFFFFFu, bb, off);
+    }
+    if ((threadIdx.x & 31u) == 0) {
+        atomicAdd(&c.sums[0], r);
+        atomicAdd(&c.sums[1], bb);
+    }
+}
+
+/* The block sums of the strain and the energy: one thread per block, in order, as
+ * energy.h and strain.h define the blocks (a few hundred threads at 1M particles;
+ * these run once or twice a step, and a tree sum would order them otherwise). */
+__global__ void block_kernel(rbc_kernel k, rbc_dcloth c, rbc_kargs a) {
+    const uint32_t blk = a.first + blockIdx.x * blockDim.x + threadIdx.x;
+    if (blk >= a.first + a.count) return;
+    if (k == RBC_KERNEL_STRAIN) {
+        uint32_t s0 = blk * RBC_STRAIN_BLOCK, s1 = s0 + RBC_STRAIN_BLOCK;
+        if (s1 > c.ns) s1 = c.ns;
+        double sum = 0.0;
+        float n = 0.0f;
+        for (uint32_t s = s0; s < s1; ++s) {
+            uint32_t i = c.sa[s], j = c.sb[s];
+            float L = c.rest[s];
+            int live = L > 0.0f; /* torn cloths are not on a backend */
+            float r = rbc_k_rel_strain_f(a.pos[0][i] - a.pos[0][j], a.pos[1][i] - a.pos[1][j],
+                                         a.pos[2][i] - a.pos[2][j], L, live);
+            sum += (double)(r * r);
+            n += live ? 1.0f : 0.0f;
+        }
+        c.strain_blk[2 * (size_t)blk] = sum;
+        c.strain_blk[2 * (size_t)blk + 1] = n;
+        return;
+    }
+    /* RBC_KERNEL_ENERGY */
+    uint32_t i0 = blk * RBC_ENERGY_BLOCK, i1 = i0 + RBC_ENERGY_BLOCK;
+    if (i1 > c.n) i1 = c.n;
+    double ke = 0.0, ug = 0.0, mag = 0.0, md = 0.0, wsum = 0.0;
+    uint32_t xbits = 0;
+    for (uint32_t i = i0; i < i1; ++i) {
+        uint32_t bm = __float_as_uint(a.pos[0][i]) & 0x7FFFFFFFu;
+        uint32_t by = __float_as_uint(a.pos[1][i]) & 0x7FFFFFFFu;
+        uint32_t bz = __float_as_uint(a.pos[2][i]) & 0x7FFFFFFFu;
+        bm = bm > by ? bm : by;
+        bm = bm > bz ? bm : bz;
+        xbits = xbits > bm ? xbits : bm;
+        rbc_k_energy_terms(i, a.pos[0], a.pos[1], a.pos[2], a.prev[0], a.prev[1], a.prev[2], c.w,
+                           c.mass, c.pinned, a.g[0], a.g[1], a.g[2], &ke, &ug, &mag, &md, &wsum);
+    }
+    const double gn = sqrt((double)a.g[0] * a.g[0] + (double)a.g[1] * a.g[1] +
+                           (double)a.g[2] * a.g[2]);
+    double *o = c.e_blk + (size_t)RBC_EPB * blk;
+    o[RBC_E_KE] = 0.5 * ke;
+    o[RBC_E_UG] = ug;
+    o[RBC_E_MAG] = mag * gn;
+    o[RBC_E_WSUM] = wsum;
+    o[RBC_E_MD] = md;
+    o[RBC_E_XMAX] = __uint_as_float(xbits);
+}
+
+/* The pins' work over the springs at pins, one thread in order (a few per pin). */
+__global__ void pin_work_kernel(rbc_dcloth c, rbc_kargs a) {
+    double w = 0.0;
+    for (uint32_t m = 0; m < c.pin_spring_count; ++m) {
+        uint32_t k = c.pin_springs[m];
+        w += rbc_k_spring_energy_at(k, c.sa, c.sb, c.rest, c.stiff, c.pinned, a.prev[0],
+                                    a.prev[1], a.prev[2], a.pos[0], a.pos[1], a.pos[2]) -
+             rbc_k_spring_energy_at(k, c.sa, c.sb, c.rest, c.stiff, c.pinned, a.prev[0],
+                                    a.prev[1], a.prev[2], a.prev[0], a.prev[1], a.prev[2]);
+    }
+    c.sums[2] += w;
+}
+
 int32_t fail(cuda_backend *b, cudaError_t e, const char *what) {
     snprintf(b->err, sizeof b->err, "%s: %s (%s)", what, cudaGetErrorString(e),
              cudaGetErrorName(e));
@@ -142,7 +227,14 @@ int32_t cu_launch(void *be, rbc_kernel k, const rbc_kargs *a) {
     cuda_backend *b = (cuda_backend *)be;
     if (!a->count) return RBC_OK;
     const unsigned blocks = (a->count + kBlock - 1) / kBlock;
-    stage_kernel<<<blocks, kBlock, 0, b->stream>>>(k, *a->c, *a);
+    if (k == RBC_KERNEL_RESIDUAL)
+        residual_kernel<<<blocks, kBlock, 0, b->stream>>>(*a->c, *a);
+    else if (k == RBC_KERNEL_STRAIN || k == RBC_KERNEL_ENERGY)
+        block_kernel<<<(a->count + 63) / 64, 64, 0, b->stream>>>(k, *a->c, *a);
+    else if (k == RBC_KERNEL_PIN_WORK)
+        pin_work_kernel<<<1, 1, 0, b->stream>>>(*a->c, *a);
+    else
+        stage_kernel<<<blocks, kBlock, 0, b->stream>>>(k, *a->c, *a);
     cudaError_t e = cudaGetLastError();
     return e == cudaSuccess ? RBC_OK : fail(b, e, "kernel launch");
 }

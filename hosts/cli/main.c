@@ -156,8 +156,8 @@ static const char bench_usage[] =
     "  --threads N          worker threads of every world; 0 = one per core (perf,\n"
     "                       scenes: 1 thread and N, default 2; peers, defaults: 1)\n"
     "  --quick              fewer frames, budgets and cases (the tests' smoke runs)\n"
-    "  --backend cpu|cuda   perf: the worlds' backend (cuda: 10K .. 4M particles,\n"
-    "                       the energy guard off; refused where no CUDA device is)\n";
+    "  --backend cpu|cuda   perf: the worlds' backend (cuda: 10K .. 4M particles;\n"
+    "                       refused where no CUDA device is)\n";
 
 static const char info_usage[] =
     "Usage: rbcloth info\n"
