@@ -554,10 +554,11 @@ int32_t rbc_solver_step(rbc_solver *s, float dt, char *err, size_t errlen) {
     if (rescale) rescale_velocities(s, ctx.h);
 
     const uint32_t threads = rbc_step_threads_choose(s);
-    const double run_t0 = rbc_now_ms();
-    /* On the host's job system the threads that joined (1..threads). */
+    /* (Before run_t0: the stats count it as the budget stage, not the device's.) */
     if (s->backend.ops && rbc_step_uses(&ctx, RBC_STAGE_BUDGET))
         rbc_pool_run_n(s->pool, threads, budget_spmd, &ctx);
+    const double run_t0 = rbc_now_ms();
+    /* On the host's job system the threads that joined (1..threads). */
     const uint32_t used = s->backend.ops ? (rbc_backend_run(&s->backend, &ctx), 1u)
                                          : rbc_pool_run_n(s->pool, threads, step_spmd, &ctx);
     if (s->backend.ops) ctx.stage_ms[RBC_STAGE_GLOBAL] = rbc_now_ms() - run_t0;
