@@ -222,6 +222,7 @@ static void guard_fails(void) {
     world a, b;
     make(&a, &m, RBC_SOLVER_JACOBI, 0);
     make(&b, &m, RBC_SOLVER_JACOBI, 1);
+    struct rbc_lattice *lattice = a.c->lattice; /* the pool on its CSR rows, as parity */
     a.c->lattice = NULL;
     const uint32_t n = b.c->topo.n;
     float *x0 = malloc(n * sizeof(float)), *q0 = malloc(n * sizeof(float));
@@ -248,6 +249,7 @@ static void guard_fails(void) {
         CHECK(same_state(&a, &b));
     }
     CHECK(failed_at >= 0);
+    a.c->lattice = lattice;
     free(x0);
     free(q0);
     rbc_solver_fini(&a.s);
