@@ -111,6 +111,14 @@ typedef struct rbc_backend_ops {
     /* A one-line description of the device, for stats and logs. */
     const char *(*describe)(void *be);
     void (*close)(void *be);
+    /* Optional (NULL: launches run as they come). Between step_begin and step_end a
+     * backend may record the launches, each with its arguments as they are at the
+     * launch, and run them at step_end as one unit (the CUDA backend: a CUDA graph,
+     * so a step of many small launches is not latency-bound). The schedule makes no
+     * upload, download or sync in between, and calls step_end whenever step_begin
+     * succeeded. */
+    int32_t (*step_begin)(void *be);
+    int32_t (*step_end)(void *be);
 } rbc_backend_ops;
 
 /* A backend opened for a world. */

@@ -537,9 +537,23 @@ void rbc_backend_run(const rbc_backend_handle *bk, step_ctx *ctx) {
         if (!c->dev) rc = cloth_create(bk, s, c, ctx->err, ctx->errlen);
         if (rc == RBC_OK) rc = cloth_upload(bk, c, ctx->h, guard, ctx->err, ctx->errlen);
     }
-    if (rc == RBC_OK && (rc = substeps(bk, ctx, guard)) != RBC_OK)
-        rbc_fail(ctx->err, ctx->errlen, rc, "a launch or readback on the %s backend failed: %s",
-                 name, bk->ops->last_error(bk->be));
+    /* A fixed count reads nothing back within the step: the backend may record the
+     * step's launches and run them as one (a CUDA graph). The other modes decide on
+     * readbacks between iterations. */
+    const int record = bk->ops->step_begin && s->settings.mode == RBC_ITERATE_FIXED;
+    if (rc == RBC_OK && record && (rc = bk->ops->step_begin(bk->be)) != RBC_OK)
+        rbc_fail(ctx->err, ctx->errlen, rc, "the %s backend could not start a step: %s", name,
+                 bk->ops->last_error(bk->be));
+    else if (rc == RBC_OK) {
+        rc = substeps(bk, ctx, guard);
+        if (rc != RBC_OK)
+            rbc_fail(ctx->err, ctx->errlen, rc, "a launch or readback on the %s backend failed: %s",
+                     name, bk->ops->last_error(bk->be));
+        const int32_t re = record ? bk->ops->step_end(bk->be) : RBC_OK;
+        if (rc == RBC_OK && (rc = re) != RBC_OK)
+            rbc_fail(ctx->err, ctx->errlen, rc, "the %s backend's recorded step failed: %s",
+                     name, bk->ops->last_error(bk->be));
+    }
     if (rc == RBC_OK && (rc = bk->ops->sync(bk->be)) != RBC_OK)
         rbc_fail(ctx->err, ctx->errlen, rc, "the %s backend's step failed: %s", name,
                  bk->ops->last_error(bk->be));

@@ -13,6 +13,7 @@
  * for sm_80 and sm_90 and its no-device path is tested. */
 #include <cuda_runtime.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 extern "C" {
@@ -29,6 +30,12 @@ namespace {
 struct cuda_backend {
     int device;
     cudaStream_t stream;
+    /* CUDA graphs (backend.h's step_begin/step_end): whether they are used
+     * ($RBC_CUDA_GRAPHS=0 turns them off, to compare), a capture under way, and the
+     * executable graph of the last recorded step, updated in place while the next
+     * step's launches have the same shape (only their arguments differ). */
+    int graphs, capturing;
+    cudaGraphExec_t exec;
     char err[256];
     char desc[320]; /* the device name (up to 256) and its figures */
 };
@@ -206,8 +213,16 @@ void cu_release(void *be, void *ptr) {
     cudaFree(ptr);
 }
 
+/* The schedule never copies or waits within a recorded step (backend.h); one that did
+ * would read or write state the graph has not run yet. */
+int32_t in_capture(cuda_backend *b, const char *what) {
+    snprintf(b->err, sizeof b->err, "%s inside a recorded step (a schedule bug)", what);
+    return RBC_ERR_INVALID_ARGUMENT;
+}
+
 int32_t cu_upload(void *be, void *dst, const void *src, size_t bytes) {
     cuda_backend *b = (cuda_backend *)be;
+    if (b->capturing) return in_capture(b, "upload");
     if (!bytes) return RBC_OK;
     /* From pageable host memory: the call returns once the source was staged, so
      * the host may reuse it at once. */
@@ -217,6 +232,7 @@ int32_t cu_upload(void *be, void *dst, const void *src, size_t bytes) {
 
 int32_t cu_download(void *be, void *dst, const void *src, size_t bytes) {
     cuda_backend *b = (cuda_backend *)be;
+    if (b->capturing) return in_capture(b, "readback");
     if (!bytes) return RBC_OK;
     cudaError_t e = cudaMemcpyAsync(dst, src, bytes, cudaMemcpyDeviceToHost, b->stream);
     if (e == cudaSuccess) e = cudaStreamSynchronize(b->stream);
@@ -241,8 +257,51 @@ int32_t cu_launch(void *be, rbc_kernel k, const rbc_kargs *a) {
 
 int32_t cu_sync(void *be) {
     cuda_backend *b = (cuda_backend *)be;
+    if (b->capturing) return in_capture(b, "sync");
     cudaError_t e = cudaStreamSynchronize(b->stream);
     return e == cudaSuccess ? RBC_OK : fail(b, e, "cudaStreamSynchronize");
+}
+
+/* A step's launches are captured into a graph rather than run (thread-local mode:
+ * other threads' CUDA calls, other worlds', are not affected). */
+int32_t cu_step_begin(void *be) {
+    cuda_backend *b = (cuda_backend *)be;
+    if (!b->graphs) return RBC_OK;
+    cudaError_t e = cudaStreamBeginCapture(b->stream, cudaStreamCaptureModeThreadLocal);
+    if (e != cudaSuccess) return fail(b, e, "cudaStreamBeginCapture");
+    b->capturing = 1;
+    return RBC_OK;
+}
+
+/* The captured step as one graph launch: the last step's executable graph updated
+ * with the new arguments when the shape is the same (the usual case: the same
+ * substeps, iterations and pins), instantiated anew otherwise. */
+int32_t cu_step_end(void *be) {
+    cuda_backend *b = (cuda_backend *)be;
+    if (!b->capturing) return RBC_OK;
+    b->capturing = 0;
+    cudaGraph_t g = NULL;
+    cudaError_t e = cudaStreamEndCapture(b->stream, &g);
+    if (e != cudaSuccess) {
+        if (g) cudaGraphDestroy(g);
+        return fail(b, e, "cudaStreamEndCapture");
+    }
+    if (b->exec) {
+        cudaGraphExecUpdateResultInfo info;
+        if (cudaGraphExecUpdate(b->exec, g, &info) != cudaSuccess) {
+            (void)cudaGetLastError(); /* a shape change is not an error: rebuild */
+            cudaGraphExecDestroy(b->exec);
+            b->exec = NULL;
+        }
+    }
+    if (!b->exec) e = cudaGraphInstantiate(&b->exec, g, 0);
+    cudaGraphDestroy(g);
+    if (e != cudaSuccess) {
+        b->exec = NULL;
+        return fail(b, e, "cudaGraphInstantiate");
+    }
+    e = cudaGraphLaunch(b->exec, b->stream);
+    return e == cudaSuccess ? RBC_OK : fail(b, e, "cudaGraphLaunch");
 }
 
 const char *cu_last_error(void *be) { return ((cuda_backend *)be)->err; }
@@ -251,13 +310,14 @@ const char *cu_describe(void *be) { return ((cuda_backend *)be)->desc; }
 
 void cu_close(void *be) {
     cuda_backend *b = (cuda_backend *)be;
+    if (b->exec) cudaGraphExecDestroy(b->exec);
     cudaStreamDestroy(b->stream);
     free(b);
 }
 
 const rbc_backend_ops cuda_ops = {
     "cuda",   cu_alloc,      cu_release,  cu_upload, cu_download, cu_launch,
-    cu_sync,  cu_last_error, cu_describe, cu_close,
+    cu_sync,  cu_last_error, cu_describe, cu_close,  cu_step_begin, cu_step_end,
 };
 
 } // namespace
@@ -303,6 +363,8 @@ rbc_cuda_backend_open(uint32_t interface_version, rbc_backend_handle *out, char 
         return RBC_ERR_BACKEND_UNAVAILABLE;
     }
     snprintf(b->err, sizeof b->err, "no error");
+    const char *gr = getenv("RBC_CUDA_GRAPHS");
+    b->graphs = !(gr && !strcmp(gr, "0"));
     snprintf(b->desc, sizeof b->desc, "%.255s (sm_%d%d, %.1f GiB)", prop.name, prop.major, prop.minor,
              (double)prop.totalGlobalMem / (1024.0 * 1024.0 * 1024.0));
     out->ops = &cuda_ops;

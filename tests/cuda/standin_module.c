@@ -3,11 +3,114 @@
  * $RBC_CUDA_MODULE, it lets the plugin's whole device path (world creation with
  * RBC_BACKEND_CUDA, the refusals, the step through the seam, readback, stats, the
  * bench's --backend cuda) run on every machine. It proves the plugin's wiring, not
- * the GPU: the kernels' loops are the CPU backend's (core/cpu/backend_cpu.c). */
+ * the GPU: the kernels' loops are the CPU backend's (core/cpu/backend_cpu.c).
+ *
+ * It also keeps the contract a CUDA graph relies on (backend.h, step_begin and
+ * step_end): between them it records each launch with copies of its arguments, as
+ * a stream capture does, runs them only at step_end, and fails any copy or sync in
+ * between. So a schedule that read the state inside a recorded step, or relied on
+ * arguments changing after their launch, fails here as it would on a device. */
 #include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 
 #include "backend.h"
 #include "rbcloth.h"
+
+typedef struct recorded {
+    rbc_kernel k;
+    rbc_kargs a;
+    rbc_dcloth c; /* the cloth's arrays as they were at the launch */
+} recorded;
+
+typedef struct standin {
+    rbc_backend_handle cpu;
+    int recording;
+    recorded *log;
+    size_t count, cap;
+    char err[128];
+} standin;
+
+static rbc_backend_ops standin_ops;
+
+static void *si_alloc(void *be, size_t bytes) {
+    standin *s = be;
+    return s->cpu.ops->alloc(s->cpu.be, bytes);
+}
+static void si_release(void *be, void *ptr) {
+    standin *s = be;
+    s->cpu.ops->release(s->cpu.be, ptr);
+}
+static int32_t refuse_inside(standin *s, const char *what) {
+    snprintf(s->err, sizeof s->err, "%s inside a recorded step (a schedule bug)", what);
+    return RBC_ERR_INVALID_ARGUMENT;
+}
+static int32_t si_upload(void *be, void *dst, const void *src, size_t bytes) {
+    standin *s = be;
+    if (s->recording) return refuse_inside(s, "upload");
+    return s->cpu.ops->upload(s->cpu.be, dst, src, bytes);
+}
+static int32_t si_download(void *be, void *dst, const void *src, size_t bytes) {
+    standin *s = be;
+    if (s->recording) return refuse_inside(s, "readback");
+    return s->cpu.ops->download(s->cpu.be, dst, src, bytes);
+}
+static int32_t si_launch(void *be, rbc_kernel k, const rbc_kargs *a) {
+    standin *s = be;
+    if (!s->recording) return s->cpu.ops->launch(s->cpu.be, k, a);
+    if (s->count == s->cap) {
+        size_t cap = s->cap ? 2 * s->cap : 256;
+        recorded *log = realloc(s->log, cap * sizeof *log);
+        if (!log) {
+            snprintf(s->err, sizeof s->err, "out of memory recording a step");
+            return RBC_ERR_OUT_OF_MEMORY;
+        }
+        s->log = log;
+        s->cap = cap;
+    }
+    recorded *r = &s->log[s->count++];
+    r->k = k;
+    r->a = *a;
+    r->c = *a->c;
+    r->a.c = &r->c;
+    return RBC_OK;
+}
+static int32_t si_sync(void *be) {
+    standin *s = be;
+    return s->recording ? refuse_inside(s, "sync") : RBC_OK;
+}
+static const char *si_last_error(void *be) {
+    standin *s = be;
+    return s->err[0] ? s->err : s->cpu.ops->last_error(s->cpu.be);
+}
+static const char *si_describe(void *be) {
+    (void)be;
+    return "the CUDA stand-in (the CPU backend, launches of a fixed step recorded)";
+}
+static void si_close(void *be) {
+    standin *s = be;
+    s->cpu.ops->close(s->cpu.be);
+    free(s->log);
+    free(s);
+}
+static int32_t si_step_begin(void *be) {
+    standin *s = be;
+    s->recording = 1;
+    s->count = 0;
+    return RBC_OK;
+}
+/* Run the recorded launches in order (the log's pointers stay valid: a launch's
+ * arguments point at its own record). */
+static int32_t si_step_end(void *be) {
+    standin *s = be;
+    s->recording = 0;
+    for (size_t i = 0; i < s->count; ++i) {
+        int32_t rc = s->cpu.ops->launch(s->cpu.be, s->log[i].k, &s->log[i].a);
+        if (rc != RBC_OK) return rc;
+    }
+    s->count = 0;
+    return RBC_OK;
+}
 
 __attribute__((visibility("default"))) int32_t
 rbc_cuda_backend_open(uint32_t interface_version, rbc_backend_handle *out, char *why,
@@ -17,5 +120,27 @@ rbc_cuda_backend_open(uint32_t interface_version, rbc_backend_handle *out, char 
                  (unsigned)RBC_BACKEND_INTERFACE, (unsigned)interface_version);
         return RBC_ERR_BACKEND_UNAVAILABLE;
     }
-    return rbc_backend_cpu_open(out);
+    standin *s = calloc(1, sizeof *s);
+    if (!s) {
+        snprintf(why, whylen, "out of host memory");
+        return RBC_ERR_OUT_OF_MEMORY;
+    }
+    rbc_backend_cpu_open(&s->cpu);
+    standin_ops = (rbc_backend_ops){
+        .name = "cuda",
+        .alloc = si_alloc,
+        .release = si_release,
+        .upload = si_upload,
+        .download = si_download,
+        .launch = si_launch,
+        .sync = si_sync,
+        .last_error = si_last_error,
+        .describe = si_describe,
+        .close = si_close,
+        .step_begin = si_step_begin,
+        .step_end = si_step_end,
+    };
+    out->ops = &standin_ops;
+    out->be = s;
+    return RBC_OK;
 }
