@@ -224,9 +224,17 @@ static inline int row_free(const uint8_t *pin, uint32_t n) {
 }
 #endif /* RBC_VECTOR_EXT */
 
+/* The cloth's arrays for rbc_k_lat_edge. */
+static inline rbc_k_lat_gs_arrays gs_edge_arrays(const rbc_cloth_state *c) {
+    const rbc_k_lat_gs_arrays A = {c->pinned, c->inv_denom, {c->bx, c->by, c->bz},
+                                   {c->p[0], c->p[1], c->p[2]}};
+    return A;
+}
+
 /* One row of one color: the Gauss-Seidel update of its particles. */
-RBC_ALWAYS_INLINE void grid_row(const rbc_lattice *g, rbc_cloth_state *c, uint32_t color, uint32_t j,
-                     float omega) {
+RBC_ALWAYS_INLINE void grid_row(const rbc_lattice *g, rbc_cloth_state *c,
+                                const rbc_k_lat_gs_arrays *A, uint32_t color, uint32_t j,
+                                float omega) {
     const uint32_t nx = g->nx, ny = g->ny, o = 1u - color;
     float *const *P = c->p;
     const uint32_t s0 = g->row_first[color][j], cnt = g->row_first[color][j + 1] - s0;
@@ -262,9 +270,8 @@ RBC_ALWAYS_INLINE void grid_row(const rbc_lattice *g, rbc_cloth_state *c, uint32
     for (uint32_t m = 0; m < lo; ++m) { /* column 0: the right neighbour only (if any) */
         const uint32_t i = s0 + m;
         const int has_r = f + 2 * m + 1 < nx;
-        rbc_k_lat_edge(i, has_r ? ro + f + m : i, has_r ? g->kr[i] : 0.0f, g->kd[i], g->ku[i],
-                       dn, up, m, omega, c->pinned, c->inv_denom, c->bx, c->by, c->bz, P[0],
-                       P[1], P[2]);
+        rbc_k_lat_edge(A, i, has_r ? ro + f + m : i, has_r ? g->kr[i] : 0.0f, g->kd[i], g->ku[i],
+                       dn, up, m, omega);
     }
     if (hi > lo && g->k_uniform != 0.0f) {
         const uint32_t i = s0 + lo, li = ro + f - 1 + lo, ri = ro + f + lo;
@@ -283,9 +290,8 @@ RBC_ALWAYS_INLINE void grid_row(const rbc_lattice *g, rbc_cloth_state *c, uint32
     for (uint32_t m = hi; m < cnt; ++m) { /* column nx - 1: the left neighbour only */
         const uint32_t i = s0 + m;
         const int has_l = f + 2 * m >= 1;
-        rbc_k_lat_edge(i, has_l ? ro + f + m - 1 : i, has_l ? g->kl[i] : 0.0f, g->kd[i],
-                       g->ku[i], dn, up, m, omega, c->pinned, c->inv_denom, c->bx, c->by, c->bz,
-                       P[0], P[1], P[2]);
+        rbc_k_lat_edge(A, i, has_l ? ro + f + m - 1 : i, has_l ? g->kl[i] : 0.0f, g->kd[i],
+                       g->ku[i], dn, up, m, omega);
     }
 }
 
@@ -294,7 +300,8 @@ void rbc_lattice_sweep(const rbc_lattice *g, rbc_cloth_state *c, uint32_t color,
                     uint32_t tid, uint32_t nt) {
     uint32_t j0, j1;
     rbc_split(g->ny, tid, nt, &j0, &j1);
-    for (uint32_t j = j0; j < j1; ++j) grid_row(g, c, color, j, omega);
+    const rbc_k_lat_gs_arrays A = gs_edge_arrays(c);
+    for (uint32_t j = j0; j < j1; ++j) grid_row(g, c, &A, color, j, omega);
 }
 
 RBC_VECTOR_CLONES
@@ -307,6 +314,7 @@ void rbc_lattice_wavefront(const rbc_lattice *g, rbc_cloth_state *c, uint32_t it
     uint32_t u0, u1;
     rbc_split(2 * iterations, tid, nt, &u0, &u1);
     const uint32_t steps = ny + 2 * iterations; /* last: black row ny-1 of the last one */
+    const rbc_k_lat_gs_arrays A = gs_edge_arrays(c);
     volatile uint32_t *mine = progress + stride * tid;
     volatile uint32_t *before = tid ? progress + stride * (tid - 1) : NULL;
     for (uint32_t w = 0; w < steps; ++w) {
@@ -318,7 +326,7 @@ void rbc_lattice_wavefront(const rbc_lattice *g, rbc_cloth_state *c, uint32_t it
         }
         for (uint32_t u = u0; u < u1; ++u) {
             int64_t r = (int64_t)w - (int64_t)u;
-            if (r >= 0 && r < (int64_t)ny) grid_row(g, c, u & 1u, (uint32_t)r, omega);
+            if (r >= 0 && r < (int64_t)ny) grid_row(g, c, &A, u & 1u, (uint32_t)r, omega);
         }
         RBC_STORE_RELEASE(mine, w + 1);
     }
@@ -356,8 +364,9 @@ static void jacobi_axis(uint32_t count, float *restrict o, float *restrict q,
 
 
 /* One row of one color of a Jacobi iteration. */
-static void jacobi_row(const rbc_lattice *g, rbc_cloth_state *c, float *const S[3],
-                       float *const D[3], uint32_t color, uint32_t j, int cheb, float omega) {
+static void jacobi_row(const rbc_lattice *g, rbc_cloth_state *c,
+                       const rbc_k_lat_jacobi_arrays *A, float *const S[3], float *const D[3],
+                       uint32_t color, uint32_t j, int cheb, float omega) {
     const uint32_t nx = g->nx, ny = g->ny, o = 1u - color;
     const uint32_t s0 = g->row_first[color][j], cnt = g->row_first[color][j + 1] - s0;
     if (!cnt) return;
@@ -372,13 +381,11 @@ static void jacobi_row(const rbc_lattice *g, rbc_cloth_state *c, float *const S[
     if (lo > hi) lo = hi;
     /* Column 0 (m < lo) and nx - 1 (m >= hi) one by one, the interior as rows. */
     for (uint32_t m = 0; m < lo; ++m)
-        rbc_k_lat_jacobi_edge(s0 + m, rd + m, 0, ro + f + m, ru + m, has_d, 0, 1, has_u, cheb,
-                              omega, g->kd, g->kl, g->kr, g->ku, c->pinned, c->inv_denom, c->bx,
-                              c->by, c->bz, c->prev, S, D);
+        rbc_k_lat_jacobi_edge(A, S, D, s0 + m, rd + m, 0, ro + f + m, ru + m, has_d, 0, 1, has_u,
+                              cheb, omega);
     for (uint32_t m = hi; m < cnt; ++m)
-        rbc_k_lat_jacobi_edge(s0 + m, rd + m, ro + f + m - 1, 0, ru + m, has_d, 1, 0, has_u,
-                              cheb, omega, g->kd, g->kl, g->kr, g->ku, c->pinned, c->inv_denom,
-                              c->bx, c->by, c->bz, c->prev, S, D);
+        rbc_k_lat_jacobi_edge(A, S, D, s0 + m, rd + m, ro + f + m - 1, 0, ru + m, has_d, 1, 0,
+                              has_u, cheb, omega);
     if (hi > lo) {
         const uint32_t i = s0 + lo, li = ro + f - 1 + lo, ri = ro + f + lo;
         const float *B[3] = {c->bx, c->by, c->bz};
@@ -395,9 +402,12 @@ void rbc_lattice_jacobi(const rbc_lattice *g, rbc_cloth_state *c, float *const s
                      float *const dst[3], int chebyshev, float omega, uint32_t tid, uint32_t nt) {
     uint32_t j0, j1;
     rbc_split(g->ny, tid, nt, &j0, &j1);
+    const rbc_k_lat_jacobi_arrays A = {g->kd, g->kl, g->kr, g->ku, c->inv_denom,
+                                       {c->bx, c->by, c->bz}, c->pinned,
+                                       {c->prev[0], c->prev[1], c->prev[2]}};
     for (uint32_t j = j0; j < j1; ++j)
         for (uint32_t color = 0; color < 2; ++color)
-            jacobi_row(g, c, src, dst, color, j, chebyshev, omega);
+            jacobi_row(g, c, &A, src, dst, color, j, chebyshev, omega);
 }
 
 /* The arrays of the serial sweep, loaded once: the stores to p cannot make the

@@ -106,20 +106,28 @@ RBC_HD_INLINE void rbc_k_lat_row_axis(uint32_t count, float *RBC_RESTRICT p,
     }
 }
 
+/* The arrays a Gauss-Seidel edge particle reads and writes, behind one pointer: read
+ * where used, they need no registers across the sweep (as rbc_k_lat_jacobi_arrays). */
+typedef struct rbc_k_lat_gs_arrays {
+    const uint8_t *pinned;
+    const float *inv_denom;
+    const float *b[3];
+    float *p[3];
+} rbc_k_lat_gs_arrays;
+
 /* A row's edge particle, scalar: its one horizontal neighbour at index ih (stiffness
  * kh), the vertical ones at m of the rows below and above (zeros beyond the edges).
  * Straight-line code: the edges are 2 of every row's particles, a sixth of the sweep's
  * time at 10K before this was tightened. */
-RBC_HD void rbc_k_lat_edge(uint32_t i, uint32_t ih, float kh, float kd, float ku,
-                           const float *const dn[3], const float *const up[3], uint32_t m,
-                           float omega, const uint8_t *pinned, const float *inv_denom,
-                           const float *bx, const float *by, const float *bz, float *px, float *py,
-                           float *pz) {
-    if (pinned[i]) return;
-    const float r = inv_denom[i];
-    float gx = (bx[i] + kh * px[ih] + kd * dn[0][m] + ku * up[0][m]) * r;
-    float gy = (by[i] + kh * py[ih] + kd * dn[1][m] + ku * up[1][m]) * r;
-    float gz = (bz[i] + kh * pz[ih] + kd * dn[2][m] + ku * up[2][m]) * r;
+RBC_HD void rbc_k_lat_edge(const rbc_k_lat_gs_arrays *A, uint32_t i, uint32_t ih, float kh,
+                           float kd, float ku, const float *const dn[3], const float *const up[3],
+                           uint32_t m, float omega) {
+    if (A->pinned[i]) return;
+    float *px = A->p[0], *py = A->p[1], *pz = A->p[2];
+    const float r = A->inv_denom[i];
+    float gx = (A->b[0][i] + kh * px[ih] + kd * dn[0][m] + ku * up[0][m]) * r;
+    float gy = (A->b[1][i] + kh * py[ih] + kd * dn[1][m] + ku * up[1][m]) * r;
+    float gz = (A->b[2][i] + kh * pz[ih] + kd * dn[2][m] + ku * up[2][m]) * r;
     if (omega != 0.0f) {
         gx = px[i] + omega * (gx - px[i]);
         gy = py[i] + omega * (gy - py[i]);
@@ -220,32 +228,39 @@ RBC_HD_INLINE void rbc_k_lat_jacobi_row(uint32_t count, float *RBC_RESTRICT o,
     }
 }
 
+/* The arrays a Jacobi edge particle reads besides src and dst, behind one pointer:
+ * read where used, they need no registers across a row (passed one by one, they
+ * spilled: 1.5% more instructions in the lattice Jacobi). */
+typedef struct rbc_k_lat_jacobi_arrays {
+    const float *kd, *kl, *kr, *ku, *inv_denom;
+    const float *b[3];
+    const uint8_t *pinned;
+    float *prev[3];
+} rbc_k_lat_jacobi_arrays;
+
 /* A Jacobi particle of column 0 (has_l 0) or nx - 1 (has_r 0), scalar: rbc_k_eq6b's
  * sum over its existing neighbours (down, left, right, up at dn, lt, rt, up) of src S,
- * written to dst D as rbc_global_jacobi writes it (Q: prev, with cheb). */
-RBC_HD_INLINE void rbc_k_lat_jacobi_edge(uint32_t i, uint32_t dn, uint32_t lt, uint32_t rt,
-                                         uint32_t up, int has_d, const int has_l, const int has_r,
-                                         int has_u, int cheb, float omega, const float *kd_,
-                                         const float *kl_, const float *kr_, const float *ku_,
-                                         const uint8_t *pinned, const float *inv_denom,
-                                         const float *bx, const float *by, const float *bz,
-                                         float *const Q[3], float *const S[3], float *const D[3]) {
-    if (pinned[i]) {
+ * written to dst D as rbc_global_jacobi writes it (A->prev with cheb). */
+RBC_HD_INLINE void rbc_k_lat_jacobi_edge(const rbc_k_lat_jacobi_arrays *A, float *const S[3],
+                                         float *const D[3], uint32_t i, uint32_t dn,
+                                         uint32_t lt, uint32_t rt, uint32_t up, int has_d,
+                                         const int has_l, const int has_r, int has_u, int cheb,
+                                         float omega) {
+    if (A->pinned[i]) {
         for (int a = 0; a < 3; ++a) D[a][i] = S[a][i];
         return;
     }
-    const float kd = kd_[i], kl = kl_[i], kr = kr_[i], ku = ku_[i];
-    const float *B[3] = {bx, by, bz};
+    const float kd = A->kd[i], kl = A->kl[i], kr = A->kr[i], ku = A->ku[i];
     for (int a = 0; a < 3; ++a) {
         const float *p = S[a];
-        float acc = B[a][i];
+        float acc = A->b[a][i];
         if (has_d) acc += kd * p[dn];
         if (has_l) acc += kl * p[lt];
         if (has_r) acc += kr * p[rt];
         if (has_u) acc += ku * p[up];
-        float gv = acc * inv_denom[i];
+        float gv = acc * A->inv_denom[i];
         if (cheb) {
-            float *q = Q[a];
+            float *q = A->prev[a];
             D[a][i] = omega * (gv - q[i]) + q[i];
             q[i] = p[i];
         } else {

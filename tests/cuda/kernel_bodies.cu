@@ -30,6 +30,8 @@ struct rbc_check_rows {
     const float *l[3], *r[3], *d[3], *u[3], *b[3], *y[3];
     const float *inv, *kl, *kr, *kd, *ku, *ll, *lr, *ld, *lu, *w;
     const uint8_t *pin;
+    rbc_k_lat_gs_arrays gs;
+    rbc_k_lat_jacobi_arrays jac;
     int *bad;
 };
 
@@ -50,8 +52,7 @@ __global__ void rbc_check_lattice_rows(rbc_check_rows a, uint32_t count, int whi
                                a.b[x] + m, a.inv + m, a.pin + m, omega, kuni);
         break;
     case 2:
-        rbc_k_lat_edge(m, m, kuni, kuni, kuni, a.d, a.u, m, omega, a.pin, a.inv, a.b[0], a.b[1],
-                       a.b[2], a.p[0], a.p[1], a.p[2]);
+        rbc_k_lat_edge(&a.gs, m, m, kuni, kuni, kuni, a.d, a.u, m, omega);
         break;
     case 3:
         for (int x = 0; x < 3; ++x)
@@ -61,8 +62,7 @@ __global__ void rbc_check_lattice_rows(rbc_check_rows a, uint32_t count, int whi
                                  omega != 0.0f);
         break;
     case 4:
-        rbc_k_lat_jacobi_edge(m, m, m, m, m, 1, 1, 0, 1, omega != 0.0f, omega, a.kd, a.kl, a.kr,
-                              a.ku, a.pin, a.inv, a.b[0], a.b[1], a.b[2], a.q, a.p, a.o);
+        rbc_k_lat_jacobi_edge(&a.jac, a.p, a.o, m, m, m, m, m, 1, 1, 0, 1, omega != 0.0f, omega);
         break;
     default:
         if (rbc_k_lat_rhs_row(1, a.p[0] + m, a.p[1] + m, a.p[2] + m, a.l[0] + m, a.l[1] + m,
