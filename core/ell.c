@@ -107,8 +107,8 @@ int rbc_ell_build(const rbc_topology *t, const rbc_allocator *a, rbc_ell **out) 
     return 1;
 }
 
-/* Particles [m0, m0 + len) of a color (internal index base + m): accumulate slot by
- * slot, then write. The gathers read only other colors, the stores come after them. */
+/* The shared body (kernels/ell_kernels.h) over a whole chunk, cloned here for AVX2 and
+ * AVX-512 (simd.h): it is inlined into each clone, whose gathers it vectorizes. */
 RBC_VECTOR_CLONES
 static void ell_chunk(uint32_t len, uint32_t width, size_t stride, const uint32_t *restrict nbr,
                       const float *restrict kk, const float *restrict px,
@@ -117,38 +117,8 @@ static void ell_chunk(uint32_t len, uint32_t width, size_t stride, const uint32_
                       const float *restrict bz, const float *restrict inv,
                       const uint8_t *restrict pin, float *restrict ox, float *restrict oy,
                       float *restrict oz, float omega) {
-    float ax[RBC_ELL_CHUNK], ay[RBC_ELL_CHUNK], az[RBC_ELL_CHUNK];
-    for (uint32_t m = 0; m < len; ++m) {
-        ax[m] = bx[m];
-        ay[m] = by[m];
-        az[m] = bz[m];
-    }
-    for (uint32_t j = 0; j < width; ++j) {
-        const uint32_t *restrict nj = nbr + j * stride;
-        const float *restrict kj = kk + j * stride;
-        for (uint32_t m = 0; m < len; ++m) {
-            uint32_t q = nj[m];
-            float k = kj[m];
-            ax[m] += k * px[q];
-            ay[m] += k * py[q];
-            az[m] += k * pz[q];
-        }
-    }
-    if (omega == 0.0f) {
-        for (uint32_t m = 0; m < len; ++m) {
-            float r = inv[m];
-            ox[m] = rbc_keep_if(pin[m], ox[m], ax[m] * r);
-            oy[m] = rbc_keep_if(pin[m], oy[m], ay[m] * r);
-            oz[m] = rbc_keep_if(pin[m], oz[m], az[m] * r);
-        }
-    } else {
-        for (uint32_t m = 0; m < len; ++m) {
-            float r = inv[m], x = ox[m], y = oy[m], z = oz[m];
-            ox[m] = rbc_keep_if(pin[m], x, x + omega * (ax[m] * r - x));
-            oy[m] = rbc_keep_if(pin[m], y, y + omega * (ay[m] * r - y));
-            oz[m] = rbc_keep_if(pin[m], z, z + omega * (az[m] * r - z));
-        }
-    }
+    rbc_k_ell_lanes(len, width, stride, nbr, kk, px, py, pz, bx, by, bz, inv, pin, ox, oy, oz,
+                    omega);
 }
 
 void rbc_ell_sweep(const rbc_ell *e, rbc_cloth_state *c, uint32_t color, float omega,

@@ -13,11 +13,12 @@
 #include <stdint.h>
 
 #include "alloc.h"
+#include "kernels/ell_kernels.h"
 #include "topology.h"
 
 struct rbc_cloth_state;
 
-enum { RBC_ELL_CHUNK = 64 }; /* 8 vectors of AVX2: a degree group of a window fills few chunks only partly */
+/* RBC_ELL_CHUNK and the chunk's update: kernels/ell_kernels.h. */
 
 typedef struct rbc_ell {
     uint32_t ncolors, nchunks;

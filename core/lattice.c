@@ -8,6 +8,7 @@
 #include "report.h"
 #include "simd.h"
 #include "cloth_state.h"
+#include "kernels/lattice_kernels.h"
 
 /* Inlined into its callers (with constant flags where they pass them) (GCC and Clang,
  * MSVC's __forceinline; elsewhere an ordinary inline, the same arithmetic). */
@@ -19,17 +20,7 @@
 #define RBC_ALWAYS_INLINE static inline
 #endif
 
-/* The uniform free row's vector loop (row_axis_free) is written in GCC's vector
- * extension, which GCC and Clang have (clang-cl too) and MSVC's cl has not: there
- * (and wherever RBC_NO_VECTOR_EXT is defined, which is how GCC builds and tests this
- * path: core_lattice_fallback) such a row takes the path of every other row, the
- * scalar edges and row_axis_uniform's loop, which sums the same terms in another
- * order. */
-#if (defined(__GNUC__) || defined(__clang__)) && !defined(RBC_NO_VECTOR_EXT)
-#define RBC_VECTOR_EXT 1
-#else
-#define RBC_VECTOR_EXT 0
-#endif
+/* RBC_VECTOR_EXT: kernels/lattice_kernels.h. */
 
 /* The wavefront's progress counters: an acquire load and a release store of an aligned
  * uint32_t. GCC and Clang: their builtins. MSVC on x86 and x64: the hardware orders
@@ -218,164 +209,7 @@ not_grid:
     return 0;
 }
 
-/* The interior of a row: every particle has its left and right neighbour. The row
- * functions are inlined into the sweeps, which are cloned for AVX2 and AVX-512 and
- * picked at load time (simd.h; the default is SSE2): one dispatch per sweep instead
- * of three indirect calls per row of 50 particles, whose set-up was a fifth of the
- * sweep's time at 10K. */
-
-
-/* The three coordinates in one loop: the stiffnesses, b's row and the pins are read
- * once per particle. */
-RBC_ALWAYS_INLINE void row_interior(uint32_t count, float *restrict px, float *restrict py,
-                         float *restrict pz, const float *restrict lx, const float *restrict ly,
-                         const float *restrict lz, const float *restrict rx,
-                         const float *restrict ry, const float *restrict rz,
-                         const float *restrict dx, const float *restrict dy,
-                         const float *restrict dz, const float *restrict ux,
-                         const float *restrict uy, const float *restrict uz,
-                         const float *restrict kl, const float *restrict kr,
-                         const float *restrict kd, const float *restrict ku,
-                         const float *restrict bx, const float *restrict by,
-                         const float *restrict bz, const float *restrict inv,
-                         const uint8_t *restrict pin, float omega, float kuni) {
-    /* kuni != 0: every spring of the lattice has stiffness kuni (missing ones read a
-     * zero row or are edge particles): the same arithmetic with a broadcast constant
-     * instead of four streams of stiffness. */
-#define RBC_ROW_BODY(LOADK, RELAX)                                                       \
-    for (uint32_t m = 0; m < count; ++m) {                                               \
-        LOADK                                                                            \
-        float r = inv[m];                                                                \
-        float gx = (bx[m] + a * lx[m] + b * rx[m] + c * dx[m] + d * ux[m]) * r;          \
-        float gy = (by[m] + a * ly[m] + b * ry[m] + c * dy[m] + d * uy[m]) * r;          \
-        float gz = (bz[m] + a * lz[m] + b * rz[m] + c * dz[m] + d * uz[m]) * r;          \
-        float ox = px[m], oy = py[m], oz = pz[m];                                        \
-        RELAX                                                                            \
-        px[m] = rbc_keep_if(pin[m], ox, gx);                                                 \
-        py[m] = rbc_keep_if(pin[m], oy, gy);                                                 \
-        pz[m] = rbc_keep_if(pin[m], oz, gz);                                                 \
-    }
-#define RBC_K_ARRAYS float a = kl[m], b = kr[m], c = kd[m], d = ku[m];
-#define RBC_K_UNIFORM float a = kuni, b = kuni, c = kuni, d = kuni;
-#define RBC_SOR gx = ox + omega * (gx - ox); gy = oy + omega * (gy - oy); gz = oz + omega * (gz - oz);
-    if (kuni != 0.0f) {
-        if (omega == 0.0f) {
-            RBC_ROW_BODY(RBC_K_UNIFORM, )
-        } else {
-            RBC_ROW_BODY(RBC_K_UNIFORM, RBC_SOR)
-        }
-    } else if (omega == 0.0f) {
-        RBC_ROW_BODY(RBC_K_ARRAYS, )
-    } else {
-        RBC_ROW_BODY(RBC_K_ARRAYS, RBC_SOR)
-    }
-#undef RBC_K_ARRAYS
-#undef RBC_K_UNIFORM
-#undef RBC_SOR
-#undef RBC_ROW_BODY
-}
-
-/* One coordinate of a row's interior with the uniform stiffness kuni: eight streams,
- * few enough to stay in registers (the three-coordinate loop spills on AVX2). */
-RBC_ALWAYS_INLINE void row_axis_uniform(uint32_t count, float *restrict p, const float *restrict l,
-                             const float *restrict r, const float *restrict d,
-                             const float *restrict u, const float *restrict b,
-                             const float *restrict inv, const uint8_t *restrict pin,
-                             float omega, float kuni) {
-    if (omega == 0.0f) {
-        for (uint32_t m = 0; m < count; ++m) {
-            float gv = (b[m] + kuni * l[m] + kuni * r[m] + kuni * d[m] + kuni * u[m]) * inv[m];
-            p[m] = rbc_keep_if(pin[m], p[m], gv);
-        }
-    } else {
-        for (uint32_t m = 0; m < count; ++m) {
-            float gv = (b[m] + kuni * l[m] + kuni * r[m] + kuni * d[m] + kuni * u[m]) * inv[m];
-            float o = p[m];
-            p[m] = rbc_keep_if(pin[m], o, o + omega * (gv - o));
-        }
-    }
-}
-
-/* A row's edge particle, scalar: its one horizontal neighbour at index ih (stiffness
- * kh), the vertical ones at m of the rows below and above (zeros beyond the edges).
- * Straight-line code: the edges are 2 of every row's particles, a sixth of the sweep's
- * time at 10K before this was tightened. */
-static inline void edge_particle(rbc_cloth_state *c, uint32_t i, uint32_t ih, float kh,
-                                 float kd, float ku, const float *const dn[3],
-                                 const float *const up[3], uint32_t m, float omega) {
-    if (c->pinned[i]) return;
-    float *px = c->p[0], *py = c->p[1], *pz = c->p[2];
-    const float r = c->inv_denom[i];
-    float gx = (c->bx[i] + kh * px[ih] + kd * dn[0][m] + ku * up[0][m]) * r;
-    float gy = (c->by[i] + kh * py[ih] + kd * dn[1][m] + ku * up[1][m]) * r;
-    float gz = (c->bz[i] + kh * pz[ih] + kd * dn[2][m] + ku * up[2][m]) * r;
-    if (omega != 0.0f) {
-        gx = px[i] + omega * (gx - px[i]);
-        gy = py[i] + omega * (gy - py[i]);
-        gz = pz[i] + omega * (gz - pz[i]);
-    }
-    px[i] = gx, py[i] = gy, pz[i] = gz;
-}
-
 #if RBC_VECTOR_EXT
-/* Eight lanes of GCC's vector extension: ymm registers in the AVX2 and AVX-512
- * clones, two xmm in the SSE2 one. Unaligned loads and stores through memcpy. The
- * helpers are always inlined into the cloned sweeps, so no vector crosses a call. */
-typedef float rbc_v8 __attribute__((vector_size(32)));
-/* GCC warns of the vector return's ABI at the end of the translation unit, so this
- * stays off for the rest of the file (nothing here passes a vector across a call). */
-#pragma GCC diagnostic ignored "-Wpsabi"
-RBC_ALWAYS_INLINE rbc_v8 rbc_ld8(const float *p) {
-    rbc_v8 v;
-    memcpy(&v, p, sizeof v);
-    return v;
-}
-RBC_ALWAYS_INLINE void rbc_st8(float *p, rbc_v8 v) { memcpy(p, &v, sizeof v); }
-
-typedef int32_t rbc_m8 __attribute__((vector_size(32)));
-
-/* Eight particles from m of row_axis_free; keep_l and keep_r: all ones, or zero in
- * the lane of an edge particle, whose missing horizontal neighbour then reads +0. */
-RBC_ALWAYS_INLINE rbc_v8 free_update(uint32_t m, const float *p, const float *l, const float *r,
-                                     const float *d, const float *u, const float *b,
-                                     const float *inv, rbc_v8 kv, float omega, rbc_m8 keep_l,
-                                     rbc_m8 keep_r) {
-    rbc_v8 lv = (rbc_v8)((rbc_m8)rbc_ld8(l + m) & keep_l);
-    rbc_v8 rv = (rbc_v8)((rbc_m8)rbc_ld8(r + m) & keep_r);
-    rbc_v8 s = (lv + rv) + (rbc_ld8(d + m) + rbc_ld8(u + m));
-    rbc_v8 g = (rbc_ld8(b + m) + kv * s) * rbc_ld8(inv + m);
-    if (omega == 0.0f) return g;
-    rbc_v8 o = rbc_ld8(p + m);
-    return o + omega * (g - o);
-}
-
-/* One coordinate of a whole row, edges included, with the uniform stiffness k and no
- * pin: g = (b + k ((l + r) + (d + u))) / denominator, and p = g, or p += omega (g - p)
- * (SOR). count >= 8. An edge particle (column 0 when left_edge, at m = 0; column
- * nx - 1 when right_edge, at m = count - 1) reads its missing neighbour as 0 (it was
- * read from the next row or the one before and masked away), so the same formula
- * gives its Eq. 6 with one horizontal spring. The last eight particles are computed
- * first and stored last: the loop's last vector overlaps them when count is not a
- * multiple of 8, and both computed the overlap from the same old values (a color's
- * particles read only the other color, b, the denominator and their own old
- * position), so both wrote the same. */
-RBC_ALWAYS_INLINE void row_axis_free(uint32_t count, float *restrict p, const float *l,
-                                     const float *r, const float *d, const float *u,
-                                     const float *b, const float *inv, float k, float omega,
-                                     int left_edge, int right_edge) {
-    const rbc_v8 kv = {k, k, k, k, k, k, k, k};
-    const rbc_m8 all = {-1, -1, -1, -1, -1, -1, -1, -1};
-    rbc_m8 first = all, last = all;
-    first[0] = left_edge ? 0 : -1;
-    last[7] = right_edge ? 0 : -1;
-    const uint32_t t = count - 8;
-    const rbc_v8 tail = free_update(t, p, l, r, d, u, b, inv, kv, omega, t ? all : first, last);
-    if (t) rbc_st8(p, free_update(0, p, l, r, d, u, b, inv, kv, omega, first, all));
-    for (uint32_t m = 8; m < t; m += 8)
-        rbc_st8(p + m, free_update(m, p, l, r, d, u, b, inv, kv, omega, all, all));
-    rbc_st8(p + t, tail);
-}
-
 /* 1 if none of the n pin flags at pin is set. */
 static inline int row_free(const uint8_t *pin, uint32_t n) {
     uint64_t any = 0;
@@ -390,9 +224,17 @@ static inline int row_free(const uint8_t *pin, uint32_t n) {
 }
 #endif /* RBC_VECTOR_EXT */
 
+/* The cloth's arrays for rbc_k_lat_edge. */
+static inline rbc_k_lat_gs_arrays gs_edge_arrays(const rbc_cloth_state *c) {
+    const rbc_k_lat_gs_arrays A = {c->pinned, c->inv_denom, {c->bx, c->by, c->bz},
+                                   {c->p[0], c->p[1], c->p[2]}};
+    return A;
+}
+
 /* One row of one color: the Gauss-Seidel update of its particles. */
-RBC_ALWAYS_INLINE void grid_row(const rbc_lattice *g, rbc_cloth_state *c, uint32_t color, uint32_t j,
-                     float omega) {
+RBC_ALWAYS_INLINE void grid_row(const rbc_lattice *g, rbc_cloth_state *c,
+                                const rbc_k_lat_gs_arrays *A, uint32_t color, uint32_t j,
+                                float omega) {
     const uint32_t nx = g->nx, ny = g->ny, o = 1u - color;
     float *const *P = c->p;
     const uint32_t s0 = g->row_first[color][j], cnt = g->row_first[color][j + 1] - s0;
@@ -419,36 +261,37 @@ RBC_ALWAYS_INLINE void grid_row(const rbc_lattice *g, rbc_cloth_state *c, uint32
         ro + f + cnt <= g->row_first[1][ny] && row_free(c->pinned + s0, cnt)) {
         const float *B[3] = {c->bx, c->by, c->bz};
         for (int a = 0; a < 3; ++a)
-            row_axis_free(cnt, P[a] + s0, P[a] + ro + f - 1, P[a] + ro + f, dn[a], up[a],
-                          B[a] + s0, c->inv_denom + s0, g->k_uniform, omega, lo == 1, hi < cnt);
+            rbc_k_lat_row_free(cnt, P[a] + s0, P[a] + ro + f - 1, P[a] + ro + f, dn[a], up[a],
+                               B[a] + s0, c->inv_denom + s0, g->k_uniform, omega, lo == 1,
+                               hi < cnt);
         return;
     }
 #endif
     for (uint32_t m = 0; m < lo; ++m) { /* column 0: the right neighbour only (if any) */
         const uint32_t i = s0 + m;
         const int has_r = f + 2 * m + 1 < nx;
-        edge_particle(c, i, has_r ? ro + f + m : i, has_r ? g->kr[i] : 0.0f, g->kd[i], g->ku[i],
-                      dn, up, m, omega);
+        rbc_k_lat_edge(A, i, has_r ? ro + f + m : i, has_r ? g->kr[i] : 0.0f, g->kd[i], g->ku[i],
+                       dn, up, m, omega);
     }
     if (hi > lo && g->k_uniform != 0.0f) {
         const uint32_t i = s0 + lo, li = ro + f - 1 + lo, ri = ro + f + lo;
         const float *B[3] = {c->bx, c->by, c->bz};
         for (int a = 0; a < 3; ++a)
-            row_axis_uniform(hi - lo, P[a] + i, P[a] + li, P[a] + ri, dn[a] + lo, up[a] + lo,
-                             B[a] + i, c->inv_denom + i, c->pinned + i, omega, g->k_uniform);
+            rbc_k_lat_row_axis(hi - lo, P[a] + i, P[a] + li, P[a] + ri, dn[a] + lo, up[a] + lo,
+                               B[a] + i, c->inv_denom + i, c->pinned + i, omega, g->k_uniform);
     } else if (hi > lo) {
         const uint32_t i = s0 + lo, li = ro + f - 1 + lo, ri = ro + f + lo;
-        row_interior(hi - lo, P[0] + i, P[1] + i, P[2] + i, P[0] + li, P[1] + li, P[2] + li,
-                     P[0] + ri, P[1] + ri, P[2] + ri, dn[0] + lo, dn[1] + lo, dn[2] + lo,
-                     up[0] + lo, up[1] + lo, up[2] + lo, g->kl + i, g->kr + i, g->kd + i,
-                     g->ku + i, c->bx + i, c->by + i, c->bz + i, c->inv_denom + i,
-                     c->pinned + i, omega, g->k_uniform);
+        rbc_k_lat_row(hi - lo, P[0] + i, P[1] + i, P[2] + i, P[0] + li, P[1] + li, P[2] + li,
+                      P[0] + ri, P[1] + ri, P[2] + ri, dn[0] + lo, dn[1] + lo, dn[2] + lo,
+                      up[0] + lo, up[1] + lo, up[2] + lo, g->kl + i, g->kr + i, g->kd + i,
+                      g->ku + i, c->bx + i, c->by + i, c->bz + i, c->inv_denom + i,
+                      c->pinned + i, omega, g->k_uniform);
     }
     for (uint32_t m = hi; m < cnt; ++m) { /* column nx - 1: the left neighbour only */
         const uint32_t i = s0 + m;
         const int has_l = f + 2 * m >= 1;
-        edge_particle(c, i, has_l ? ro + f + m - 1 : i, has_l ? g->kl[i] : 0.0f, g->kd[i],
-                      g->ku[i], dn, up, m, omega);
+        rbc_k_lat_edge(A, i, has_l ? ro + f + m - 1 : i, has_l ? g->kl[i] : 0.0f, g->kd[i],
+                       g->ku[i], dn, up, m, omega);
     }
 }
 
@@ -457,7 +300,8 @@ void rbc_lattice_sweep(const rbc_lattice *g, rbc_cloth_state *c, uint32_t color,
                     uint32_t tid, uint32_t nt) {
     uint32_t j0, j1;
     rbc_split(g->ny, tid, nt, &j0, &j1);
-    for (uint32_t j = j0; j < j1; ++j) grid_row(g, c, color, j, omega);
+    const rbc_k_lat_gs_arrays A = gs_edge_arrays(c);
+    for (uint32_t j = j0; j < j1; ++j) grid_row(g, c, &A, color, j, omega);
 }
 
 RBC_VECTOR_CLONES
@@ -470,6 +314,7 @@ void rbc_lattice_wavefront(const rbc_lattice *g, rbc_cloth_state *c, uint32_t it
     uint32_t u0, u1;
     rbc_split(2 * iterations, tid, nt, &u0, &u1);
     const uint32_t steps = ny + 2 * iterations; /* last: black row ny-1 of the last one */
+    const rbc_k_lat_gs_arrays A = gs_edge_arrays(c);
     volatile uint32_t *mine = progress + stride * tid;
     volatile uint32_t *before = tid ? progress + stride * (tid - 1) : NULL;
     for (uint32_t w = 0; w < steps; ++w) {
@@ -481,7 +326,7 @@ void rbc_lattice_wavefront(const rbc_lattice *g, rbc_cloth_state *c, uint32_t it
         }
         for (uint32_t u = u0; u < u1; ++u) {
             int64_t r = (int64_t)w - (int64_t)u;
-            if (r >= 0 && r < (int64_t)ny) grid_row(g, c, u & 1u, (uint32_t)r, omega);
+            if (r >= 0 && r < (int64_t)ny) grid_row(g, c, &A, u & 1u, (uint32_t)r, omega);
         }
         RBC_STORE_RELEASE(mine, w + 1);
     }
@@ -492,37 +337,6 @@ void rbc_lattice_wavefront(const rbc_lattice *g, rbc_cloth_state *c, uint32_t it
 /* ------------------------------------------------------------------------- */
 
 
-/* One coordinate of a row's interior (both horizontal neighbours exist): the Jacobi
- * update in the CSR row's order, b + s_d d + s_l l + s_r r + s_u u, each term rounded
- * as rbc_k_eq6b rounds it. A row beyond the edge is g->nzeros: s * (-0) = -0 for any
- * s >= 0 (kuni > 0, or the array's 0), and x + (-0) == x for every float x, +0 and
- * NaN included (round to nearest, the default), so the missing term changes nothing
- * (+0 would turn a -0 sum into +0).
- * Stiffness kuni when uniform, else the per-direction arrays; q (prev) only with
- * cheb. */
-RBC_ALWAYS_INLINE void jacobi_axis_body(uint32_t count, float *restrict o, float *restrict q,
-                                        const float *restrict s, const float *restrict l,
-                                        const float *restrict r, const float *restrict d,
-                                        const float *restrict u, const float *restrict b,
-                                        const float *restrict inv, const uint8_t *restrict pin,
-                                        const float *restrict kl, const float *restrict kr,
-                                        const float *restrict kd, const float *restrict ku,
-                                        float kuni, float omega, const int uni,
-                                        const int cheb) {
-    for (uint32_t m = 0; m < count; ++m) {
-        float acc = b[m];
-        acc += (uni ? kuni : kd[m]) * d[m];
-        acc += (uni ? kuni : kl[m]) * l[m];
-        acc += (uni ? kuni : kr[m]) * r[m];
-        acc += (uni ? kuni : ku[m]) * u[m];
-        float gv = acc * inv[m];
-        if (cheb) {
-            gv = omega * (gv - q[m]) + q[m];
-            q[m] = rbc_keep_if(pin[m], q[m], s[m]);
-        }
-        o[m] = rbc_keep_if(pin[m], s[m], gv); /* pinned: dst = src */
-    }
-}
 
 /* The variants, each a loop with no branch inside (clones for AVX2 and AVX-512 picked
  * at load time, simd.h): uniform stiffness or arrays, Chebyshev or plain. */
@@ -535,8 +349,8 @@ static void jacobi_axis(uint32_t count, float *restrict o, float *restrict q,
                         const float *restrict kd, const float *restrict ku, float kuni,
                         float omega, int cheb) {
 #define RBC_JAC(UNI, CHEB)                                                                \
-    jacobi_axis_body(count, o, q, s, l, r, d, u, b, inv, pin, kl, kr, kd, ku, kuni, omega, UNI, \
-                     CHEB)
+    rbc_k_lat_jacobi_row(count, o, q, s, l, r, d, u, b, inv, pin, kl, kr, kd, ku, kuni, omega,  \
+                         UNI, CHEB)
     if (kuni != 0.0f) {
         if (cheb) RBC_JAC(1, 1);
         else RBC_JAC(1, 0);
@@ -548,40 +362,11 @@ static void jacobi_axis(uint32_t count, float *restrict o, float *restrict q,
 #undef RBC_JAC
 }
 
-/* A particle of column 0 (has_l 0) or nx - 1 (has_r 0), scalar: rbc_k_eq6b's sum over
- * its existing neighbours (down, left, right, up at dn, lt, rt, up) of src, written to
- * dst as rbc_global_jacobi writes it. */
-RBC_ALWAYS_INLINE void jacobi_edge(const rbc_lattice *g, rbc_cloth_state *c, float *const S[3],
-                                   float *const D[3], uint32_t i, uint32_t dn, uint32_t lt,
-                                   uint32_t rt, uint32_t up, int has_d, const int has_l,
-                                   const int has_r, int has_u, int cheb, float omega) {
-    if (c->pinned[i]) {
-        for (int a = 0; a < 3; ++a) D[a][i] = S[a][i];
-        return;
-    }
-    const float kd = g->kd[i], kl = g->kl[i], kr = g->kr[i], ku = g->ku[i];
-    const float *B[3] = {c->bx, c->by, c->bz};
-    for (int a = 0; a < 3; ++a) {
-        const float *p = S[a];
-        float acc = B[a][i];
-        if (has_d) acc += kd * p[dn];
-        if (has_l) acc += kl * p[lt];
-        if (has_r) acc += kr * p[rt];
-        if (has_u) acc += ku * p[up];
-        float gv = acc * c->inv_denom[i];
-        if (cheb) {
-            float *q = c->prev[a];
-            D[a][i] = omega * (gv - q[i]) + q[i];
-            q[i] = p[i];
-        } else {
-            D[a][i] = gv;
-        }
-    }
-}
 
 /* One row of one color of a Jacobi iteration. */
-static void jacobi_row(const rbc_lattice *g, rbc_cloth_state *c, float *const S[3],
-                       float *const D[3], uint32_t color, uint32_t j, int cheb, float omega) {
+static void jacobi_row(const rbc_lattice *g, rbc_cloth_state *c,
+                       const rbc_k_lat_jacobi_arrays *A, float *const S[3], float *const D[3],
+                       uint32_t color, uint32_t j, int cheb, float omega) {
     const uint32_t nx = g->nx, ny = g->ny, o = 1u - color;
     const uint32_t s0 = g->row_first[color][j], cnt = g->row_first[color][j + 1] - s0;
     if (!cnt) return;
@@ -596,11 +381,11 @@ static void jacobi_row(const rbc_lattice *g, rbc_cloth_state *c, float *const S[
     if (lo > hi) lo = hi;
     /* Column 0 (m < lo) and nx - 1 (m >= hi) one by one, the interior as rows. */
     for (uint32_t m = 0; m < lo; ++m)
-        jacobi_edge(g, c, S, D, s0 + m, rd + m, 0, ro + f + m, ru + m, has_d, 0, 1, has_u, cheb,
-                    omega);
+        rbc_k_lat_jacobi_edge(A, S, D, s0 + m, rd + m, 0, ro + f + m, ru + m, has_d, 0, 1, has_u,
+                              cheb, omega);
     for (uint32_t m = hi; m < cnt; ++m)
-        jacobi_edge(g, c, S, D, s0 + m, rd + m, ro + f + m - 1, 0, ru + m, has_d, 1, 0, has_u,
-                    cheb, omega);
+        rbc_k_lat_jacobi_edge(A, S, D, s0 + m, rd + m, ro + f + m - 1, 0, ru + m, has_d, 1, 0,
+                              has_u, cheb, omega);
     if (hi > lo) {
         const uint32_t i = s0 + lo, li = ro + f - 1 + lo, ri = ro + f + lo;
         const float *B[3] = {c->bx, c->by, c->bz};
@@ -617,9 +402,12 @@ void rbc_lattice_jacobi(const rbc_lattice *g, rbc_cloth_state *c, float *const s
                      float *const dst[3], int chebyshev, float omega, uint32_t tid, uint32_t nt) {
     uint32_t j0, j1;
     rbc_split(g->ny, tid, nt, &j0, &j1);
+    const rbc_k_lat_jacobi_arrays A = {g->kd, g->kl, g->kr, g->ku, c->inv_denom,
+                                       {c->bx, c->by, c->bz}, c->pinned,
+                                       {c->prev[0], c->prev[1], c->prev[2]}};
     for (uint32_t j = j0; j < j1; ++j)
         for (uint32_t color = 0; color < 2; ++color)
-            jacobi_row(g, c, src, dst, color, j, chebyshev, omega);
+            jacobi_row(g, c, &A, src, dst, color, j, chebyshev, omega);
 }
 
 /* The arrays of the serial sweep, loaded once: the stores to p cannot make the
@@ -800,13 +588,7 @@ static void rhs_particle(const rbc_lattice *g, rbc_cloth_state *c, uint32_t colo
     c->bz[i] = sz;
 }
 
-/* The interior of a row (left and right neighbours exist; rows beyond the edges read
- * zeros with stiffness 0 and rest length 0). Returns nonzero if some spring was
- * (near) zero length: the caller redoes the row in scalar with the rest-direction
- * fallback. With uni, the one stiffness kuni of every lattice spring instead of the
- * four stiffness streams (16 of the pass's ~84 bytes per particle, which is bound by
- * memory bandwidth at 1M particles): a missing neighbour's rest length 0 makes its
- * term k (e * 0) = 0 either way. */
+/* The shared row body (kernels/lattice_kernels.h), cloned for AVX2 and AVX-512. */
 RBC_VECTOR_CLONES
 static int rhs_interior(uint32_t count, const float *restrict px, const float *restrict py,
                         const float *restrict pz, const float *restrict lx,
@@ -819,42 +601,11 @@ static int rhs_interior(uint32_t count, const float *restrict px, const float *r
                         const float *restrict kr, const float *restrict kd,
                         const float *restrict ku, const float *restrict ll,
                         const float *restrict lr, const float *restrict ld,
-                        const float *restrict lu, const float *restrict w,
-                        const float *restrict yx, const float *restrict yy,
-                        const float *restrict yz, float *restrict bx, float *restrict by,
-                        float *restrict bz, float kuni) {
-    int bad = 0;
-    /* KL..KU: the four stiffnesses of particle m (the streams, or kuni four times). */
-#define RBC_DIR(NX, NY, NZ, KK, L)                                                         \
-        {                                                                                  \
-            float ex = x - NX[m], ey = y - NY[m], ez = z - NZ[m];                          \
-            float len2 = ex * ex + ey * ey + ez * ez;                                      \
-            bad |= len2 <= 1e-24f;                                                         \
-            float fl = L[m] / sqrtf(len2), kk = KK;                                        \
-            sx += kk * (ex * fl);                                                          \
-            sy += kk * (ey * fl);                                                          \
-            sz += kk * (ez * fl);                                                          \
-        }
-#define RBC_RHS_LOOP(KL, KR, KD, KU)                                                       \
-    for (uint32_t m = 0; m < count; ++m) {                                                 \
-        float x = px[m], y = py[m], z = pz[m], wi = w[m];                                  \
-        float sx = wi * yx[m], sy = wi * yy[m], sz = wi * yz[m];                           \
-        RBC_DIR(lx, ly, lz, KL, ll)                                                        \
-        RBC_DIR(rx, ry, rz, KR, lr)                                                        \
-        RBC_DIR(dx, dy, dz, KD, ld)                                                        \
-        RBC_DIR(ux, uy, uz, KU, lu)                                                        \
-        bx[m] = sx;                                                                        \
-        by[m] = sy;                                                                        \
-        bz[m] = sz;                                                                        \
-    }
-    if (kuni != 0.0f) {
-        RBC_RHS_LOOP(kuni, kuni, kuni, kuni)
-    } else {
-        RBC_RHS_LOOP(kl[m], kr[m], kd[m], ku[m])
-    }
-#undef RBC_RHS_LOOP
-#undef RBC_DIR
-    return bad;
+                        const float *restrict lu, const float *restrict w, const float *restrict yx,
+                        const float *restrict yy, const float *restrict yz, float *restrict bx,
+                        float *restrict by, float *restrict bz, float kuni) {
+    return rbc_k_lat_rhs_row(count, px, py, pz, lx, ly, lz, rx, ry, rz, dx, dy, dz, ux, uy, uz, kl,
+                             kr, kd, ku, ll, lr, ld, lu, w, yx, yy, yz, bx, by, bz, kuni);
 }
 
 void rbc_lattice_rhs(const rbc_lattice *g, rbc_cloth_state *c, uint32_t tid, uint32_t nt) {

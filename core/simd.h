@@ -13,17 +13,6 @@
 #define RBC_VECTOR_CLONES
 #endif
 
-#include <stdint.h>
-#include <string.h>
-
-/* pin ? old : v without a branch (bitwise, so the compiler vectorizes the loop). */
-static inline float rbc_keep_if(uint8_t pin, float old, float v) {
-    uint32_t bo, bv, mk = 0u - (uint32_t)(pin != 0);
-    memcpy(&bo, &old, 4);
-    memcpy(&bv, &v, 4);
-    uint32_t r = (bo & mk) | (bv & ~mk);
-    float out;
-    memcpy(&out, &r, 4);
-    return out;
-}
+/* rbc_keep_if: kernels/rbc_hd.h (the device bodies use it too). */
+#include "kernels/rbc_hd.h"
 #endif

@@ -8,7 +8,9 @@
  *    to a bound derived from that rounding, with pins, for 1 and 2 threads, and the
  *    fast path's result does not depend on the thread count (bitwise);
  *  - the temporally blocked wavefront equals plain red-black iterations bitwise;
- *  - the ELLPACK sweep of other meshes agrees with the CSR rows in the same way;
+ *  - the ELLPACK sweep of other meshes agrees with the CSR rows in the same way, and
+ *    its shared body run one lane at a time (a device thread's share) gives the
+ *    chunked sweep's result bitwise;
  *  - the lattice Jacobi (plain and Chebyshev) and serial Gauss-Seidel give the CSR
  *    rows' result bitwise (same sums in the same order), in whole steps with pins,
  *    1 and 2 threads, odd and even sides, uniform and non-uniform stiffness;
@@ -268,6 +270,67 @@ static void test_ell(void) {
     }
     free(res[0]);
     free(res[1]);
+    mesh_free(&m);
+}
+
+/* The ELL update one lane at a time (rbc_k_ell_one, what a device thread runs) gives
+ * the CPU's chunked sweep bitwise: each particle's sum is taken in the same slot
+ * order either way. Both colors in turn, plain and SOR, on a shuffled mesh (its
+ * chunks of mixed degree have padding slots) after a step has set b and the
+ * denominators, from positions moved off that step's result. */
+static void test_ell_lanes(void) {
+    test_mesh g = mesh_split_triangles(40);
+    test_mesh m = mesh_shuffled(&g, 5, 0);
+    rbc_allocator al = rbc_allocator_default();
+    rbc_solver s;
+    CHECK_EQ(rbc_solver_init(&s, &al, 1), RBC_OK);
+    uint32_t pins[2] = {0, 1};
+    rbc_cloth_state *c = make(&s, &m, pins, 2, 0.0f);
+    CHECK(c->lattice == NULL && c->ell != NULL);
+    char err[256];
+    CHECK_EQ(rbc_solver_step(&s, 0.002f, err, sizeof err), RBC_OK);
+    const rbc_ell *e = c->ell;
+    const rbc_topology *t = &c->topo;
+    const size_t bytes = sizeof(float) * t->n;
+    float *start[3], *sweep[3];
+    for (int a = 0; a < 3; ++a) {
+        start[a] = malloc(bytes);
+        sweep[a] = malloc(bytes);
+        for (uint32_t i = 0; i < t->n; ++i)
+            c->p[a][i] = start[a][i] = c->x[a][i] + 0.01f * sinf(7.0f * (float)i + (float)a);
+    }
+    const float omegas[2] = {0.0f, 1.37f};
+    for (int w = 0; w < 2; ++w) {
+        for (int a = 0; a < 3; ++a) memcpy(c->p[a], start[a], bytes);
+        for (uint32_t col = 0; col < e->ncolors; ++col) rbc_ell_sweep(e, c, col, omegas[w], 0, 1);
+        for (int a = 0; a < 3; ++a) {
+            memcpy(sweep[a], c->p[a], bytes);
+            memcpy(c->p[a], start[a], bytes);
+        }
+        for (uint32_t col = 0; col < e->ncolors; ++col) {
+            const uint32_t f = t->color_start[col], count = t->color_start[col + 1] - f;
+            const uint32_t ch = e->chunk_start[col];
+            for (uint32_t k = 0; k < count; ++k)
+                rbc_k_ell_one(k, count, e->width + ch, e->offset + ch, e->nbr, e->k, c->p[0],
+                              c->p[1], c->p[2], c->bx + f, c->by + f, c->bz + f,
+                              c->inv_denom + f, c->pinned + f, c->p[0] + f, c->p[1] + f,
+                              c->p[2] + f, omegas[w]);
+        }
+        int moved = 0;
+        for (int a = 0; a < 3; ++a) {
+            CHECK(memcmp(sweep[a], c->p[a], bytes) == 0);
+            moved |= memcmp(sweep[a], start[a], bytes) != 0;
+        }
+        CHECK(moved);
+    }
+    printf("ell lanes: %u particles, %u colors: one lane at a time == the chunked sweep\n",
+           t->n, e->ncolors);
+    for (int a = 0; a < 3; ++a) {
+        free(start[a]);
+        free(sweep[a]);
+    }
+    rbc_solver_fini(&s);
+    mesh_free(&g);
     mesh_free(&m);
 }
 
@@ -608,6 +671,7 @@ int main(void) {
     test_steps(RBC_SOLVER_RBGS_SOR, 2);
     test_threads();
     test_ell();
+    test_ell_lanes();
     test_scattered_order();
     test_wavefront();
     test_lattice_solvers();
