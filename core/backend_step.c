@@ -199,8 +199,8 @@ static int32_t cloth_upload(const rbc_backend_handle *bk, rbc_cloth_state *c, fl
         d->pin_cap = ok ? c->pin_count : 0;
         if (!ok)
             return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY,
-                            "cloth 0x%08x: out of %s memory for %u pins", c->public_id,
-                            bk->ops->name, c->pin_count);
+                            "cloth 0x%08x: out of %s memory for %u pins (%s)", c->public_id,
+                            bk->ops->name, c->pin_count, bk->ops->last_error(bk->be));
     }
     d->pin_count = c->pin_count;
     if (c->pin_count) {
@@ -222,8 +222,9 @@ static int32_t cloth_upload(const rbc_backend_handle *bk, rbc_cloth_state *c, fl
             d->pin_spring_cap = ok ? c->pin_spring_count : 0;
             if (!ok)
                 return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY,
-                                "cloth 0x%08x: out of %s memory for %u springs at pins",
-                                c->public_id, bk->ops->name, c->pin_spring_count);
+                                "cloth 0x%08x: out of %s memory for %u springs at pins (%s)",
+                                c->public_id, bk->ops->name, c->pin_spring_count,
+                                bk->ops->last_error(bk->be));
         }
         rc = up(bk, d->pin_springs, c->pin_springs, c->pin_spring_count * sizeof(uint32_t));
         d->pin_spring_count = c->pin_spring_count;

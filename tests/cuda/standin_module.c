@@ -9,7 +9,13 @@
  * step_end): between them it records each launch with copies of its arguments, as
  * a stream capture does, runs them only at step_end, and fails any copy or sync in
  * between. So a schedule that read the state inside a recorded step, or relied on
- * arguments changing after their launch, fails here as it would on a device. */
+ * arguments changing after their launch, fails here as it would on a device.
+ *
+ * And it injects faults for test_backend_faults: rbc_standin_fail_at(n) makes the
+ * n-th backend call from then on fail (an allocation returns NULL, a copy, launch,
+ * sync or step_end returns RBC_ERR_BACKEND_UNAVAILABLE, as a lost device does), and
+ * rbc_standin_calls() counts the calls, so a test can fail each call of a step in
+ * turn. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -33,8 +39,26 @@ typedef struct standin {
 
 static rbc_backend_ops standin_ops;
 
+/* Fault injection (one process, one test thread). */
+static long fail_at, calls;
+
+__attribute__((visibility("default"))) void rbc_standin_fail_at(long n) {
+    fail_at = n;
+    calls = 0;
+}
+__attribute__((visibility("default"))) long rbc_standin_calls(void) { return calls; }
+
+/* Whether this call is the one to fail. */
+static int faulty(standin *s, const char *what) {
+    ++calls;
+    if (fail_at <= 0 || calls != fail_at) return 0;
+    snprintf(s->err, sizeof s->err, "injected fault: %s (call %ld)", what, calls);
+    return 1;
+}
+
 static void *si_alloc(void *be, size_t bytes) {
     standin *s = be;
+    if (faulty(s, "alloc")) return NULL;
     return s->cpu.ops->alloc(s->cpu.be, bytes);
 }
 static void si_release(void *be, void *ptr) {
@@ -48,15 +72,18 @@ static int32_t refuse_inside(standin *s, const char *what) {
 static int32_t si_upload(void *be, void *dst, const void *src, size_t bytes) {
     standin *s = be;
     if (s->recording) return refuse_inside(s, "upload");
+    if (faulty(s, "upload")) return RBC_ERR_BACKEND_UNAVAILABLE;
     return s->cpu.ops->upload(s->cpu.be, dst, src, bytes);
 }
 static int32_t si_download(void *be, void *dst, const void *src, size_t bytes) {
     standin *s = be;
     if (s->recording) return refuse_inside(s, "readback");
+    if (faulty(s, "readback")) return RBC_ERR_BACKEND_UNAVAILABLE;
     return s->cpu.ops->download(s->cpu.be, dst, src, bytes);
 }
 static int32_t si_launch(void *be, rbc_kernel k, const rbc_kargs *a) {
     standin *s = be;
+    if (faulty(s, "launch")) return RBC_ERR_BACKEND_UNAVAILABLE;
     if (!s->recording) return s->cpu.ops->launch(s->cpu.be, k, a);
     if (s->count == s->cap) {
         size_t cap = s->cap ? 2 * s->cap : 256;
@@ -71,13 +98,13 @@ static int32_t si_launch(void *be, rbc_kernel k, const rbc_kargs *a) {
     recorded *r = &s->log[s->count++];
     r->k = k;
     r->a = *a;
-    r->c = *a->c;
-    r->a.c = &r->c;
+    r->c = *a->c; /* r->a.c is pointed at it at step_end: the log may still move */
     return RBC_OK;
 }
 static int32_t si_sync(void *be) {
     standin *s = be;
-    return s->recording ? refuse_inside(s, "sync") : RBC_OK;
+    if (s->recording) return refuse_inside(s, "sync");
+    return faulty(s, "sync") ? RBC_ERR_BACKEND_UNAVAILABLE : RBC_OK;
 }
 static const char *si_last_error(void *be) {
     standin *s = be;
@@ -99,12 +126,13 @@ static int32_t si_step_begin(void *be) {
     s->count = 0;
     return RBC_OK;
 }
-/* Run the recorded launches in order (the log's pointers stay valid: a launch's
- * arguments point at its own record). */
+/* Run the recorded launches in order, each with its own record's copy of the cloth. */
 static int32_t si_step_end(void *be) {
     standin *s = be;
     s->recording = 0;
+    if (faulty(s, "step_end")) return RBC_ERR_BACKEND_UNAVAILABLE;
     for (size_t i = 0; i < s->count; ++i) {
+        s->log[i].a.c = &s->log[i].c;
         int32_t rc = s->cpu.ops->launch(s->cpu.be, s->log[i].k, &s->log[i].a);
         if (rc != RBC_OK) return rc;
     }
