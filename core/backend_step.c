@@ -44,13 +44,22 @@ int32_t rbc_backend_settings_check(const rbc_solver_settings *st, const char *ba
     return what ? refuse(backend, what, err, errlen) : RBC_OK;
 }
 
+/* The first collider a backend does not run, or NULL: the analytic shapes run
+ * (collide_kernels.h); the triangle mesh's BVH queries are the CPU's (shapes.c). */
+static const char *colliders_refused(const rbc_solver *s) {
+    for (uint32_t k = 0; k < s->collider_count; ++k)
+        if (s->colliders[k].shape == RBC_SHAPE_TRIANGLE_MESH)
+            return "the triangle mesh collider (RBC_SHAPE_TRIANGLE_MESH; planes, spheres, "
+                   "capsules and boxes run)";
+    return NULL;
+}
+
 int32_t rbc_backend_scene_check(const rbc_solver *s, const char *backend, char *err,
                                 size_t errlen) {
     const char *what = settings_refused(&s->settings);
+    if (!what) what = colliders_refused(s);
     if (what)
         ;
-    else if (s->collider_count)
-        what = "colliders";
     else if (s->callback)
         what = "the host collision callback (rbc_collision_fn)";
     else if (s->contact_fn)
@@ -86,7 +95,8 @@ void rbc_backend_cloth_free(const rbc_backend_handle *bk, const rbc_allocator *a
     if (!d) return;
     void *const ptrs[] = {d->adj_start, d->adj_nbr, d->adj_k, d->sa, d->sb, d->he_a, d->he_b,
                           d->rest, d->ux, d->uy, d->uz, d->w, d->inv_denom, d->pinned,
-                          d->pin_idx, d->pin_start, d->pin_target, d->bad};
+                          d->pin_idx, d->pin_start, d->pin_target, d->bad, d->cols, d->mass,
+                          d->ksum, d->ncon, d->ct};
     for (size_t k = 0; k < sizeof ptrs / sizeof ptrs[0]; ++k)
         if (ptrs[k]) bk->ops->release(bk->be, ptrs[k]);
     float **sets[] = {d->x, d->q, d->p, d->y, d->d, d->b, d->alt, d->prev};
@@ -130,7 +140,9 @@ static int32_t cloth_create(const rbc_backend_handle *bk, rbc_solver *s, rbc_clo
     d->w = dalloc(bk, nf, &ok);
     d->inv_denom = dalloc(bk, nf, &ok);
     d->pinned = dalloc(bk, n, &ok);
-    d->bad = dalloc(bk, 2 * sizeof(int32_t), &ok);
+    d->bad = dalloc(bk, 4 * sizeof(int32_t), &ok);
+    d->mass = dalloc(bk, nf, &ok);
+    d->ksum = dalloc(bk, nf, &ok);
     for (int a = 0; a < 3; ++a) {
         d->x[a] = dalloc(bk, nf, &ok);
         d->q[a] = dalloc(bk, nf, &ok);
@@ -160,6 +172,8 @@ static int32_t cloth_create(const rbc_backend_handle *bk, rbc_solver *s, rbc_clo
     if (rc == RBC_OK) rc = up(bk, d->ux, t->ux, ns * sizeof(float));
     if (rc == RBC_OK) rc = up(bk, d->uy, t->uy, ns * sizeof(float));
     if (rc == RBC_OK) rc = up(bk, d->uz, t->uz, ns * sizeof(float));
+    if (rc == RBC_OK) rc = up(bk, d->mass, t->mass, nf);
+    if (rc == RBC_OK) rc = up(bk, d->ksum, t->ksum, nf);
     if (rc != RBC_OK) {
         rbc_fail(err, errlen, rc, "cloth 0x%08x: upload to the %s backend failed: %s",
                  c->public_id, bk->ops->name, bk->ops->last_error(bk->be));
@@ -208,11 +222,67 @@ static int32_t cloth_upload(const rbc_backend_handle *bk, rbc_cloth_state *c, fl
         rc = up(bk, d->x[a], c->x[a], nf);
         if (rc == RBC_OK) rc = up(bk, d->q[a], c->q[a], nf);
     }
-    static const int32_t zero[2] = {0, 0};
+    static const int32_t zero[4] = {0, 0, 0, 0};
     if (rc == RBC_OK) rc = up(bk, d->bad, zero, sizeof zero);
     if (rc != RBC_OK)
         return rbc_fail(err, errlen, rc, "cloth 0x%08x: upload to the %s backend failed: %s",
                         c->public_id, bk->ops->name, bk->ops->last_error(bk->be));
+    return RBC_OK;
+}
+
+/* The world's colliders for cloth c's copy (each cloth holds its own: a few hundred
+ * bytes, freed with it), and room for its contacts: min(colliders, RBC_KC_SLOTS)
+ * slots per particle, since a particle has at most one contact per collider. */
+static int32_t colliders_upload(const rbc_backend_handle *bk, rbc_solver *s, rbc_cloth_state *c,
+                                char *err, size_t errlen) {
+    rbc_dcloth *d = c->dev;
+    const uint32_t nc = s->collider_count;
+    const uint32_t slots = nc < RBC_KC_SLOTS ? nc : RBC_KC_SLOTS;
+    d->ncols = 0;
+    d->slots = 0;
+    if (!nc) return RBC_OK;
+    int ok = 1;
+    if (nc > d->cols_cap) {
+        if (d->cols) bk->ops->release(bk->be, d->cols);
+        d->cols = dalloc(bk, nc * sizeof(rbc_dcollider), &ok);
+        d->cols_cap = ok ? nc : 0;
+    }
+    if (ok && slots > d->slots_cap) {
+        if (d->ct) bk->ops->release(bk->be, d->ct);
+        if (d->ncon) bk->ops->release(bk->be, d->ncon);
+        d->ct = dalloc(bk, (size_t)RBC_KC_FIELDS * slots * d->n * sizeof(float), &ok);
+        d->ncon = dalloc(bk, (size_t)d->n * sizeof(uint32_t), &ok);
+        d->slots_cap = ok ? slots : 0;
+    }
+    if (!ok)
+        return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY,
+                        "cloth 0x%08x: out of %s memory for %u colliders' contacts",
+                        c->public_id, bk->ops->name, nc);
+    rbc_dcollider *h = rbc_mem_alloc(&s->alloc, nc * sizeof *h);
+    if (!h) return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory (host)");
+    memset(h, 0, nc * sizeof *h);
+    for (uint32_t k = 0; k < nc; ++k) {
+        const rbc_collider_state *col = &s->colliders[k];
+        h[k].shape = (int32_t)col->shape;
+        h[k].radius = col->radius;
+        h[k].thickness = col->thickness;
+        h[k].friction = col->friction;
+        memcpy(h[k].he, col->half_extents, sizeof h[k].he);
+        memcpy(h[k].lo, col->lo, sizeof h[k].lo);
+        memcpy(h[k].hi, col->hi, sizeof h[k].hi);
+        memcpy(h[k].last_position, col->last_position, sizeof h[k].last_position);
+        memcpy(h[k].last_rotation, col->last_rotation, sizeof h[k].last_rotation);
+        memcpy(h[k].position, col->position, sizeof h[k].position);
+        memcpy(h[k].rotation, col->rotation, sizeof h[k].rotation);
+    }
+    /* The upload has the source staged when it returns (backend.h), so h may go. */
+    int32_t rc = up(bk, d->cols, h, nc * sizeof *h);
+    rbc_mem_free(&s->alloc, h, nc * sizeof *h);
+    if (rc != RBC_OK)
+        return rbc_fail(err, errlen, rc, "cloth 0x%08x: upload to the %s backend failed: %s",
+                        c->public_id, bk->ops->name, bk->ops->last_error(bk->be));
+    d->ncols = nc;
+    d->slots = slots;
     return RBC_OK;
 }
 
@@ -225,6 +295,18 @@ static int32_t launch(const rbc_backend_handle *bk, rbc_kernel k, rbc_kargs *a, 
     a->first = first;
     a->count = count;
     return bk->ops->launch(bk->be, k, a);
+}
+
+/* The collider contacts' projection (collide.h) over particles [first, first +
+ * count) of P: after a Jacobi or Chebyshev iteration the whole iterate (h = 0), after
+ * a color's sweep with color passes that color with its friction (h > 0), as
+ * sweep.c's color_iteration and iteration_pass. */
+static int32_t contacts_project(const rbc_backend_handle *bk, rbc_dcloth *d, uint32_t first,
+                                uint32_t count, float *const P[3], float h) {
+    if (!d->ncols) return RBC_OK;
+    rbc_kargs a = {.c = d, .h = h};
+    for (int ax = 0; ax < 3; ++ax) a.dst[ax] = P[ax];
+    return launch(bk, RBC_KERNEL_COLLIDE_PROJECT, &a, first, count);
 }
 
 /* One global step of cloth c (linear iterations of the selected solver). */
@@ -254,6 +336,7 @@ static int32_t global_step(const rbc_backend_handle *bk, const step_ctx *ctx, ui
                 a.dst[ax] = (k & 1) ? d->p[ax] : d->alt[ax];
             }
             rc = launch(bk, RBC_KERNEL_JACOBI, &a, 0, d->n);
+            if (rc == RBC_OK) rc = contacts_project(bk, d, 0, d->n, a.dst, 0.0f);
         }
         if (count & 1) /* the last iteration wrote alt: make it p */
             for (int ax = 0; ax < 3; ++ax) {
@@ -268,15 +351,51 @@ static int32_t global_step(const rbc_backend_handle *bk, const step_ctx *ctx, ui
                                                     : RBC_K_GS_PLAIN;
     a.omega = ctx->sor_omega[slot];
     for (uint32_t k = 0; rc == RBC_OK && k < count; ++k) {
-        for (uint32_t color = 0; rc == RBC_OK && color < d->ncolors; ++color)
-            rc = launch(bk, RBC_KERNEL_GS, &a, d->color_start[color],
-                        d->color_start[color + 1] - d->color_start[color]);
+        for (uint32_t color = 0; rc == RBC_OK && color < d->ncolors; ++color) {
+            const uint32_t c0 = d->color_start[color], nc = d->color_start[color + 1] - c0;
+            rc = launch(bk, RBC_KERNEL_GS, &a, c0, nc);
+            if (rc == RBC_OK && ctx->color_pass) rc = contacts_project(bk, d, c0, nc, d->p, ctx->h);
+        }
         if (rc == RBC_OK && a.variant == RBC_K_GS_STASH) {
             rbc_kargs bl = {.c = d};
             bl.omega = rbc_chebyshev_omega(k, s->settings.chebyshev_delay, ctx->cheb_rho[slot]);
             rc = launch(bk, RBC_KERNEL_CHEB_BLEND, &bl, 0, d->n);
         }
+        if (rc == RBC_OK && !ctx->color_pass) rc = contacts_project(bk, d, 0, d->n, d->p, 0.0f);
     }
+    return rc;
+}
+
+/* The substep's collider contacts (contact_step.c's detect stage): the frames, the
+ * contacts of every particle's motion from x to its prediction, and the solve's start
+ * moved onto them (with friction when the color passes solve the contacts). */
+static int32_t contacts_detect(const rbc_backend_handle *bk, const step_ctx *ctx,
+                               const rbc_cloth_state *c, rbc_dcloth *d, uint32_t sub) {
+    if (!d->ncols) return RBC_OK;
+    rbc_kargs a = {.c = d, .h = ctx->h, .thick = c->thickness, .mu = c->friction,
+                   .margin = 0.5f * c->mean_rest};
+    a.f0 = (float)sub / (float)ctx->substeps;
+    a.f = (float)(sub + 1) / (float)ctx->substeps;
+    a.last = sub + 1 == ctx->substeps;
+    int32_t rc = launch(bk, RBC_KERNEL_COLLIDE_FRAMES, &a, 0, d->ncols);
+    if (rc == RBC_OK) rc = launch(bk, RBC_KERNEL_COLLIDE_DETECT, &a, 0, d->n);
+    if (rc == RBC_OK) rc = contacts_project(bk, d, 0, d->n, d->p, ctx->color_pass ? ctx->h : 0.0f);
+    return rc;
+}
+
+/* After the solve (contact_step.c's friction stage): the normal forces and friction
+ * where the color passes did not apply it, then the safety pass. The colliders' work
+ * is the energy guard's, which backends refuse. */
+static int32_t contacts_finish(const rbc_backend_handle *bk, const step_ctx *ctx,
+                               const rbc_cloth_state *c, rbc_dcloth *d) {
+    if (!d->ncols) return RBC_OK;
+    rbc_kargs a = {.c = d, .h = ctx->h, .thick = c->thickness, .margin = 0.5f * c->mean_rest};
+    int32_t rc = RBC_OK;
+    if (!ctx->color_pass) {
+        rc = launch(bk, RBC_KERNEL_COLLIDE_NORMAL, &a, 0, d->n);
+        if (rc == RBC_OK) rc = launch(bk, RBC_KERNEL_COLLIDE_FINISH, &a, 0, d->n);
+    }
+    if (rc == RBC_OK) rc = launch(bk, RBC_KERNEL_COLLIDE_POST, &a, 0, d->n);
     return rc;
 }
 
@@ -297,11 +416,13 @@ static int32_t cloth_step(const rbc_backend_handle *bk, step_ctx *ctx, uint32_t 
         a.f = (float)(sub + 1) / (float)ctx->substeps;
         a.last = sub + 1 == ctx->substeps;
         if (rc == RBC_OK) rc = launch(bk, RBC_KERNEL_PINS, &a, 0, d->pin_count);
+        if (rc == RBC_OK) rc = contacts_detect(bk, ctx, c, d, sub);
         for (uint32_t nl = 0; rc == RBC_OK && nl < s->nonlinear_iterations; ++nl) {
             rc = launch(bk, RBC_KERNEL_LOCAL, &a, 0, d->ns);
             if (rc == RBC_OK) rc = launch(bk, RBC_KERNEL_RHS, &a, 0, d->n);
             if (rc == RBC_OK) rc = global_step(bk, ctx, rbc_step_slot(k), d);
         }
+        if (rc == RBC_OK) rc = contacts_finish(bk, ctx, c, d);
         /* Non-finite values stay so in later substeps (every kernel reads them), so
          * the check's verdict is read once, after the last. */
         if (rc == RBC_OK) rc = launch(bk, RBC_KERNEL_CHECK, &a, 0, d->n);
@@ -321,9 +442,17 @@ static int32_t cloth_step(const rbc_backend_handle *bk, step_ctx *ctx, uint32_t 
 }
 
 /* A failure the checks found on cloth k: the message, as step.c words it. */
-static int32_t report_bad(step_ctx *ctx, uint32_t k, const int32_t bad[2]) {
+static int32_t report_bad(step_ctx *ctx, uint32_t k, const int32_t bad[4]) {
     const rbc_cloth_state *c = ctx->s->cloths[k];
     const rbc_topology *t = &c->topo;
+    if (bad[2]) /* first: the contacts it dropped made the rest of the step wrong */
+        return rbc_fail(ctx->err, ctx->errlen, RBC_ERR_UNSUPPORTED,
+                        "cloth 0x%08x: vertex %u touched more than %u colliders in one "
+                        "substep, more than the backend's %u contact slots per particle; "
+                        "the world was restored to its state before the step (fewer "
+                        "overlapping colliders, or a world without a backend)",
+                        c->public_id, t->to_host[bad[2] - 1], (unsigned)RBC_KC_SLOTS,
+                        (unsigned)RBC_KC_SLOTS);
     if (bad[0]) {
         uint32_t i = (uint32_t)bad[0] - 1;
         return rbc_fail(ctx->err, ctx->errlen, RBC_ERR_UNSTABLE,
@@ -351,6 +480,7 @@ void rbc_backend_run(const rbc_backend_handle *bk, step_ctx *ctx) {
         rbc_cloth_state *c = s->cloths[k];
         if (!c->dev) rc = cloth_create(bk, s, c, ctx->err, ctx->errlen);
         if (rc == RBC_OK) rc = cloth_upload(bk, c, ctx->h, ctx->err, ctx->errlen);
+        if (rc == RBC_OK) rc = colliders_upload(bk, s, c, ctx->err, ctx->errlen);
     }
     for (uint32_t k = 0; rc == RBC_OK && k < s->cloth_count; ++k) {
         rc = cloth_step(bk, ctx, k);
@@ -363,13 +493,15 @@ void rbc_backend_run(const rbc_backend_handle *bk, step_ctx *ctx) {
                  bk->ops->last_error(bk->be));
     /* The verdicts first: the host's state changes only when every cloth passed. */
     for (uint32_t k = 0; rc == RBC_OK && k < s->cloth_count; ++k) {
-        int32_t bad[2];
+        int32_t bad[4];
         rc = bk->ops->download(bk->be, bad, s->cloths[k]->dev->bad, sizeof bad);
         if (rc != RBC_OK)
             rbc_fail(ctx->err, ctx->errlen, rc, "readback from the %s backend failed: %s",
                      name, bk->ops->last_error(bk->be));
-        else if (bad[0] || bad[1])
+        else if (bad[0] || bad[1] || bad[2])
             rc = report_bad(ctx, k, bad);
+        else /* the stats' collider contacts, as the pool's detect stage counts them */
+            s->last_contacts += (uint32_t)bad[3];
     }
     /* Readback of x and q into the host's arrays; a failure half-way is the snapshot's
      * to undo (rbc_solver_step restores it on any failed step). */
