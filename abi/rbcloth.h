@@ -183,9 +183,11 @@ typedef uint32_t rbc_cache_id;
 /// driver or a GPU, rbc_world_create says why with RBC_ERR_BACKEND_UNAVAILABLE. A
 /// CUDA world refuses with RBC_ERR_UNSUPPORTED, naming it, what its backend does not
 /// run yet: modes other than RBC_ITERATE_FIXED, the energy guard, the serial and
-/// direct solvers (at creation and rbc_world_set_solver); colliders, the host
-/// callbacks, wind, cloth contact, tearing and attachments (at the step, which then
-/// changes nothing). Not yet run on a GPU in this release (README.md).
+/// direct solvers (at creation and rbc_world_set_solver); triangle mesh colliders
+/// (planes, spheres, capsules and boxes run), the host callbacks, wind, cloth contact,
+/// tearing and attachments (at the step, which then changes nothing), and a particle
+/// inside more than four colliders in one substep (that step fails, changing
+/// nothing). Not yet run on a GPU in this release (README.md).
 typedef int32_t rbc_backend;
 enum {
     RBC_BACKEND_AUTO = 0,  ///< the fastest available (CPU in this release)
