@@ -18,6 +18,8 @@
  *     So that a pass proves something: contacts were found, the cloth did not fall
  *     through the collider (it rests on it: every particle outside the solid up to
  *     1 cm; free fall would put it 1 m below), and friction changed the result.
+ *     Two cloths over two colliders, the pool on two threads: both cloths bit for
+ *     bit, the contact count both cloths' sum.
  *  2. Four spheres in one place: every particle under them has four contacts, the
  *     backend's slots exactly, and the result is still the pool's bit for bit. A
  *     fifth fails the backend's step with RBC_ERR_UNSUPPORTED naming the slots, the
@@ -49,10 +51,13 @@ typedef struct world {
 enum { NX = 16, STEPS = 24 };
 static const float spacing = 0.04f;
 
+/* The pool's threads (threads_auto stays 0 after init: the step uses them all). */
+static uint32_t pool_threads = 1;
+
 static void make(world *w, const test_mesh *m, rbc_solver_kind kind, int on_backend,
                  float cloth_thick, float cloth_mu) {
     rbc_allocator a = rbc_allocator_default();
-    CHECK_EQ(rbc_solver_init(&w->s, &a, 1), RBC_OK);
+    CHECK_EQ(rbc_solver_init(&w->s, &a, on_backend ? 1 : pool_threads), RBC_OK);
     w->s.substeps = 3;
     w->s.nonlinear_iterations = 2;
     w->s.linear_iterations = 7;
@@ -86,11 +91,13 @@ static void unmake(world *w) {
     rbc_solver_fini(&w->s);
 }
 
-static int same_state(const world *a, const world *b) {
-    const uint32_t n = a->c->topo.n;
+static int same_cloth(const rbc_cloth_state *a, const rbc_cloth_state *b);
+static int same_state(const world *a, const world *b) { return same_cloth(a->c, b->c); }
+
+static int same_cloth(const rbc_cloth_state *a, const rbc_cloth_state *b) {
     for (int ax = 0; ax < 3; ++ax)
-        if (memcmp(a->c->x[ax], b->c->x[ax], n * sizeof(float)) ||
-            memcmp(a->c->q[ax], b->c->q[ax], n * sizeof(float)))
+        if (memcmp(a->x[ax], b->x[ax], a->topo.n * sizeof(float)) ||
+            memcmp(a->q[ax], b->q[ax], a->topo.n * sizeof(float)))
             return 0;
     return 1;
 }
@@ -228,6 +235,58 @@ static void friction_matters(const test_mesh *m, const shape_case *sc, rbc_solve
     free(y1);
 }
 
+/* Two cloths (one above the other, no cloth contact) over a moving box and a static
+ * sphere, the pool on two threads (its contact lists split by particle blocks): both
+ * cloths bit for bit, and the stats' contact count the sum of both cloths'. */
+static void two_cloths(const test_mesh *m) {
+    world a, b;
+    rbc_cloth_state *a2 = NULL, *b2 = NULL;
+    struct rbc_lattice *lat2 = NULL;
+    test_mesh up = mesh_grid(NX, NX, spacing);
+    for (uint32_t v = 0; v < up.nv; ++v) up.pos[3 * v + 1] += 0.1f;
+    for (int w = 0; w < 2; ++w) {
+        world *x = w ? &b : &a;
+        rbc_cloth_state **c2 = w ? &b2 : &a2;
+        pool_threads = 2;
+        make(x, m, RBC_SOLVER_RBGS, w, 0.0f, 0.0f);
+        pool_threads = 1;
+        rbc_mesh_input in = mesh_input(&up, NULL, 0);
+        char err[256];
+        CHECK_EQ(rbc_solver_create_cloth(&x->s, &in, 0.5f, c2, err, sizeof err), RBC_OK);
+        CHECK_EQ(rbc_solver_add_cloth(&x->s, *c2), RBC_OK);
+        rbc_collider_state col = collider(&shapes[3], 0.6f);
+        CHECK_EQ(rbc_solver_add_collider(&x->s, &col), RBC_OK);
+        col = collider(&shapes[1], 0.0f);
+        col.position[0] = 0.1f;
+        CHECK_EQ(rbc_solver_add_collider(&x->s, &col), RBC_OK);
+    }
+    lat2 = a2->lattice;
+    a2->lattice = NULL;
+    CHECK_EQ(a.s.threads_auto, 0u);
+    char err[512];
+    int ok = 1;
+    uint32_t contacts = 0;
+    for (int step = 0; step < STEPS && ok; ++step) {
+        move(&a.s.colliders[0], &shapes[3], step + 1, 1);
+        move(&b.s.colliders[0], &shapes[3], step + 1, 1);
+        CHECK_EQ(rbc_solver_step(&a.s, 1.0f / 60.0f, err, sizeof err), RBC_OK);
+        CHECK_EQ(rbc_solver_step(&b.s, 1.0f / 60.0f, err, sizeof err), RBC_OK);
+        CHECK_EQ(a.s.last_contacts, b.s.last_contacts);
+        if (contacts < a.s.last_contacts) contacts = a.s.last_contacts;
+        if (!same_state(&a, &b) || !same_cloth(a2, b2)) {
+            fprintf(stderr, "two cloths: step %d differs\n", step);
+            ok = 0;
+        }
+    }
+    CHECK(ok);
+    /* More than one cloth's worth: the 16 x 16 grid has 256 particles. */
+    CHECK(contacts > 256);
+    a2->lattice = lat2;
+    unmake(&a);
+    unmake(&b);
+    mesh_free(&up);
+}
+
 /* Four, then five, spheres in one place. */
 static void slots(const test_mesh *m) {
     const shape_case *sc = &shapes[1];
@@ -349,6 +408,7 @@ int main(int argc, char **argv) {
            NULL);
     friction_matters(&m, &shapes[0], RBC_SOLVER_RBGS, "rbgs");
     friction_matters(&m, &shapes[3], RBC_SOLVER_JACOBI, "jacobi");
+    two_cloths(&m);
     slots(&m);
     mesh_refused(&m);
     mesh_free(&m);
