@@ -181,11 +181,14 @@ typedef uint32_t rbc_cache_id;
 /// Which backend runs the solver. RBC_BACKEND_CUDA loads librbcloth_cuda.so from the
 /// library's folder (or $RBC_CUDA_MODULE) with the first CUDA world: without it, a
 /// driver or a GPU, rbc_world_create says why with RBC_ERR_BACKEND_UNAVAILABLE. A
-/// CUDA world runs every iteration mode and the energy guard, and refuses with
-/// RBC_ERR_UNSUPPORTED, naming it, what its backend does not run yet: the serial and
-/// direct solvers (at creation and rbc_world_set_solver); colliders, the host
-/// callbacks, wind, cloth contact, tearing and attachments (at the step, which then
-/// changes nothing). Not yet run on a GPU in this release (README.md).
+/// CUDA world runs every iteration mode, the energy guard and plane, sphere, capsule
+/// and box colliders, and refuses with RBC_ERR_UNSUPPORTED, naming it, what its
+/// backend does not run yet: the serial and direct solvers (at creation and
+/// rbc_world_set_solver); triangle mesh colliders, the energy guard with colliders,
+/// the host callbacks, wind, cloth contact, tearing and attachments (at the step,
+/// which then changes nothing), and a particle inside more than four colliders in one
+/// substep (that step fails, changing nothing). Not yet run on a GPU in this release
+/// (README.md).
 typedef int32_t rbc_backend;
 enum {
     RBC_BACKEND_AUTO = 0,  ///< the fastest available (CPU in this release)

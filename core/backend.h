@@ -12,9 +12,12 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "topology.h" /* RBC_MAX_COLORS */
+#include "kernels/collide_kernels.h" /* rbc_dcollider, the contact slots */
+#include "topology.h"                /* RBC_MAX_COLORS */
 
-/* The version of this interface: a CUDA module built from another tree is refused. */
+/* The version of this interface: a CUDA module built from another tree is refused
+ * (2: the measurement and collider kernels, recorded steps; rbc_dcloth, rbc_kargs
+ * and rbc_backend_ops grew). */
 #define RBC_BACKEND_INTERFACE 2
 
 typedef enum rbc_kernel {
@@ -35,6 +38,14 @@ typedef enum rbc_kernel {
     RBC_KERNEL_ENERGY,     /* per block of RBC_ENERGY_BLOCK particles, pos against
                               prev: e_blk (energy.h's particle terms) */
     RBC_KERNEL_PIN_WORK,   /* the pins' work, prev (before) to pos (after): += sums[2] */
+    /* Colliders (kernels/collide_kernels.h; the cloth's copy of them in cols): */
+    RBC_KERNEL_COLLIDE_FRAMES,  /* rbc_kc_frames over colliders, fractions f0 and f */
+    RBC_KERNEL_COLLIDE_DETECT,  /* rbc_kc_detect over particles; a particle past the
+                                   slots into bad[2]; with last, the count into bad[3] */
+    RBC_KERNEL_COLLIDE_PROJECT, /* rbc_kc_project_particle over particles of dst[] */
+    RBC_KERNEL_COLLIDE_NORMAL,  /* rbc_kc_normal_particle over particles */
+    RBC_KERNEL_COLLIDE_FINISH,  /* rbc_kc_finish_particle over particles */
+    RBC_KERNEL_COLLIDE_POST,    /* rbc_kc_post_particle over particles */
     RBC_KERNEL_COUNT
 } rbc_kernel;
 
@@ -58,16 +69,26 @@ typedef struct rbc_dcloth {
      * the local step's targets per half-edge, b the right-hand side, alt Jacobi's
      * second iterate and Chebyshev's stash, prev Chebyshev's p^(k-1). */
     float *x[3], *q[3], *p[3], *y[3], *d[3], *b[3], *alt[3], *prev[3];
-    int32_t *bad;          /* [2]: index + 1 of what the checks found (0: nothing) */
     /* The measurements (allocated with the topology): the residual's |r|^2 and
      * |b|^2 and the energy guard's budget with the pins' work added (sums[0..2], in
      * double), the strain and energy blocks (strain.h, energy.h), and what the
-     * energy and pin work read. */
+     * energy and pin work read (with mass, below). */
     double *sums, *strain_blk, *e_blk;
     uint32_t strain_blocks, energy_blocks;
-    float *mass, *stiff;
+    float *stiff;
     uint32_t *pin_springs; /* springs with a pinned end (uploaded with the pins) */
     uint32_t pin_spring_count, pin_spring_cap;
+    int32_t *bad;          /* [4]: index + 1 of what the checks found (0: nothing): a
+                              non-finite particle, a blown-up spring, a particle with
+                              more contacts than slots; [3] the last substep's contacts */
+    /* Colliders: their descriptions (uploaded every step, ncols of them), the
+     * particles' masses and stiffness sums (Eq. 6's rows, for the normal forces), and
+     * the contacts, `slots` per particle (collide_kernels.h's layout). */
+    rbc_dcollider *cols;
+    uint32_t ncols, cols_cap, slots, slots_cap;
+    float *mass, *ksum;
+    uint32_t *ncon;
+    float *ct;
 } rbc_dcloth;
 
 /* A launch: kernel k over elements [first, first + count) of cloth c. */
@@ -83,6 +104,10 @@ typedef struct rbc_kargs {
     float stretch, floor_len; /* SPRINGS: the blow-up bound (step.c) */
     float *pos[3], *prev[3];  /* STRAIN (pos), ENERGY and PIN_WORK (pos against prev) */
     float g[3];               /* ENERGY: gravity, m/s^2 */
+    /* Colliders: the substep's start fraction (FRAMES), its length h (DETECT, NORMAL,
+     * FINISH; PROJECT: h for the pass's friction, 0 for none), the cloth's thickness,
+     * friction and detection margin. PROJECT projects dst[]. */
+    float f0, h, thick, mu, margin;
 } rbc_kargs;
 
 /* A launch passes both by value as kernel arguments, which CUDA limits to 4 KB. */

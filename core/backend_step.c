@@ -44,13 +44,22 @@ int32_t rbc_backend_settings_check(const rbc_solver_settings *st, const char *ba
     return what ? refuse(backend, what, err, errlen) : RBC_OK;
 }
 
+/* The first collider a backend does not run, or NULL: the analytic shapes run
+ * (collide_kernels.h); the triangle mesh's BVH queries are the CPU's (shapes.c). */
+static const char *colliders_refused(const rbc_solver *s) {
+    for (uint32_t k = 0; k < s->collider_count; ++k)
+        if (s->colliders[k].shape == RBC_SHAPE_TRIANGLE_MESH)
+            return "the triangle mesh collider (RBC_SHAPE_TRIANGLE_MESH; planes, spheres, "
+                   "capsules and boxes run)";
+    return NULL;
+}
+
 int32_t rbc_backend_scene_check(const rbc_solver *s, const char *backend, char *err,
                                 size_t errlen) {
     const char *what = settings_refused(&s->settings);
+    if (!what) what = colliders_refused(s);
     if (what)
         ;
-    else if (s->collider_count)
-        what = "colliders";
     else if (s->callback)
         what = "the host collision callback (rbc_collision_fn)";
     else if (s->contact_fn)
@@ -90,8 +99,8 @@ void rbc_backend_cloth_free(const rbc_backend_handle *bk, const rbc_allocator *a
     void *const ptrs[] = {d->adj_start, d->adj_nbr, d->adj_k, d->sa, d->sb, d->he_a, d->he_b,
                           d->rest, d->ux, d->uy, d->uz, d->w, d->inv_denom, d->pinned,
                           d->pin_idx, d->pin_start, d->pin_target, d->bad,
-                          d->sums, d->strain_blk, d->e_blk, d->mass, d->stiff,
-                          d->pin_springs};
+                          d->sums, d->strain_blk, d->e_blk, d->stiff, d->pin_springs,
+                          d->cols, d->mass, d->ksum, d->ncon, d->ct};
     for (size_t k = 0; k < sizeof ptrs / sizeof ptrs[0]; ++k)
         if (ptrs[k]) bk->ops->release(bk->be, ptrs[k]);
     float **sets[] = {d->x, d->q, d->p, d->y, d->d, d->b, d->alt, d->prev};
@@ -135,14 +144,15 @@ static int32_t cloth_create(const rbc_backend_handle *bk, rbc_solver *s, rbc_clo
     d->w = dalloc(bk, nf, &ok);
     d->inv_denom = dalloc(bk, nf, &ok);
     d->pinned = dalloc(bk, n, &ok);
-    d->bad = dalloc(bk, 2 * sizeof(int32_t), &ok);
+    d->bad = dalloc(bk, 4 * sizeof(int32_t), &ok);
     d->strain_blocks = (t->ns + RBC_STRAIN_BLOCK - 1u) / RBC_STRAIN_BLOCK;
     d->energy_blocks = rbc_energy_blocks_of(t->n);
     d->sums = dalloc(bk, 3 * sizeof(double), &ok);
     d->strain_blk = dalloc(bk, 2 * (size_t)d->strain_blocks * sizeof(double), &ok);
     d->e_blk = dalloc(bk, (size_t)RBC_EPB * d->energy_blocks * sizeof(double), &ok);
-    d->mass = dalloc(bk, nf, &ok);
     d->stiff = dalloc(bk, ns * sizeof(float), &ok);
+    d->mass = dalloc(bk, nf, &ok);
+    d->ksum = dalloc(bk, nf, &ok);
     for (int a = 0; a < 3; ++a) {
         d->x[a] = dalloc(bk, nf, &ok);
         d->q[a] = dalloc(bk, nf, &ok);
@@ -174,6 +184,7 @@ static int32_t cloth_create(const rbc_backend_handle *bk, rbc_solver *s, rbc_clo
     if (rc == RBC_OK) rc = up(bk, d->uz, t->uz, ns * sizeof(float));
     if (rc == RBC_OK) rc = up(bk, d->mass, t->mass, nf);
     if (rc == RBC_OK) rc = up(bk, d->stiff, t->stiff, ns * sizeof(float));
+    if (rc == RBC_OK) rc = up(bk, d->ksum, t->ksum, nf);
     if (rc != RBC_OK) {
         rbc_fail(err, errlen, rc, "cloth 0x%08x: upload to the %s backend failed: %s",
                  c->public_id, bk->ops->name, bk->ops->last_error(bk->be));
@@ -245,11 +256,67 @@ static int32_t cloth_upload(const rbc_backend_handle *bk, rbc_cloth_state *c, fl
         rc = up(bk, d->x[a], c->x[a], nf);
         if (rc == RBC_OK) rc = up(bk, d->q[a], c->q[a], nf);
     }
-    static const int32_t zero[2] = {0, 0};
+    static const int32_t zero[4] = {0, 0, 0, 0};
     if (rc == RBC_OK) rc = up(bk, d->bad, zero, sizeof zero);
     if (rc != RBC_OK)
         return rbc_fail(err, errlen, rc, "cloth 0x%08x: upload to the %s backend failed: %s",
                         c->public_id, bk->ops->name, bk->ops->last_error(bk->be));
+    return RBC_OK;
+}
+
+/* The world's colliders for cloth c's copy (each cloth holds its own: a few hundred
+ * bytes, freed with it), and room for its contacts: min(colliders, RBC_KC_SLOTS)
+ * slots per particle, since a particle has at most one contact per collider. */
+static int32_t colliders_upload(const rbc_backend_handle *bk, rbc_solver *s, rbc_cloth_state *c,
+                                char *err, size_t errlen) {
+    rbc_dcloth *d = c->dev;
+    const uint32_t nc = s->collider_count;
+    const uint32_t slots = nc < RBC_KC_SLOTS ? nc : RBC_KC_SLOTS;
+    d->ncols = 0;
+    d->slots = 0;
+    if (!nc) return RBC_OK;
+    int ok = 1;
+    if (nc > d->cols_cap) {
+        if (d->cols) bk->ops->release(bk->be, d->cols);
+        d->cols = dalloc(bk, nc * sizeof(rbc_dcollider), &ok);
+        d->cols_cap = ok ? nc : 0;
+    }
+    if (ok && slots > d->slots_cap) {
+        if (d->ct) bk->ops->release(bk->be, d->ct);
+        if (d->ncon) bk->ops->release(bk->be, d->ncon);
+        d->ct = dalloc(bk, (size_t)RBC_KC_FIELDS * slots * d->n * sizeof(float), &ok);
+        d->ncon = dalloc(bk, (size_t)d->n * sizeof(uint32_t), &ok);
+        d->slots_cap = ok ? slots : 0;
+    }
+    if (!ok)
+        return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY,
+                        "cloth 0x%08x: out of %s memory for %u colliders' contacts (%s)",
+                        c->public_id, bk->ops->name, nc, bk->ops->last_error(bk->be));
+    rbc_dcollider *h = rbc_mem_alloc(&s->alloc, nc * sizeof *h);
+    if (!h) return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory (host)");
+    memset(h, 0, nc * sizeof *h);
+    for (uint32_t k = 0; k < nc; ++k) {
+        const rbc_collider_state *col = &s->colliders[k];
+        h[k].shape = (int32_t)col->shape;
+        h[k].radius = col->radius;
+        h[k].thickness = col->thickness;
+        h[k].friction = col->friction;
+        memcpy(h[k].he, col->half_extents, sizeof h[k].he);
+        memcpy(h[k].lo, col->lo, sizeof h[k].lo);
+        memcpy(h[k].hi, col->hi, sizeof h[k].hi);
+        memcpy(h[k].last_position, col->last_position, sizeof h[k].last_position);
+        memcpy(h[k].last_rotation, col->last_rotation, sizeof h[k].last_rotation);
+        memcpy(h[k].position, col->position, sizeof h[k].position);
+        memcpy(h[k].rotation, col->rotation, sizeof h[k].rotation);
+    }
+    /* The upload has the source staged when it returns (backend.h), so h may go. */
+    int32_t rc = up(bk, d->cols, h, nc * sizeof *h);
+    rbc_mem_free(&s->alloc, h, nc * sizeof *h);
+    if (rc != RBC_OK)
+        return rbc_fail(err, errlen, rc, "cloth 0x%08x: upload to the %s backend failed: %s",
+                        c->public_id, bk->ops->name, bk->ops->last_error(bk->be));
+    d->ncols = nc;
+    d->slots = slots;
     return RBC_OK;
 }
 
@@ -268,13 +335,27 @@ static int32_t launch(const rbc_backend_handle *bk, rbc_kernel k, rbc_kargs *a, 
     return bk->ops->launch(bk->be, k, a);
 }
 
+/* The collider contacts' projection (collide.h) over particles [first, first +
+ * count) of P: after a Jacobi or Chebyshev iteration the whole iterate (h = 0), after
+ * a color's sweep with color passes that color with its friction (h > 0), as
+ * sweep.c's color_iteration and iteration_pass. */
+static int32_t contacts_project(const rbc_backend_handle *bk, rbc_dcloth *d, uint32_t first,
+                                uint32_t count, float *const P[3], float h) {
+    if (!d->ncols) return RBC_OK;
+    rbc_kargs a = {.c = d, .h = h};
+    for (int ax = 0; ax < 3; ++ax) a.dst[ax] = P[ax];
+    return launch(bk, RBC_KERNEL_COLLIDE_PROJECT, &a, first, count);
+}
+
 static rbc_dcloth *dev(const rbc_solver *s, uint32_t k) { return s->cloths[k]->dev; }
 
 static int is_jacobi(rbc_solver_kind kind) {
     return kind == RBC_SOLVER_JACOBI || kind == RBC_SOLVER_JACOBI_CHEBYSHEV;
 }
 
-/* Linear iteration k of the selected solver on every cloth. */
+/* Linear iteration k of the selected solver on every cloth, with the contacts'
+ * projections that join it (each touches only its own particle, so the cloths'
+ * order does not matter). */
 static int32_t linear_iteration(const rbc_backend_handle *bk, const step_ctx *ctx, uint32_t k) {
     const rbc_solver *s = ctx->s;
     const rbc_solver_kind kind = s->settings.kind;
@@ -291,6 +372,7 @@ static int32_t linear_iteration(const rbc_backend_handle *bk, const step_ctx *ct
                 a.dst[ax] = (k & 1) ? d->p[ax] : d->alt[ax];
             }
             rc = launch(bk, RBC_KERNEL_JACOBI, &a, 0, d->n);
+            if (rc == RBC_OK) rc = contacts_project(bk, d, 0, d->n, a.dst, 0.0f);
         }
         return rc;
     }
@@ -302,8 +384,9 @@ static int32_t linear_iteration(const rbc_backend_handle *bk, const step_ctx *ct
             rbc_dcloth *d = dev(s, q);
             if (color >= d->ncolors) continue;
             rbc_kargs a = {.c = d, .variant = variant, .omega = ctx->sor_omega[rbc_step_slot(q)]};
-            rc = launch(bk, RBC_KERNEL_GS, &a, d->color_start[color],
-                        d->color_start[color + 1] - d->color_start[color]);
+            const uint32_t c0 = d->color_start[color], nc = d->color_start[color + 1] - c0;
+            rc = launch(bk, RBC_KERNEL_GS, &a, c0, nc);
+            if (rc == RBC_OK && ctx->color_pass) rc = contacts_project(bk, d, c0, nc, d->p, ctx->h);
         }
     for (uint32_t q = 0; rc == RBC_OK && variant == RBC_K_GS_STASH && q < s->cloth_count; ++q) {
         rbc_kargs bl = {.c = dev(s, q)};
@@ -311,6 +394,8 @@ static int32_t linear_iteration(const rbc_backend_handle *bk, const step_ctx *ct
                                        ctx->cheb_rho[rbc_step_slot(q)]);
         rc = launch(bk, RBC_KERNEL_CHEB_BLEND, &bl, 0, bl.c->n);
     }
+    for (uint32_t q = 0; rc == RBC_OK && !ctx->color_pass && q < s->cloth_count; ++q)
+        rc = contacts_project(bk, dev(s, q), 0, dev(s, q)->n, dev(s, q)->p, 0.0f);
     return rc;
 }
 
@@ -419,6 +504,39 @@ static int32_t global_step(const rbc_backend_handle *bk, step_ctx *ctx, uint32_t
     return rc;
 }
 
+/* The substep's collider contacts (contact_step.c's detect stage): the frames, the
+ * contacts of every particle's motion from x to its prediction, and the solve's start
+ * moved onto them (with friction when the color passes solve the contacts). */
+static int32_t contacts_detect(const rbc_backend_handle *bk, const step_ctx *ctx,
+                               const rbc_cloth_state *c, rbc_dcloth *d, uint32_t sub) {
+    if (!d->ncols) return RBC_OK;
+    rbc_kargs a = {.c = d, .h = ctx->h, .thick = c->thickness, .mu = c->friction,
+                   .margin = 0.5f * c->mean_rest};
+    a.f0 = (float)sub / (float)ctx->substeps;
+    a.f = (float)(sub + 1) / (float)ctx->substeps;
+    a.last = sub + 1 == ctx->substeps;
+    int32_t rc = launch(bk, RBC_KERNEL_COLLIDE_FRAMES, &a, 0, d->ncols);
+    if (rc == RBC_OK) rc = launch(bk, RBC_KERNEL_COLLIDE_DETECT, &a, 0, d->n);
+    if (rc == RBC_OK) rc = contacts_project(bk, d, 0, d->n, d->p, ctx->color_pass ? ctx->h : 0.0f);
+    return rc;
+}
+
+/* After the solve (contact_step.c's friction stage): the normal forces and friction
+ * where the color passes did not apply it, then the safety pass. The colliders' work
+ * is the energy guard's, which backends refuse. */
+static int32_t contacts_finish(const rbc_backend_handle *bk, const step_ctx *ctx,
+                               const rbc_cloth_state *c, rbc_dcloth *d) {
+    if (!d->ncols) return RBC_OK;
+    rbc_kargs a = {.c = d, .h = ctx->h, .thick = c->thickness, .margin = 0.5f * c->mean_rest};
+    int32_t rc = RBC_OK;
+    if (!ctx->color_pass) {
+        rc = launch(bk, RBC_KERNEL_COLLIDE_NORMAL, &a, 0, d->n);
+        if (rc == RBC_OK) rc = launch(bk, RBC_KERNEL_COLLIDE_FINISH, &a, 0, d->n);
+    }
+    if (rc == RBC_OK) rc = launch(bk, RBC_KERNEL_COLLIDE_POST, &a, 0, d->n);
+    return rc;
+}
+
 /* Every substep of every cloth; the state comes back to the host only if all are
  * finite. */
 static int32_t substeps(const rbc_backend_handle *bk, step_ctx *ctx, int guard) {
@@ -446,6 +564,7 @@ static int32_t substeps(const rbc_backend_handle *bk, step_ctx *ctx, int guard) 
                 }
                 rc = launch(bk, RBC_KERNEL_PIN_WORK, &a, 0, 1);
             }
+            if (rc == RBC_OK) rc = contacts_detect(bk, ctx, c, d, sub);
         }
         for (uint32_t nl = 0; rc == RBC_OK && nl < s->nonlinear_iterations; ++nl) {
             for (uint32_t q = 0; rc == RBC_OK && q < s->cloth_count; ++q) {
@@ -458,9 +577,10 @@ static int32_t substeps(const rbc_backend_handle *bk, step_ctx *ctx, int guard) 
         for (uint32_t q = 0; rc == RBC_OK && q < s->cloth_count; ++q) {
             rbc_dcloth *d = dev(s, q);
             rbc_kargs a = {.c = d};
+            rc = contacts_finish(bk, ctx, s->cloths[q], d);
             /* Non-finite values stay so in later substeps (every kernel reads them),
              * so the check's verdict is read once, after the last. */
-            rc = launch(bk, RBC_KERNEL_CHECK, &a, 0, d->n);
+            if (rc == RBC_OK) rc = launch(bk, RBC_KERNEL_CHECK, &a, 0, d->n);
             if (rc == RBC_OK && last && rbc_step_can_run_away(s->settings.kind)) {
                 a.stretch = RBC_BLOWUP_STRETCH;
                 a.floor_len = RBC_BLOWUP_STRETCH * s->cloths[q]->mean_rest;
@@ -486,9 +606,17 @@ static int32_t substeps(const rbc_backend_handle *bk, step_ctx *ctx, int guard) 
 }
 
 /* A failure the checks found on cloth k: the message, as step.c words it. */
-static int32_t report_bad(step_ctx *ctx, uint32_t k, const int32_t bad[2]) {
+static int32_t report_bad(step_ctx *ctx, uint32_t k, const int32_t bad[4]) {
     const rbc_cloth_state *c = ctx->s->cloths[k];
     const rbc_topology *t = &c->topo;
+    if (bad[2]) /* first: the contacts it dropped made the rest of the step wrong */
+        return rbc_fail(ctx->err, ctx->errlen, RBC_ERR_UNSUPPORTED,
+                        "cloth 0x%08x: vertex %u touched more than %u colliders in one "
+                        "substep, more than the backend's %u contact slots per particle; "
+                        "the world was restored to its state before the step (fewer "
+                        "overlapping colliders, or a world without a backend)",
+                        c->public_id, t->to_host[bad[2] - 1], (unsigned)RBC_KC_SLOTS,
+                        (unsigned)RBC_KC_SLOTS);
     if (bad[0]) {
         uint32_t i = (uint32_t)bad[0] - 1;
         return rbc_fail(ctx->err, ctx->errlen, RBC_ERR_UNSTABLE,
@@ -537,6 +665,7 @@ void rbc_backend_run(const rbc_backend_handle *bk, step_ctx *ctx) {
         rbc_cloth_state *c = s->cloths[k];
         if (!c->dev) rc = cloth_create(bk, s, c, ctx->err, ctx->errlen);
         if (rc == RBC_OK) rc = cloth_upload(bk, c, ctx->h, guard, ctx->err, ctx->errlen);
+        if (rc == RBC_OK) rc = colliders_upload(bk, s, c, ctx->err, ctx->errlen);
     }
     /* A fixed count reads nothing back within the step: the backend may record the
      * step's launches and run them as one (a CUDA graph). The other modes decide on
@@ -560,13 +689,15 @@ void rbc_backend_run(const rbc_backend_handle *bk, step_ctx *ctx) {
                  bk->ops->last_error(bk->be));
     /* The verdicts first: the host's state changes only when every cloth passed. */
     for (uint32_t k = 0; rc == RBC_OK && k < s->cloth_count; ++k) {
-        int32_t bad[2];
+        int32_t bad[4];
         rc = readback(bk, bad, s->cloths[k]->dev->bad, sizeof bad);
         if (rc != RBC_OK)
             rbc_fail(ctx->err, ctx->errlen, rc, "readback from the %s backend failed: %s",
                      name, bk->ops->last_error(bk->be));
-        else if (bad[0] || bad[1])
+        else if (bad[0] || bad[1] || bad[2])
             rc = report_bad(ctx, k, bad);
+        else /* the stats' collider contacts, as the pool's detect stage counts them */
+            s->last_contacts += (uint32_t)bad[3];
     }
     if (rc == RBC_OK && guard) {
         rc = guard_decide(bk, ctx);

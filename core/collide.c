@@ -9,116 +9,27 @@
 #include "shapes.h"
 #include "solver.h"
 
-/* Rotation matrix of a unit quaternion (x, y, z, w), row-major. */
-static void quat_matrix(const float q[4], float r[9]) {
-    float x = q[0], y = q[1], z = q[2], w = q[3];
-    r[0] = 1.0f - 2.0f * (y * y + z * z);
-    r[1] = 2.0f * (x * y - z * w);
-    r[2] = 2.0f * (x * z + y * w);
-    r[3] = 2.0f * (x * y + z * w);
-    r[4] = 1.0f - 2.0f * (x * x + z * z);
-    r[5] = 2.0f * (y * z - x * w);
-    r[6] = 2.0f * (x * z - y * w);
-    r[7] = 2.0f * (y * z + x * w);
-    r[8] = 1.0f - 2.0f * (x * x + y * y);
-}
+/* The per-particle math is in kernels/collide_kernels.h, shared with the backends'
+ * collider kernels (backend_step.c), so both round alike. */
 
 void rbc_collider_frame_at(const rbc_collider_state *c, float f, rbc_frame *out) {
-    float q[4];
-    const float *a = c->last_rotation, *b = c->rotation;
-    if (f >= 1.0f) {
-        memcpy(q, b, sizeof q);
-        memcpy(out->t, c->position, sizeof out->t);
-    } else {
-        /* nlerp along the shorter arc. */
-        float dot = a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
-        float sb = dot < 0.0f ? -f : f, n2 = 0.0f;
-        for (int k = 0; k < 4; ++k) {
-            q[k] = (1.0f - f) * a[k] + sb * b[k];
-            n2 += q[k] * q[k];
-        }
-        float inv = n2 > 0.0f ? 1.0f / sqrtf(n2) : 1.0f;
-        for (int k = 0; k < 4; ++k) q[k] *= inv;
-        for (int k = 0; k < 3; ++k)
-            out->t[k] = c->last_position[k] + (c->position[k] - c->last_position[k]) * f;
-    }
-    quat_matrix(q, out->r);
+    rbc_kc_frame_at(c->last_position, c->last_rotation, c->position, c->rotation, f, out);
 }
 
-static inline void to_local(const rbc_frame *fr, const float w[3], float l[3]) {
-    float d0 = w[0] - fr->t[0], d1 = w[1] - fr->t[1], d2 = w[2] - fr->t[2];
-    l[0] = fr->r[0] * d0 + fr->r[3] * d1 + fr->r[6] * d2;
-    l[1] = fr->r[1] * d0 + fr->r[4] * d1 + fr->r[7] * d2;
-    l[2] = fr->r[2] * d0 + fr->r[5] * d1 + fr->r[8] * d2;
-}
-static inline void to_world_dir(const rbc_frame *fr, const float l[3], float w[3]) {
-    w[0] = fr->r[0] * l[0] + fr->r[1] * l[1] + fr->r[2] * l[2];
-    w[1] = fr->r[3] * l[0] + fr->r[4] * l[1] + fr->r[5] * l[2];
-    w[2] = fr->r[6] * l[0] + fr->r[7] * l[1] + fr->r[8] * l[2];
-}
-static inline void to_world(const rbc_frame *fr, const float l[3], float w[3]) {
-    to_world_dir(fr, l, w);
-    w[0] += fr->t[0];
-    w[1] += fr->t[1];
-    w[2] += fr->t[2];
-}
+#define to_local rbc_kc_to_local
+#define to_world rbc_kc_to_world
+#define to_world_dir rbc_kc_to_world_dir
 
 /* The contact of a particle moving from a to b (collider frame at the substep's
  * start and end) with the shape: 1 and the surface point sl with outward normal nl
  * when the motion enters the shape (the entry point) or b is within reach of the
- * surface (its closest point). Planes and spheres are done inline (most scenes'
- * colliders, and most particles are far from them); the rest go to shapes.c. */
+ * surface (its closest point). The analytic shapes in collide_kernels.h; the triangle
+ * mesh through its BVH (shapes.c). */
 static inline int shape_contact(const rbc_collider_state *col, const float a[3],
                                 const float b[3], float reach, float sl[3], float nl[3]) {
-    if (col->shape == RBC_SHAPE_PLANE) {
-        if (a[1] >= 0.0f && b[1] < 0.0f) {
-            float t = a[1] / (a[1] - b[1]);
-            sl[0] = a[0] + t * (b[0] - a[0]);
-            sl[1] = 0.0f;
-            sl[2] = a[2] + t * (b[2] - a[2]);
-        } else if (b[1] < reach) {
-            sl[0] = b[0];
-            sl[1] = 0.0f;
-            sl[2] = b[2];
-        } else {
-            return 0;
-        }
-        nl[0] = 0.0f, nl[1] = 1.0f, nl[2] = 0.0f;
-        return 1;
-    }
-    if (col->shape == RBC_SHAPE_SPHERE) {
-        const float r = col->radius, R = r + reach;
-        float a2 = a[0] * a[0] + a[1] * a[1] + a[2] * a[2];
-        float b2 = b[0] * b[0] + b[1] * b[1] + b[2] * b[2];
-        float d[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
-        if (a2 >= r * r) {
-            /* Entry: the first root of |a + t d|^2 = r^2 in [0, 1]. */
-            float dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-            float ad = a[0] * d[0] + a[1] * d[1] + a[2] * d[2];
-            float disc = ad * ad - dd * (a2 - r * r);
-            if (ad < 0.0f && disc > 0.0f && dd > 0.0f) {
-                float t = (-ad - sqrtf(disc)) / dd;
-                if (t >= 0.0f && t <= 1.0f) {
-                    float inv = 1.0f / r;
-                    for (int ax = 0; ax < 3; ++ax) {
-                        sl[ax] = a[ax] + t * d[ax];
-                        nl[ax] = sl[ax] * inv;
-                    }
-                    return 1;
-                }
-            }
-        }
-        if (b2 >= R * R) return 0;
-        float len = sqrtf(b2);
-        if (len > 1e-12f) {
-            float inv = 1.0f / len;
-            for (int ax = 0; ax < 3; ++ax) nl[ax] = b[ax] * inv;
-        } else {
-            nl[0] = 0.0f, nl[1] = 1.0f, nl[2] = 0.0f;
-        }
-        for (int ax = 0; ax < 3; ++ax) sl[ax] = nl[ax] * r;
-        return 1;
-    }
+    if (col->shape != RBC_SHAPE_TRIANGLE_MESH)
+        return rbc_kc_shape_contact(col->shape, col->radius, col->half_extents, a, b, reach, sl,
+                                    nl);
     float t, phi;
     if (rbc_shape_raycast(&col->geom, a, b, &t, nl)) {
         for (int ax = 0; ax < 3; ++ax) sl[ax] = a[ax] + t * (b[ax] - a[ax]);
@@ -228,16 +139,10 @@ void rbc_collide_detect(rbc_solver *s, rbc_contact_list *list, float f0, float f
                     uint32_t slot = list->need++;
                     if (slot >= list->cap) continue;
                     rbc_col_contact *ct = &list->c[slot];
-                    float sw[3], sa[3];
-                    to_world_dir(B, nl, ct->n);
-                    to_world(B, sl, sw);
-                    to_world(A, sl, sa);
+                    rbc_kc_contact_make(A, B, sl, nl, thick, inv_h, yw, ct->n, &ct->d, ct->u,
+                                        &ct->depth);
                     ct->cloth = k;
                     ct->idx = i;
-                    ct->d = ct->n[0] * sw[0] + ct->n[1] * sw[1] + ct->n[2] * sw[2] + thick;
-                    for (int ax = 0; ax < 3; ++ax) ct->u[ax] = (sw[ax] - sa[ax]) * inv_h;
-                    float pen = ct->d - (ct->n[0] * yw[0] + ct->n[1] * yw[1] + ct->n[2] * yw[2]);
-                    ct->depth = pen > 0.0f ? pen : 0.0f;
                     ct->last = 0.0f;
                     ct->mu = mu;
                     ct->collider = ci;
@@ -255,51 +160,22 @@ void rbc_collide_detect(rbc_solver *s, rbc_contact_list *list, float f0, float f
     list->count = list->need < list->cap ? list->need : list->cap;
 }
 
-/* Coulomb friction of contact ct on particle i of c, after its normal push v > 0 in
- * the same pass: the slip (motion since the substep's start less the surface's,
- * tangential) removed while within mu v, else cut by mu v. */
-static void pass_friction(rbc_col_contact *ct, rbc_cloth_state *c, float *const P[3], uint32_t i,
-                          float v, float h) {
-    ct->ft[0] = ct->ft[1] = ct->ft[2] = 0.0f;
-    if (!(ct->mu > 0.0f)) return;
-    const float *n = ct->n;
-    float dl[3];
-    for (int a = 0; a < 3; ++a) dl[a] = P[a][i] - c->x[a][i] - ct->u[a] * h;
-    float dn = dl[0] * n[0] + dl[1] * n[1] + dl[2] * n[2];
-    float tg[3] = {dl[0] - dn * n[0], dl[1] - dn * n[1], dl[2] - dn * n[2]};
-    float tl = sqrtf(tg[0] * tg[0] + tg[1] * tg[1] + tg[2] * tg[2]);
-    float lim = ct->mu * v;
-    float f = tl <= lim ? 1.0f : lim / tl; /* static: all of it; kinetic: mu v */
-    for (int a = 0; a < 3; ++a) {
-        ct->ft[a] = -f * tg[a];
-        P[a][i] += ct->ft[a];
-    }
+/* Project contact ct of particle i of P (with the pass's friction when h > 0). */
+static int project_one(rbc_col_contact *ct, const rbc_cloth_state *c, float *const P[3],
+                       uint32_t i, float h) {
+    float p[3] = {P[0][i], P[1][i], P[2][i]};
+    const float x[3] = {c->x[0][i], c->x[1][i], c->x[2][i]};
+    if (!rbc_kc_project(ct->n, ct->d, ct->mu, ct->u, x, p, h, &ct->last, ct->ft)) return 0;
+    for (int a = 0; a < 3; ++a) P[a][i] = p[a];
+    return 1;
 }
 
 int rbc_collide_project(rbc_solver *s, rbc_contact_list *list, int alt, float h) {
     int moved = 0;
-    uint32_t m = 0;
-    while (m < list->count) {
-        /* Contacts come in runs of one cloth: its arrays once per run. */
-        uint32_t k = list->c[m].cloth;
-        rbc_cloth_state *c = s->cloths[k];
-        float *const *P = alt ? c->alt : c->p;
-        float *restrict P0 = P[0], *restrict P1 = P[1], *restrict P2 = P[2];
-        for (; m < list->count && list->c[m].cloth == k; ++m) {
-            rbc_col_contact *ct = &list->c[m];
-            uint32_t i = ct->idx;
-            float v = ct->d - (ct->n[0] * P0[i] + ct->n[1] * P1[i] + ct->n[2] * P2[i]);
-            if (v > 0.0f) {
-                P0[i] += v * ct->n[0];
-                P1[i] += v * ct->n[1];
-                P2[i] += v * ct->n[2];
-                ct->last = v;
-                moved = 1;
-                if (h > 0.0f) pass_friction(ct, c, P, i, v, h);
-            } else {
-                ct->last = 0.0f;
-            }
-        }
+    for (uint32_t m = 0; m < list->count; ++m) {
+        rbc_col_contact *ct = &list->c[m];
+        const rbc_cloth_state *c = s->cloths[ct->cloth];
+        moved |= project_one(ct, c, alt ? c->alt : c->p, ct->idx, h);
     }
     return moved;
 }
@@ -311,23 +187,14 @@ uint32_t rbc_collide_color_of(const rbc_topology *t, uint32_t i) {
 }
 
 int rbc_collide_project_color(rbc_solver *s, rbc_contact_list *list, uint32_t color, float h) {
+    /* Not pressed: no friction, the last one's stays counted (rbc_kc_project leaves
+     * ft as it was). */
     int moved = 0;
     for (uint32_t m = 0; m < list->count; ++m) {
         rbc_col_contact *ct = &list->c[m];
         if (ct->color != color) continue;
-        rbc_cloth_state *c = s->cloths[ct->cloth];
-        const uint32_t i = ct->idx;
-        float *const *P = c->p;
-        const float *n = ct->n;
-        float v = ct->d - (n[0] * P[0][i] + n[1] * P[1][i] + n[2] * P[2][i]);
-        if (!(v > 0.0f)) {
-            ct->last = 0.0f; /* not pressed: no friction, the last one's stays counted */
-            continue;
-        }
-        for (int a = 0; a < 3; ++a) P[a][i] += v * n[a];
-        ct->last = v;
-        moved = 1;
-        pass_friction(ct, c, P, i, v, h);
+        const rbc_cloth_state *c = s->cloths[ct->cloth];
+        moved |= project_one(ct, c, c->p, ct->idx, h);
     }
     return moved;
 }
@@ -340,17 +207,10 @@ void rbc_collide_normal_forces(rbc_solver *s, rbc_contact_list *list, float h) {
         if (!(ct->mu > 0.0f)) continue; /* only friction reads it */
         const rbc_cloth_state *c = s->cloths[ct->cloth];
         const rbc_topology *t = &c->topo;
-        const uint32_t i = ct->idx;
-        const float row = t->mass[i] * inv_h2 + t->ksum[i];
-        float f[3] = {row * c->p[0][i] - c->bx[i], row * c->p[1][i] - c->by[i],
-                      row * c->p[2][i] - c->bz[i]};
-        for (uint32_t k = t->adj_start[i]; k < t->adj_start[i + 1]; ++k) {
-            const uint32_t j = t->adj_nbr[k];
-            const float kk = t->adj_k[k];
-            f[0] -= kk * c->p[0][j];
-            f[1] -= kk * c->p[1][j];
-            f[2] -= kk * c->p[2][j];
-        }
+        float *const bv[3] = {c->bx, c->by, c->bz};
+        float f[3];
+        rbc_kc_row_residual(ct->idx, t->adj_start, t->adj_nbr, t->adj_k, t->mass, t->ksum, bv,
+                            c->p, inv_h2, f);
         const float fn = f[0] * ct->n[0] + f[1] * ct->n[1] + f[2] * ct->n[2];
         ct->fn_row = fn > 0.0f ? fn : 0.0f;
     }
@@ -372,12 +232,6 @@ void rbc_collide_finish(rbc_solver *s, rbc_contact_list *list, float h, uint32_t
         uint32_t i = ct->idx;
         const float *n = ct->n;
         float p[3] = {c->p[0][i], c->p[1][i], c->p[2][i]};
-        float gap = n[0] * p[0] + n[1] * p[1] + n[2] * p[2] - ct->d;
-        /* The normal correction the contact made this substep: what the prediction
-         * went in, or what the last pass pushed (springs pressing the particle in). */
-        float push = ct->depth > ct->last ? ct->depth : ct->last;
-        /* Touching at the end (within a hair of the plane) and pushed at some point. */
-        int active = push > 0.0f && gap <= 1e-3f * push + 1e-7f;
         /* The contact's normal force, as the global step sees it: the last pass moved
          * the particle by `last` from its Gauss-Seidel value, against a stiffness of
          * m/h^2 + sum s (its row of Eq. 6), so f = (m/h^2 + sum s) last; or what
@@ -392,16 +246,13 @@ void rbc_collide_finish(rbc_solver *s, rbc_contact_list *list, float h, uint32_t
         if (in_pass) {
             /* The passes applied the friction: the last correction's impulse. */
             for (int ax = 0; ax < 3; ++ax) moved[ax] += ct->ft[ax];
-        } else if (active && ct->mu > 0.0f) {
-            /* Tangential displacement relative to the collider's surface. */
-            float dl[3];
-            for (int ax = 0; ax < 3; ++ax) dl[ax] = p[ax] - c->x[ax][i] - ct->u[ax] * h;
-            float dn = dl[0] * n[0] + dl[1] * n[1] + dl[2] * n[2];
-            float tg[3] = {dl[0] - dn * n[0], dl[1] - dn * n[1], dl[2] - dn * n[2]};
-            float tl = sqrtf(tg[0] * tg[0] + tg[1] * tg[1] + tg[2] * tg[2]);
+        } else {
             /* The solvers without color passes (Jacobi, serial Gauss-Seidel,
-             * Chebyshev, direct). Coulomb: the tangential impulse is at most mu times
-             * the normal one, its force from the row residual
+             * Chebyshev, direct): the tangential displacement relative to the
+             * collider's surface, for a contact touching at the end (within a hair of
+             * the plane) and pushed at some point (by the prediction's depth or the
+             * last pass, rbc_kc_finish_friction). Coulomb: the tangential impulse is at most mu
+             * times the normal one, its force from the row residual
              * (rbc_collide_normal_forces; the push estimate above was about twice too
              * large for the color swept last). On a slope that is Coulomb's law
              * (test_contact, Jacobi and direct, within 1%); the static test is in a
@@ -409,13 +260,14 @@ void rbc_collide_finish(rbc_solver *s, rbc_contact_list *list, float h, uint32_t
              * can still be held, which the color passes avoid (collide.h). The energy
              * guard's work estimate keeps the push estimate: moved to the residual it
              * changed the stacked layers' test (a piercing at frame 6). */
-            float lim = ct->mu * ct->fn_row * h * h / c->topo.mass[i];
-            float f = tl <= lim ? 1.0f : lim / tl; /* static: all of it; kinetic: mu disp */
-            for (int ax = 0; ax < 3; ++ax) {
-                float corr = -f * tg[ax];
-                c->p[ax][i] += corr;
-                moved[ax] += corr;
-            }
+            const float x[3] = {c->x[0][i], c->x[1][i], c->x[2][i]};
+            float corr[3];
+            if (rbc_kc_finish_friction(n, ct->d, ct->u, ct->depth, ct->last, ct->mu, ct->fn_row,
+                                       c->topo.mass[i], x, p, h, corr))
+                for (int ax = 0; ax < 3; ++ax) {
+                    c->p[ax][i] = p[ax];
+                    moved[ax] += corr[ax];
+                }
         }
         /* Work of a moving collider: impulse (m * displacement / h) . its velocity. */
         const float *u = ct->u;
@@ -428,6 +280,27 @@ void rbc_collide_finish(rbc_solver *s, rbc_contact_list *list, float h, uint32_t
                 c->e_blk[(size_t)RBC_EPB * (i / RBC_ENERGY_BLOCK) + RBC_E_WC] += wk;
         }
     }
+}
+
+/* rbc_kc_post_one for a triangle mesh (its queries are shapes.c's). */
+static int mesh_post_one(const rbc_collider_state *col, const rbc_frame *A, const rbc_frame *B,
+                         float thick, const float xw[3], const float pw[3], float *v, float nw[3],
+                         float sw[3], float sa[3]) {
+    float a[3], b[3];
+    to_local(A, xw, a);
+    to_local(B, pw, b);
+    for (int ax = 0; ax < 3; ++ax) {
+        float lo = a[ax] < b[ax] ? a[ax] : b[ax], hi = a[ax] < b[ax] ? b[ax] : a[ax];
+        if (hi < col->lo[ax] - thick || lo > col->hi[ax] + thick) return 0;
+    }
+    float nl[3], sl[3];
+    if (!shape_contact(col, a, b, thick, sl, nl)) return 0;
+    to_world_dir(B, nl, nw);
+    to_world(B, sl, sw);
+    to_world(A, sl, sa);
+    float d = nw[0] * sw[0] + nw[1] * sw[1] + nw[2] * sw[2] + thick;
+    *v = d - (nw[0] * pw[0] + nw[1] * pw[1] + nw[2] * pw[2]);
+    return *v > 0.0f;
 }
 
 void rbc_collide_post(rbc_solver *s, float f0, float f1, float h, uint32_t tid, uint32_t nt) {
@@ -453,24 +326,13 @@ void rbc_collide_post(rbc_solver *s, float f0, float f1, float h, uint32_t tid, 
                 if (e0 * e0 + e1 * e1 + e2 * e2 <= m2 || c->pinned[i]) continue;
                 float xw[3] = {c->x[0][i], c->x[1][i], c->x[2][i]};
                 float pw[3] = {c->p[0][i], c->p[1][i], c->p[2][i]};
-                float a[3], b[3];
-                to_local(&A, xw, a);
-                to_local(&B, pw, b);
-                int out = 0;
-                for (int ax = 0; ax < 3 && !out; ++ax) {
-                    float lo = a[ax] < b[ax] ? a[ax] : b[ax], hi = a[ax] < b[ax] ? b[ax] : a[ax];
-                    out = hi < col->lo[ax] - thick || lo > col->hi[ax] + thick;
+                float v, nw[3], sw[3], sa[3];
+                if (col->shape == RBC_SHAPE_TRIANGLE_MESH) {
+                    if (!mesh_post_one(col, &A, &B, thick, xw, pw, &v, nw, sw, sa)) continue;
+                } else if (!rbc_kc_post_one(col->shape, col->radius, col->half_extents, col->lo,
+                                            col->hi, &A, &B, thick, xw, pw, &v, nw, sw, sa)) {
+                    continue;
                 }
-                if (out) continue;
-                float nl[3], sl[3];
-                if (!shape_contact(col, a, b, thick, sl, nl)) continue;
-                float nw[3], sw[3], sa[3];
-                to_world_dir(&B, nl, nw);
-                to_world(&B, sl, sw);
-                to_world(&A, sl, sa);
-                float d = nw[0] * sw[0] + nw[1] * sw[1] + nw[2] * sw[2] + thick;
-                float v = d - (nw[0] * pw[0] + nw[1] * pw[1] + nw[2] * pw[2]);
-                if (!(v > 0.0f)) continue;
                 double wk = 0.0;
                 for (int ax = 0; ax < 3; ++ax) {
                     c->p[ax][i] += v * nw[ax];

@@ -31,16 +31,11 @@
 
 #include "alloc.h"
 #include "contact_list.h"
+#include "kernels/collide_kernels.h" /* rbc_frame */
 #include "topology.h"
 
 struct rbc_solver;
 struct rbc_collider_state;
-
-/* world = r * local + t (r row-major). */
-typedef struct rbc_frame {
-    float r[9];
-    float t[3];
-} rbc_frame;
 
 
 /* The collider's pose at fraction f of the step (0 = where it was at the end of the

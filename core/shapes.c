@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "kernels/collide_kernels.h"
 #include "report.h"
 
 enum {
@@ -72,143 +73,14 @@ struct rbc_trimesh {
 static inline float maxf(float a, float b) { return a > b ? a : b; }
 static inline float minf(float a, float b) { return a < b ? a : b; }
 
-/* ---- analytic shapes (double inside, rounded once) ---- */
-
-static float sphere_distance(const float q[3], double r, float n[3]) {
-    double x = q[0], y = q[1], z = q[2];
-    double d = sqrt(x * x + y * y + z * z);
-    if (d > 0.0) {
-        n[0] = (float)(x / d), n[1] = (float)(y / d), n[2] = (float)(z / d);
-    } else {
-        n[0] = 0.0f, n[1] = 1.0f, n[2] = 0.0f;
-    }
-    return (float)(d - r);
-}
-
-static float capsule_distance(const float q[3], double r, double h, float n[3]) {
-    double y = q[1], s = y < -h ? -h : y > h ? h : y;
-    double x = q[0], dy = y - s, z = q[2];
-    double d = sqrt(x * x + dy * dy + z * z);
-    if (d > 0.0) {
-        n[0] = (float)(x / d), n[1] = (float)(dy / d), n[2] = (float)(z / d);
-    } else {
-        n[0] = 1.0f, n[1] = 0.0f, n[2] = 0.0f;
-    }
-    return (float)(d - r);
-}
-
-static float box_distance(const float q[3], const double h[3], float n[3]) {
-    double g[3];
-    int outside = 0;
-    for (int i = 0; i < 3; ++i) {
-        g[i] = fabs((double)q[i]) - h[i];
-        outside |= g[i] > 0.0;
-    }
-    if (outside) {
-        double o[3], s = 0.0;
-        for (int i = 0; i < 3; ++i) {
-            o[i] = g[i] > 0.0 ? g[i] : 0.0;
-            s += o[i] * o[i];
-        }
-        double d = sqrt(s); /* > 0: some g > 0, and a float's square is no double
-                               denormal */
-        for (int i = 0; i < 3; ++i) n[i] = (float)copysign(o[i] / d, (double)q[i]);
-        return (float)d;
-    }
-    /* Inside (or on): the face of least penetration, the lower axis on ties. */
-    int k = 0;
-    if (g[1] > g[k]) k = 1;
-    if (g[2] > g[k]) k = 2;
-    n[0] = n[1] = n[2] = 0.0f;
-    n[k] = q[k] < 0.0f ? -1.0f : 1.0f;
-    return (float)g[k];
-}
-
-/* Entry of o + t d, t in [0, 1], into the sphere |x - c| <= r from outside or from
- * its surface; 1 and *t on entry. C = |o - c|^2 - r^2 >= 0 (outside or on), B < 0
- * (moving inward), two roots; the smaller, C / (-B + sqrt(disc)), without
- * cancellation. */
-static int sphere_entry(const double o[3], const double d[3], double cy, double r, double *t) {
-    double ox = o[0], oy = o[1] - cy, oz = o[2];
-    double A = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-    double B = ox * d[0] + oy * d[1] + oz * d[2];
-    double C = ox * ox + oy * oy + oz * oz - r * r;
-    if (!(A > 0.0) || C < 0.0 || !(B < 0.0)) return 0;
-    double disc = B * B - A * C;
-    if (!(disc > 0.0)) return 0;
-    double te = C / (-B + sqrt(disc));
-    if (te > 1.0) return 0;
-    *t = te;
-    return 1;
-}
-
-static int sphere_raycast(const double o[3], const double d[3], double r, double *t,
-                          float n[3]) {
-    if (o[0] * o[0] + o[1] * o[1] + o[2] * o[2] < r * r) return 0; /* starts inside */
-    if (!sphere_entry(o, d, 0.0, r, t)) return 0;
-    double p[3] = {o[0] + *t * d[0], o[1] + *t * d[1], o[2] + *t * d[2]};
-    float q[3] = {(float)p[0], (float)p[1], (float)p[2]};
-    (void)sphere_distance(q, r, n);
-    return 1;
-}
-
-static int capsule_raycast(const double o[3], const double d[3], double r, double h, double *t,
-                           float n[3]) {
-    double s = o[1] < -h ? -h : o[1] > h ? h : o[1], dy = o[1] - s;
-    if (o[0] * o[0] + dy * dy + o[2] * o[2] < r * r) return 0; /* starts inside */
-    /* The union of the side (an infinite cylinder cut to |y| <= h) and the two end
-     * spheres: from outside, its first point is the first entry into any of them (the
-     * cut cylinder's caps lie inside the spheres). */
-    double best = 2.0, te;
-    double A = d[0] * d[0] + d[2] * d[2];
-    double B = o[0] * d[0] + o[2] * d[2];
-    double C = o[0] * o[0] + o[2] * o[2] - r * r;
-    if (A > 0.0 && C >= 0.0 && B < 0.0) {
-        double disc = B * B - A * C;
-        if (disc > 0.0) {
-            te = C / (-B + sqrt(disc));
-            double y = o[1] + te * d[1];
-            if (te <= 1.0 && y >= -h && y <= h) best = te;
-        }
-    }
-    if (sphere_entry(o, d, h, r, &te) && te < best) best = te;
-    if (sphere_entry(o, d, -h, r, &te) && te < best) best = te;
-    if (best > 1.0) return 0;
-    *t = best;
-    float q[3] = {(float)(o[0] + best * d[0]), (float)(o[1] + best * d[1]),
-                  (float)(o[2] + best * d[2])};
-    /* The gradient at the entry point; the rounded point may sit on the axis only if
-     * r is 0: keep capsule_distance's fallback then. */
-    (void)capsule_distance(q, r, h, n);
-    return 1;
-}
-
-/* Slabs (Kay & Kajiya): the interior is entered when the largest entry parameter is
- * below the smallest exit; a segment along a face (|o_i| = h_i, d_i = 0) only grazes. */
-static int box_raycast(const double o[3], const double d[3], const double h[3], double *t,
-                       float n[3]) {
-    if (fabs(o[0]) < h[0] && fabs(o[1]) < h[1] && fabs(o[2]) < h[2]) return 0;
-    double t0 = -INFINITY, t1 = INFINITY;
-    int axis = -1;
-    for (int i = 0; i < 3; ++i) {
-        if (d[i] == 0.0) {
-            if (!(fabs(o[i]) < h[i])) return 0;
-            continue;
-        }
-        double ta = (-h[i] - o[i]) / d[i], tb = (h[i] - o[i]) / d[i];
-        if (ta > tb) {
-            double tmp = ta;
-            ta = tb, tb = tmp;
-        }
-        if (ta > t0) t0 = ta, axis = i;
-        if (tb < t1) t1 = tb;
-    }
-    if (axis < 0 || !(t0 < t1) || t0 < 0.0 || t0 > 1.0) return 0;
-    *t = t0 + 0.0; /* not -0 */
-    n[0] = n[1] = n[2] = 0.0f;
-    n[axis] = d[axis] > 0.0 ? -1.0f : 1.0f; /* the face toward o */
-    return 1;
-}
+/* ---- analytic shapes ----
+ * In kernels/collide_kernels.h (double inside, rounded once), shared with the
+ * backends' collider kernels so that both round alike. */
+_Static_assert((int)RBC_KC_PLANE == (int)RBC_SHAPE_PLANE &&
+                   (int)RBC_KC_SPHERE == (int)RBC_SHAPE_SPHERE &&
+                   (int)RBC_KC_CAPSULE == (int)RBC_SHAPE_CAPSULE &&
+                   (int)RBC_KC_BOX == (int)RBC_SHAPE_BOX,
+               "collide_kernels.h's shapes are the ABI's");
 
 /* ---- triangles ---- */
 
@@ -610,64 +482,16 @@ int rbc_trimesh_raycast_brute(const struct rbc_trimesh *m, const float a[3], con
 
 int rbc_shape_distance(const rbc_shape_geom *g, const float q[3], float max_dist, float *phi,
                        float n[3]) {
-    float p;
-    switch (g->kind) {
-    case RBC_SHAPE_PLANE:
-        p = q[1];
-        n[0] = 0.0f, n[1] = 1.0f, n[2] = 0.0f;
-        break;
-    case RBC_SHAPE_SPHERE:
-        p = sphere_distance(q, g->radius, n);
-        break;
-    case RBC_SHAPE_CAPSULE:
-        p = capsule_distance(q, g->radius, maxf(g->half_extents[1], 0.0f), n);
-        break;
-    case RBC_SHAPE_BOX: {
-        double h[3];
-        for (int i = 0; i < 3; ++i) h[i] = maxf(g->half_extents[i], 0.0f);
-        p = box_distance(q, h, n);
-        break;
-    }
-    case RBC_SHAPE_TRIANGLE_MESH:
+    if (g->kind == RBC_SHAPE_TRIANGLE_MESH)
         return g->mesh ? mesh_distance(g->mesh, q, max_dist, phi, n, 1) : 0;
-    default:
-        return 0;
-    }
-    *phi = p;
-    return p <= max_dist;
+    return rbc_kc_distance(g->kind, g->radius, g->half_extents, q, max_dist, phi, n);
 }
 
 int rbc_shape_raycast(const rbc_shape_geom *g, const float a[3], const float b[3], float *t,
                       float n[3]) {
-    double o[3] = {a[0], a[1], a[2]}, d[3] = {(double)b[0] - a[0], (double)b[1] - a[1],
-                                               (double)b[2] - a[2]};
-    double th;
-    switch (g->kind) {
-    case RBC_SHAPE_PLANE:
-        /* From y >= 0 to y < 0: t = a_y / (a_y - b_y). */
-        if (!(o[1] >= 0.0 && b[1] < 0.0f)) return 0;
-        *t = (float)(o[1] / (o[1] - (double)b[1]));
-        n[0] = 0.0f, n[1] = 1.0f, n[2] = 0.0f;
-        return 1;
-    case RBC_SHAPE_SPHERE:
-        if (!sphere_raycast(o, d, g->radius, &th, n)) return 0;
-        break;
-    case RBC_SHAPE_CAPSULE:
-        if (!capsule_raycast(o, d, g->radius, maxf(g->half_extents[1], 0.0f), &th, n)) return 0;
-        break;
-    case RBC_SHAPE_BOX: {
-        double h[3];
-        for (int i = 0; i < 3; ++i) h[i] = maxf(g->half_extents[i], 0.0f);
-        if (!box_raycast(o, d, h, &th, n)) return 0;
-        break;
-    }
-    case RBC_SHAPE_TRIANGLE_MESH:
+    if (g->kind == RBC_SHAPE_TRIANGLE_MESH)
         return g->mesh ? mesh_raycast(g->mesh, a, b, t, n, 1) : 0;
-    default:
-        return 0;
-    }
-    *t = (float)th;
-    return 1;
+    return rbc_kc_raycast(g->kind, g->radius, g->half_extents, a, b, t, n);
 }
 
 void rbc_shape_bounds(const rbc_shape_geom *g, float lo[3], float hi[3]) {

@@ -9,6 +9,7 @@
 
 #include "../../abi/rbcloth.h"
 #include "../energy.h"
+#include "../kernels/collide_kernels.h"
 #include "../kernels/pd_kernels.h"
 #include "../strain.h"
 
@@ -130,6 +131,37 @@ static int32_t cpu_launch(void *be, rbc_kernel k, const rbc_kargs *a) {
             c->sums[2] += rbc_energy_pin_work_list(c->pin_springs, c->pin_spring_count, c->sa,
                                                    c->sb, c->rest, c->stiff, c->pinned, a->prev,
                                                    a->pos);
+    case RBC_KERNEL_COLLIDE_FRAMES:
+        for (uint32_t ci = b; ci < e; ++ci) rbc_kc_frames(ci, c->cols, a->f0, a->f);
+        break;
+    case RBC_KERNEL_COLLIDE_DETECT: {
+        const float inv_h = 1.0f / a->h;
+        for (uint32_t i = b; i < e; ++i) {
+            uint32_t m = rbc_kc_detect(i, c->cols, c->ncols, c->x, c->p, c->pinned, a->thick,
+                                       a->mu, a->margin, inv_h, c->n, c->slots, c->ct, c->ncon);
+            /* The lowest particle past the slots, as the CUDA backend's atomicMin. */
+            if (m > c->slots && c->bad[2] == 0) c->bad[2] = (int32_t)i + 1;
+            if (a->last) c->bad[3] += (int32_t)m;
+        }
+        break;
+    }
+    case RBC_KERNEL_COLLIDE_PROJECT:
+        for (uint32_t i = b; i < e; ++i)
+            rbc_kc_project_particle(i, c->n, c->slots, c->ncon, c->ct, c->x, a->dst, a->h);
+        break;
+    case RBC_KERNEL_COLLIDE_NORMAL:
+        for (uint32_t i = b; i < e; ++i)
+            rbc_kc_normal_particle(i, c->n, c->slots, c->ncon, c->ct, c->adj_start, c->adj_nbr,
+                                   c->adj_k, c->mass, c->ksum, c->b, c->p, a->h);
+        break;
+    case RBC_KERNEL_COLLIDE_FINISH:
+        for (uint32_t i = b; i < e; ++i)
+            rbc_kc_finish_particle(i, c->n, c->slots, c->ncon, c->ct, c->mass, c->x, c->p, a->h);
+        break;
+    case RBC_KERNEL_COLLIDE_POST:
+        for (uint32_t i = b; i < e; ++i)
+            rbc_kc_post_particle(i, c->cols, c->ncols, c->x, c->y, c->p, c->pinned, a->thick,
+                                 a->margin);
         break;
     default: return RBC_ERR_INVALID_ARGUMENT;
     }

@@ -23,6 +23,7 @@ extern "C" {
 #include "../strain.h" /* RBC_STRAIN_BLOCK */
 }
 #include "../kernels/measure_kernels.h"
+#include "../kernels/collide_kernels.h"
 #include "../kernels/pd_kernels.h"
 
 namespace {
@@ -97,6 +98,29 @@ __global__ void stage_kernel(rbc_kernel k, rbc_dcloth c, rbc_kargs a) {
         if (!rbc_k_spring_ok(i, c.sa, c.sb, c.rest, a.stretch, a.floor_len, c.p[0], c.p[1],
                              c.p[2]))
             keep_lowest(&c.bad[1], (int32_t)i + 1);
+        break;
+    case RBC_KERNEL_COLLIDE_FRAMES:
+        rbc_kc_frames(i, c.cols, a.f0, a.f);
+        break;
+    case RBC_KERNEL_COLLIDE_DETECT: {
+        uint32_t m = rbc_kc_detect(i, c.cols, c.ncols, c.x, c.p, c.pinned, a.thick, a.mu,
+                                   a.margin, 1.0f / a.h, c.n, c.slots, c.ct, c.ncon);
+        if (m > c.slots) keep_lowest(&c.bad[2], (int32_t)i + 1);
+        if (a.last && m) atomicAdd(&c.bad[3], (int32_t)m); /* integers: any order */
+        break;
+    }
+    case RBC_KERNEL_COLLIDE_PROJECT:
+        rbc_kc_project_particle(i, c.n, c.slots, c.ncon, c.ct, c.x, a.dst, a.h);
+        break;
+    case RBC_KERNEL_COLLIDE_NORMAL:
+        rbc_kc_normal_particle(i, c.n, c.slots, c.ncon, c.ct, c.adj_start, c.adj_nbr, c.adj_k,
+                               c.mass, c.ksum, c.b, c.p, a.h);
+        break;
+    case RBC_KERNEL_COLLIDE_FINISH:
+        rbc_kc_finish_particle(i, c.n, c.slots, c.ncon, c.ct, c.mass, c.x, c.p, a.h);
+        break;
+    case RBC_KERNEL_COLLIDE_POST:
+        rbc_kc_post_particle(i, c.cols, c.ncols, c.x, c.y, c.p, c.pinned, a.thick, a.margin);
         break;
     default: break;
     }

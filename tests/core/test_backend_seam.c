@@ -27,8 +27,9 @@
  *     passed: one iteration), where its decisions do not depend on the clock.
  *  3. A non-finite position fails the step with RBC_ERR_UNSTABLE naming the vertex,
  *     and the state is as it was before the step.
- *  4. A scene feature the backends do not run (a collider, the direct solver) is
- *     refused with RBC_ERR_UNSUPPORTED naming it, and nothing changes.
+ *  4. A scene feature the backends do not run (a triangle mesh collider, the direct
+ *     solver) is refused with RBC_ERR_UNSUPPORTED naming it, and nothing changes.
+ *     (The analytic colliders run: test_backend_colliders.c.)
  */
 #include <dlfcn.h>
 #include <math.h>
@@ -39,6 +40,7 @@
 #include "check.h"
 #include "meshes.h"
 #include "rbcloth.h"
+#include "shapes.h"
 #include "solver.h"
 
 /* The backend under test: the CPU's, or the CUDA module's open function. */
@@ -276,19 +278,20 @@ static void refused(void) {
     st.kind = RBC_SOLVER_RBGS;
     CHECK_EQ(rbc_solver_set_settings(&b.s, &st), RBC_OK);
 
+    /* A triangle mesh collider (its BVH queries are the CPU's). */
+    static const float tet[] = {0, -1, 0, 1, -1, 0, 0, -1, 1, 0, -0.5f, 0};
+    static const uint32_t tris[] = {0, 2, 1, 0, 1, 3, 1, 2, 3, 2, 0, 3};
     rbc_collider_state col;
     memset(&col, 0, sizeof col);
-    col.shape = RBC_SHAPE_PLANE;
+    col.shape = RBC_SHAPE_TRIANGLE_MESH;
     col.rotation[3] = 1.0f;
-    col.position[1] = -1.0f;
-    memcpy(col.last_position, col.position, sizeof col.position);
-    memcpy(col.last_rotation, col.rotation, sizeof col.rotation);
+    CHECK_EQ(rbc_trimesh_create(tet, 4, tris, 4, &b.s.alloc, &col.mesh, err, sizeof err), RBC_OK);
     rbc_collider_update_frame(&col);
     CHECK_EQ(rbc_solver_add_collider(&b.s, &col), RBC_OK);
     CHECK_EQ(rbc_solver_step(&b.s, 1.0f / 60.0f, err, sizeof err), RBC_ERR_UNSUPPORTED);
     char named[64];
     snprintf(named, sizeof named, "%s backend", backend_name);
-    CHECK(strstr(err, "colliders") != NULL && strstr(err, named) != NULL);
+    CHECK(strstr(err, "RBC_SHAPE_TRIANGLE_MESH") != NULL && strstr(err, named) != NULL);
     fprintf(stderr, "  (message: %s)\n", err);
     CHECK(!memcmp(x0, b.c->x[1], n * sizeof(float)));
     CHECK_EQ(b.s.step_count, steps);

@@ -18,7 +18,7 @@ if [ ! -f "$build/lib/librbcloth_cuda.so" ]; then
 fi
 (cd "$build" && RBC_REQUIRE_CUDA=1 ctest -R '^cuda_' -V) > "$out/ctest_cuda.txt" 2>&1
 echo "ctest cuda_*: exit $?" | tee "$out/summary.txt"
-grep -E "cuda_parity|cuda_abi|CUDA against|CUDA device" "$out/ctest_cuda.txt" | tee -a "$out/summary.txt"
+grep -E "cuda_parity|cuda_colliders_parity|cuda_abi|CUDA against|CUDA device|with a sphere" "$out/ctest_cuda.txt" | tee -a "$out/summary.txt"
 "$build/bin/rbcloth" bench perf --backend cuda --out "$out/perf_cuda" > "$out/perf_cuda.txt" 2>&1
 echo "bench perf --backend cuda: exit $?" | tee -a "$out/summary.txt"
 tail -40 "$out/perf_cuda.txt"
