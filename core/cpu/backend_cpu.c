@@ -131,6 +131,7 @@ static int32_t cpu_launch(void *be, rbc_kernel k, const rbc_kargs *a) {
             c->sums[2] += rbc_energy_pin_work_list(c->pin_springs, c->pin_spring_count, c->sa,
                                                    c->sb, c->rest, c->stiff, c->pinned, a->prev,
                                                    a->pos);
+        break;
     case RBC_KERNEL_COLLIDE_FRAMES:
         for (uint32_t ci = b; ci < e; ++ci) rbc_kc_frames(ci, c->cols, a->f0, a->f);
         break;

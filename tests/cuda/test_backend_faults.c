@@ -9,8 +9,8 @@
  *     never failed gives (the backend's copy is uploaded again each step).
  * The calls are those of a first step (the cloth's copy is allocated and uploaded)
  * and of a later one, in the fixed mode (a recorded step, as a CUDA graph), the
- * tolerance mode (readbacks between iterations) and with the energy guard, on two
- * cloths. Run: test_backend_faults STANDIN_MODULE. */
+ * tolerance mode (readbacks between iterations), with the energy guard and with a
+ * sphere collider the cloths lie on, on two cloths. Run: test_backend_faults STANDIN_MODULE. */
 #include <dlfcn.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -22,6 +22,8 @@
 #include "solver.h"
 
 static rbc_backend_open_fn *open_fn;
+/* A sphere under the cloth (its contacts' kernels and uploads in the step). */
+static int with_sphere;
 static void (*fail_at)(long);
 static long (*calls)(void);
 
@@ -50,6 +52,21 @@ static void make(world *w, const test_mesh *m, rbc_solver_kind kind, rbc_iterati
     st.max_linear_iterations = 20;
     st.energy_guard = guard;
     CHECK_EQ(rbc_solver_set_settings(&w->s, &st), RBC_OK);
+    if (with_sphere) {
+        rbc_collider_state col;
+        memset(&col, 0, sizeof col);
+        col.shape = RBC_SHAPE_SPHERE;
+        col.radius = 0.1f;
+        col.position[0] = 0.2f;
+        col.position[1] = -0.12f;
+        col.position[2] = 0.15f;
+        col.rotation[3] = 1.0f;
+        col.friction = 0.4f;
+        memcpy(col.last_position, col.position, sizeof col.position);
+        memcpy(col.last_rotation, col.rotation, sizeof col.rotation);
+        rbc_collider_update_frame(&col);
+        CHECK_EQ(rbc_solver_add_collider(&w->s, &col), RBC_OK);
+    }
     if (on_backend) {
         rbc_backend_handle bk;
         char why[256];
@@ -171,6 +188,8 @@ static void faults(const char *name, const test_mesh *m, rbc_solver_kind kind,
         CHECK_EQ(rbc_solver_step(&ref.s, dt, err, sizeof err), RBC_OK);
         CHECK_EQ(rbc_solver_step(&dev.s, dt, err, sizeof err), RBC_OK);
         CHECK(same_worlds(&ref, &dev));
+        CHECK_EQ(dev.s.last_contacts, ref.s.last_contacts);
+        if (with_sphere) CHECK(dev.s.last_contacts > 0); /* the cloths lie on it */
     }
     for (int k = 0; k < 2; ++k) ref.c[k]->lattice = lat[k];
     rbc_solver_fini(&ref.s);
@@ -199,6 +218,10 @@ int main(int argc, char **argv) {
            RBC_ENERGY_GUARD_OFF, 0);
     faults("later step, fixed, rbgs, energy guard", &grid, RBC_SOLVER_RBGS, RBC_ITERATE_FIXED,
            RBC_ENERGY_GUARD_CLAMP, 2);
+    with_sphere = 1;
+    faults("later step, fixed, rbgs, a sphere", &grid, RBC_SOLVER_RBGS, RBC_ITERATE_FIXED,
+           RBC_ENERGY_GUARD_OFF, 8);
+    with_sphere = 0;
     faults("later step, tolerance, jacobi", &torus, RBC_SOLVER_JACOBI, RBC_ITERATE_TOLERANCE,
            RBC_ENERGY_GUARD_OFF, 2);
     mesh_free(&grid);
