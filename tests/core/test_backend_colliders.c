@@ -19,7 +19,9 @@
  *     through the collider (it rests on it: every particle outside the solid up to
  *     1 cm; free fall would put it 1 m below), and friction changed the result.
  *     Two cloths over two colliders, the pool on two threads: both cloths bit for
- *     bit, the contact count both cloths' sum.
+ *     bit, the contact count both cloths' sum. The tolerance and target modes on
+ *     two shapes each, rbgs and jacobi (their checks read the iterate after the
+ *     contacts' projection, on both).
  *  2. Four spheres in one place: every particle under them has four contacts, the
  *     backend's slots exactly, and the result is still the pool's bit for bit. A
  *     fifth fails the backend's step with RBC_ERR_UNSUPPORTED naming the slots, the
@@ -53,6 +55,9 @@ static const float spacing = 0.04f;
 
 /* The pool's threads (threads_auto stays 0 after init: the step uses them all). */
 static uint32_t pool_threads = 1;
+/* The iteration mode of the worlds (the modes' checks read the iterate after the
+ * contacts' projection, as the pool's do). */
+static rbc_iteration_mode mode = RBC_ITERATE_FIXED;
 
 static void make(world *w, const test_mesh *m, rbc_solver_kind kind, int on_backend,
                  float cloth_thick, float cloth_mu) {
@@ -70,6 +75,11 @@ static void make(world *w, const test_mesh *m, rbc_solver_kind kind, int on_back
     rbc_solver_settings st = w->s.settings;
     st.kind = kind;
     st.energy_guard = RBC_ENERGY_GUARD_OFF;
+    st.mode = mode;
+    st.tolerance = 1e-3f;
+    st.target_strain = 0.01f;
+    st.max_substeps = 6;
+    st.max_linear_iterations = 20;
     CHECK_EQ(rbc_solver_set_settings(&w->s, &st), RBC_OK);
     w->lattice = NULL;
     if (on_backend) {
@@ -401,6 +411,15 @@ int main(int argc, char **argv) {
     parity(&m, &shapes[3], 1, 0.2f, 0.004f, 0.5f, RBC_SOLVER_RBGS, "rbgs", NULL);
     parity(&m, &shapes[3], 1, 0.2f, 0.004f, 0.5f, RBC_SOLVER_JACOBI, "jacobi", NULL);
     /* The other solvers a backend runs, each on one shape, moving, with friction. */
+    /* The tolerance and target modes with contacts (same_state: the same positions;
+     * the contact counts too). */
+    mode = RBC_ITERATE_TOLERANCE;
+    parity(&m, &shapes[1], 1, 0.6f, 0.0f, 0.0f, RBC_SOLVER_RBGS, "rbgs, tolerance", NULL);
+    parity(&m, &shapes[3], 1, 0.6f, 0.0f, 0.0f, RBC_SOLVER_JACOBI, "jacobi, tolerance", NULL);
+    mode = RBC_ITERATE_TARGET;
+    parity(&m, &shapes[0], 1, 0.6f, 0.0f, 0.0f, RBC_SOLVER_RBGS, "rbgs, target", NULL);
+    parity(&m, &shapes[2], 1, 0.6f, 0.0f, 0.0f, RBC_SOLVER_JACOBI, "jacobi, target", NULL);
+    mode = RBC_ITERATE_FIXED;
     parity(&m, &shapes[0], 1, 0.6f, 0.0f, 0.0f, RBC_SOLVER_RBGS_SOR, "rbgs-sor", NULL);
     parity(&m, &shapes[1], 1, 0.6f, 0.0f, 0.0f, RBC_SOLVER_MULTICOLOR_GS, "multicolor", NULL);
     parity(&m, &shapes[2], 1, 0.6f, 0.0f, 0.0f, RBC_SOLVER_RBGS_CHEBYSHEV, "rbgs-chebyshev", NULL);
