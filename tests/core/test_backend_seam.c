@@ -28,7 +28,8 @@
  *  3. A non-finite position fails the step with RBC_ERR_UNSTABLE naming the vertex,
  *     and the state is as it was before the step.
  *  4. A scene feature the backends do not run (a triangle mesh collider, the direct
- *     solver) is refused with RBC_ERR_UNSUPPORTED naming it, and nothing changes.
+ *     solver, the energy guard with a sphere) is refused with RBC_ERR_UNSUPPORTED
+ *     naming it, and nothing changes.
  *     (The analytic colliders run: test_backend_colliders.c.)
  */
 #include <dlfcn.h>
@@ -295,6 +296,28 @@ static void refused(void) {
     fprintf(stderr, "  (message: %s)\n", err);
     CHECK(!memcmp(x0, b.c->x[1], n * sizeof(float)));
     CHECK_EQ(b.s.step_count, steps);
+    rbc_solver_remove_collider(&b.s, 0);
+
+    /* The energy guard with a collider that runs (a sphere): the colliders' work is
+     * not summed on a backend, so the pair is refused. */
+    memset(&col, 0, sizeof col);
+    col.shape = RBC_SHAPE_SPHERE;
+    col.radius = 0.1f;
+    col.position[1] = -0.5f;
+    col.rotation[3] = 1.0f;
+    memcpy(col.last_position, col.position, sizeof col.position);
+    memcpy(col.last_rotation, col.rotation, sizeof col.rotation);
+    rbc_collider_update_frame(&col);
+    CHECK_EQ(rbc_solver_add_collider(&b.s, &col), RBC_OK);
+    st.energy_guard = RBC_ENERGY_GUARD_CLAMP;
+    CHECK_EQ(rbc_solver_set_settings(&b.s, &st), RBC_OK);
+    CHECK_EQ(rbc_solver_step(&b.s, 1.0f / 60.0f, err, sizeof err), RBC_ERR_UNSUPPORTED);
+    CHECK(strstr(err, "energy guard with colliders") != NULL);
+    CHECK(!memcmp(x0, b.c->x[1], n * sizeof(float)));
+    CHECK_EQ(b.s.step_count, steps);
+    st.energy_guard = RBC_ENERGY_GUARD_OFF; /* the sphere alone runs */
+    CHECK_EQ(rbc_solver_set_settings(&b.s, &st), RBC_OK);
+    CHECK_EQ(rbc_solver_step(&b.s, 1.0f / 60.0f, err, sizeof err), RBC_OK);
     rbc_solver_remove_collider(&b.s, 0);
     CHECK_EQ(rbc_solver_step(&b.s, 1.0f / 60.0f, err, sizeof err), RBC_OK);
     free(x0);
