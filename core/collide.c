@@ -16,9 +16,6 @@ void rbc_collider_frame_at(const rbc_collider_state *c, float f, rbc_frame *out)
     rbc_kc_frame_at(c->last_position, c->last_rotation, c->position, c->rotation, f, out);
 }
 
-#define to_local rbc_kc_to_local
-#define to_world rbc_kc_to_world
-#define to_world_dir rbc_kc_to_world_dir
 
 /* The contact of a particle moving from a to b (collider frame at the substep's
  * start and end) with the shape: 1 and the surface point sl with outward normal nl
@@ -129,8 +126,8 @@ void rbc_collide_detect(rbc_solver *s, rbc_contact_list *list, float f0, float f
                     float xw[3] = {X0[i], X1[i], X2[i]};
                     float yw[3] = {P0[i], P1[i], P2[i]};
                     float a[3], b[3];
-                    to_local(A, xw, a);
-                    to_local(B, yw, b);
+                    rbc_kc_to_local(A, xw, a);
+                    rbc_kc_to_local(B, yw, b);
                     /* The motion entered the shape: the tangent plane at the entry point,
                      * wherever y ended up (through a thin shape, or deep in); else the
                      * closest point of y, if within reach. */
@@ -290,17 +287,17 @@ static int mesh_post_one(const rbc_collider_state *col, const rbc_frame *A, cons
                          float thick, const float xw[3], const float pw[3], float *v, float nw[3],
                          float sw[3], float sa[3]) {
     float a[3], b[3];
-    to_local(A, xw, a);
-    to_local(B, pw, b);
+    rbc_kc_to_local(A, xw, a);
+    rbc_kc_to_local(B, pw, b);
     for (int ax = 0; ax < 3; ++ax) {
         float lo = a[ax] < b[ax] ? a[ax] : b[ax], hi = a[ax] < b[ax] ? b[ax] : a[ax];
         if (hi < col->lo[ax] - thick || lo > col->hi[ax] + thick) return 0;
     }
     float nl[3], sl[3];
     if (!shape_contact(col, a, b, thick, sl, nl)) return 0;
-    to_world_dir(B, nl, nw);
-    to_world(B, sl, sw);
-    to_world(A, sl, sa);
+    rbc_kc_to_world_dir(B, nl, nw);
+    rbc_kc_to_world(B, sl, sw);
+    rbc_kc_to_world(A, sl, sa);
     float d = nw[0] * sw[0] + nw[1] * sw[1] + nw[2] * sw[2] + thick;
     *v = d - (nw[0] * pw[0] + nw[1] * pw[1] + nw[2] * pw[2]);
     return *v > 0.0f;

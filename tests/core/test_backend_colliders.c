@@ -28,12 +28,12 @@
  *     state as it was; the pool runs it.
  *  3. A triangle mesh collider is refused by name, nothing changes.
  */
-#include <dlfcn.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "backend_module.h"
 #include "check.h"
 #include "collide.h"
 #include "meshes.h"
@@ -370,33 +370,8 @@ static void mesh_refused(const test_mesh *m) {
 
 int main(int argc, char **argv) {
     if (argc > 1) {
-        void *h = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
-        if (!h) {
-            fprintf(stderr, "FAIL: the CUDA module %s does not load: %s\n", argv[1], dlerror());
-            return 1;
-        }
-        cuda_open = (rbc_backend_open_fn *)dlsym(h, RBC_BACKEND_OPEN_SYMBOL);
-        if (!cuda_open) {
-            fprintf(stderr, "FAIL: %s has no %s\n", argv[1], RBC_BACKEND_OPEN_SYMBOL);
-            return 1;
-        }
-        rbc_backend_handle probe;
-        char why[512];
-        int32_t rc = cuda_open(RBC_BACKEND_INTERFACE, &probe, why, sizeof why);
-        if (rc == RBC_ERR_BACKEND_UNAVAILABLE) {
-            /* RBC_REQUIRE_CUDA=1: a GPU host must not skip (test_backend_seam.c). */
-            const char *req = getenv("RBC_REQUIRE_CUDA");
-            if (req && !strcmp(req, "1")) {
-                fprintf(stderr, "FAIL: RBC_REQUIRE_CUDA=1 and the CUDA backend is "
-                                "unavailable: %s\n", why);
-                return 1;
-            }
-            printf("SKIP: the CUDA backend is unavailable here (%s); parity not run\n", why);
-            return 77;
-        }
-        CHECK_EQ(rc, RBC_OK);
-        if (rc != RBC_OK) return check_report("cuda_colliders_parity");
-        probe.ops->close(probe.be);
+        const int status = backend_module_open(argv[1], &cuda_open);
+        if (status >= 0) return status;
         backend_name = "cuda";
     }
     test_mesh m = mesh_grid(NX, NX, spacing);

@@ -32,12 +32,12 @@
  *     naming it, and nothing changes.
  *     (The analytic colliders run: test_backend_colliders.c.)
  */
-#include <dlfcn.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "backend_module.h"
 #include "check.h"
 #include "meshes.h"
 #include "rbcloth.h"
@@ -353,36 +353,8 @@ static void guard_fail(rbc_solver_settings *st) { st->energy_guard = RBC_ENERGY_
 
 int main(int argc, char **argv) {
     if (argc > 1) {
-        void *h = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
-        if (!h) {
-            fprintf(stderr, "FAIL: the CUDA module %s does not load: %s\n", argv[1], dlerror());
-            return 1;
-        }
-        cuda_open = (rbc_backend_open_fn *)dlsym(h, RBC_BACKEND_OPEN_SYMBOL);
-        if (!cuda_open) {
-            fprintf(stderr, "FAIL: %s has no %s\n", argv[1], RBC_BACKEND_OPEN_SYMBOL);
-            return 1;
-        }
-        rbc_backend_handle probe;
-        char why[512];
-        int32_t rc = cuda_open(RBC_BACKEND_INTERFACE, &probe, why, sizeof why);
-        if (rc == RBC_ERR_BACKEND_UNAVAILABLE) {
-            /* On a machine that has a GPU, a skip would hide a driver too old for the
-             * module's runtime: RBC_REQUIRE_CUDA=1 (tests/cuda/device_check.sh) makes
-             * it a failure. */
-            const char *req = getenv("RBC_REQUIRE_CUDA");
-            if (req && !strcmp(req, "1")) {
-                fprintf(stderr, "FAIL: RBC_REQUIRE_CUDA=1 and the CUDA backend is "
-                                "unavailable: %s\n", why);
-                return 1;
-            }
-            printf("SKIP: the CUDA backend is unavailable here (%s); parity not run\n", why);
-            return 77;
-        }
-        CHECK_EQ(rc, RBC_OK);
-        if (rc != RBC_OK) return check_report("cuda_parity");
-        fprintf(stderr, "  CUDA device: %s\n", probe.ops->describe(probe.be));
-        probe.ops->close(probe.be);
+        const int status = backend_module_open(argv[1], &cuda_open);
+        if (status >= 0) return status;
         backend_name = "cuda";
     }
     static const struct {

@@ -16,6 +16,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "backend_module.h"
 #include "check.h"
 #include "meshes.h"
 #include "rbcloth.h"
@@ -201,15 +202,12 @@ int main(int argc, char **argv) {
         fprintf(stderr, "usage: test_backend_faults STANDIN_MODULE\n");
         return 2;
     }
-    void *h = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL);
-    if (!h) {
-        fprintf(stderr, "FAIL: %s does not load: %s\n", argv[1], dlerror());
-        return 1;
-    }
-    open_fn = (rbc_backend_open_fn *)dlsym(h, RBC_BACKEND_OPEN_SYMBOL);
-    fail_at = (void (*)(long))dlsym(h, "rbc_standin_fail_at");
-    calls = (long (*)(void))dlsym(h, "rbc_standin_calls");
-    if (!open_fn || !fail_at || !calls) {
+    const int status = backend_module_open(argv[1], &open_fn);
+    if (status >= 0) return status;
+    void *h = dlopen(argv[1], RTLD_NOW | RTLD_LOCAL); /* loaded already: its handle */
+    fail_at = h ? (void (*)(long))dlsym(h, "rbc_standin_fail_at") : NULL;
+    calls = h ? (long (*)(void))dlsym(h, "rbc_standin_calls") : NULL;
+    if (!fail_at || !calls) {
         fprintf(stderr, "FAIL: %s is not the stand-in module\n", argv[1]);
         return 1;
     }
