@@ -71,6 +71,15 @@ typedef struct cc_patches {
     uint32_t n;
 } cc_patches;
 
+/* The contact pass on several threads (group_contacts): at most this many slabs
+ * of the scene, each at least CC_SLAB_MIN contacts, and the histogram that cuts
+ * them. */
+#define CC_SLABS 16u
+#define CC_SLAB_MIN 2048u
+#define CC_SLAB_BINS 1024u
+/* Groups: one per slab, one per pair of neighbouring slabs, and the rest. */
+#define CC_GROUPS (2u * CC_SLABS)
+
 struct rbc_clothcontact {
     rbc_allocator alloc;
     uint32_t body_count;        /* of the last detect */
@@ -86,8 +95,16 @@ struct rbc_clothcontact {
     cc_hash th, vh;             /* triangle patches (tp) by their swept boxes; vertices */
     cc_hash fh;                 /* patches (fp) by their boxes at p: the fail-safe's round 0 */
     cc_patches tp, fp;
-    cc_buf contacts;            /* rbc_contact */
+    cc_buf contacts;            /* rbc_contact, ordered by color (color_contacts) */
     uint32_t count;
+    /* The list's groups (group_contacts): groups of one phase share no particle, so
+     * threads project them at once with the serial pass's result. */
+    cc_buf cslab;               /* uint8 [vertices]: a particle's slab */
+    cc_buf cscratch;            /* rbc_contact [count]: the list before its sort by group */
+    cc_buf cgroup;              /* uint8 [count]: each contact's group, in detection order */
+    uint32_t gstart[CC_GROUPS + 1]; /* first contact of group g; [CC_GROUPS]: count */
+    uint32_t phase[4];          /* first group of phases 1-3 and of the rest (phase[3]
+                                   .. CC_GROUPS - 1 is one group: thread 0's) */
     /* Border edges (in one triangle only) of every body, kept while the bodies'
      * triangles stay the same (checked by pointer, count and vertex count). */
     cc_buf ebase;               /* uint32 [count + 1]: first border edge of a body */
@@ -198,7 +215,7 @@ void rbc_clothcontact_destroy(rbc_clothcontact *cc) {
                       &cc->abase, &cc->aedge, &cc->frozen, &cc->pbox, &cc->zparent,
                       &cc->zp0, &cc->zlist, &cc->zsum, &cc->zflag, &cc->tp.start,
                       &cc->tp.body, &cc->tp.box, &cc->fp.start, &cc->fp.body, &cc->fp.box,
-                      &cc->eborder, &cc->tedge};
+                      &cc->eborder, &cc->tedge, &cc->cslab, &cc->cscratch, &cc->cgroup};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) buf_free(&a, bufs[k]);
     cc_part *parts = cc->parts.ptr;
     for (uint32_t t = 0; t < cc->part_cap; ++t) {
@@ -232,7 +249,8 @@ size_t rbc_clothcontact_bytes(const rbc_clothcontact *cc) {
                             &cc->parts, &cc->pbox, &cc->fh.start, &cc->fh.id, &cc->fh.big,
                             &cc->zparent, &cc->zp0, &cc->zlist, &cc->zsum, &cc->zflag,
                             &cc->tp.start, &cc->tp.body, &cc->tp.box, &cc->fp.start,
-                            &cc->fp.body, &cc->fp.box, &cc->eborder, &cc->tedge};
+                            &cc->fp.body, &cc->fp.box, &cc->eborder, &cc->tedge,
+                            &cc->cslab, &cc->cscratch, &cc->cgroup};
     size_t b = sizeof *cc;
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) b += bufs[k]->bytes;
     const cc_part *parts = cc->parts.ptr;
@@ -1595,6 +1613,128 @@ oom:
     return RBC_ERR_OUT_OF_MEMORY;
 }
 
+
+/* What a vertex's run of contacts needs and keeps (after its queries). */
+static void vertex_done(cc_detect *d, uint32_t first, uint64_t raw_first) {
+    cc_part *part = d->part;
+    if (!d->oom && !part->full) *d->n = sort_partners(d->out->ptr, first, *d->n);
+    if (!d->oom && !part->full && !keep_nearest(d, first)) d->oom = 1;
+    const uint64_t run = *d->raw - raw_first;
+    *(d->raw == &part->raw_vt ? &part->need_vt : &part->need_vv) +=
+        run < RBC_CC_MAX_PER_VERTEX ? run : RBC_CC_MAX_PER_VERTEX;
+    if (run > part->near_need) part->near_need = (uint32_t)(run < UINT32_MAX ? run : UINT32_MAX);
+}
+
+/* Vertex v against the triangle patches near its swept box (pair_ok: which of the
+ * first 64 bodies its body collides with; later bodies are judged in try_vt). */
+static void vt_vertex(cc_detect *d, uint32_t v, const uint8_t *pair_ok) {
+    const rbc_clothcontact *cc = d->cc;
+    const uint32_t first = *d->n;
+    const uint64_t raw_first = *d->raw;
+    const float *lo = d->vbox + 6 * (size_t)v, *hi = lo + 3;
+    const uint32_t *ps = cc->tp.start.ptr, *pbd = cc->tp.body.ptr;
+    const float *pab = cc->tp.box.ptr, *tbox = d->tbox;
+    const uint8_t *active = cc->active.ptr;
+    cc_vq q;
+    vq_load(d, v, &q);
+    const float vgrow = q.g, inv = cc->inv_cell;
+    cc_range r;
+    box_range(lo, hi, inv, &r);
+    const uint64_t cells = range_cells(&r);
+    /* A box in one cell meets every object there once (per bucket copy). */
+    const int one_cell = cells == 1;
+    if (cells > CC_BIG_CELLS) {
+        const uint32_t nt = ((const uint32_t *)cc->tbase.ptr)[cc->body_count];
+        const uint32_t *tbody = d->tbody;
+        for (uint32_t t = 0; t < nt; ++t)
+            if (active[tbody[t]] && boxes_overlap(lo, tbox + 6 * (size_t)t, vgrow)) try_vt(d, &q, t);
+    } else {
+        const cc_hash *h = &cc->th;
+        const uint32_t *start = h->start.ptr, *id = h->id.ptr;
+        int32_t c[3];
+        for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
+            for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
+                for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
+                    const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
+                    for (uint32_t e = start[bk]; e < start[bk + 1]; ++e) {
+                        const uint32_t k = id[e];
+                        /* Bodies that do not collide (a cloth's own triangles without
+                         * self contact: most of a cell) first. */
+                        if (pbd[k] < 64 && !pair_ok[pbd[k]]) continue;
+                        /* The exact box test first: it rejects most, and is cheaper
+                         * than the lower-corner test. */
+                        if (!boxes_overlap(lo, pab + 6 * (size_t)k, vgrow)) continue;
+                        if (!one_cell) {
+                            float olo[3], ohi[3];
+                            grown_box(pab, k, cc->tri_grow, olo, ohi);
+                            if (!lower_corner_is(lo, olo, inv, c)) continue;
+                        }
+                        for (uint32_t t = ps[k]; t < ps[k + 1]; ++t)
+                            if (boxes_overlap(lo, tbox + 6 * (size_t)t, vgrow)) try_vt(d, &q, t);
+                    }
+                }
+        const uint32_t *big = h->big.ptr;
+        for (uint32_t m = 0; m < h->big_count; ++m) {
+            const uint32_t k = big[m];
+            if (!boxes_overlap(lo, pab + 6 * (size_t)k, vgrow)) continue;
+            for (uint32_t t = ps[k]; t < ps[k + 1]; ++t)
+                if (boxes_overlap(lo, tbox + 6 * (size_t)t, vgrow)) try_vt(d, &q, t);
+        }
+    }
+    vertex_done(d, first, raw_first);
+}
+
+/* Vertex v against the vertices after it whose grown boxes meet its own. */
+static void vv_vertex(cc_detect *d, uint32_t v) {
+    const rbc_clothcontact *cc = d->cc;
+    const uint32_t first = *d->n;
+    const uint64_t raw_first = *d->raw;
+    const float *vbox = d->vbox, *bgrow = d->bgrow;
+    const uint32_t *vbody = d->vbody;
+    const uint8_t *active = cc->active.ptr;
+    const float vg = bgrow[vbody[v]], inv = cc->inv_cell;
+    const float *vb = vbox + 6 * (size_t)v;
+    float lo[3], hi[3];
+    grown_box(vbox, v, vg, lo, hi);
+    cc_range r;
+    box_range(lo, hi, inv, &r);
+    const uint64_t cells = range_cells(&r);
+    const int one_cell = cells == 1;
+    const uint32_t nvall = ((const uint32_t *)cc->vbase.ptr)[cc->body_count];
+    if (cells > CC_BIG_CELLS) {
+        for (uint32_t u = v + 1; u < nvall; ++u)
+            if (active[vbody[u]] && boxes_overlap(vb, vbox + 6 * (size_t)u, vg + bgrow[vbody[u]]))
+                try_vv(d, v, u);
+    } else {
+        const cc_hash *h = &cc->vh;
+        const uint32_t *start = h->start.ptr, *id = h->id.ptr;
+        int32_t c[3];
+        for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
+            for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
+                for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
+                    const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
+                    /* A bucket's entries ascend: those after v are at its end. */
+                    for (uint32_t e = start[bk + 1]; e > start[bk];) {
+                        const uint32_t u = id[--e];
+                        if (u <= v) break;
+                        const float ug = bgrow[vbody[u]];
+                        if (!boxes_overlap(vb, vbox + 6 * (size_t)u, vg + ug)) continue;
+                        if (!one_cell) {
+                            float olo[3], ohi[3];
+                            grown_box(vbox, u, ug, olo, ohi);
+                            if (!lower_corner_is(lo, olo, inv, c)) continue;
+                        }
+                        try_vv(d, v, u);
+                    }
+                }
+        const uint32_t *big = h->big.ptr;
+        for (uint32_t m = 0; m < h->big_count; ++m)
+            if (big[m] > v && boxes_overlap(vb, vbox + 6 * (size_t)big[m], vg + bgrow[vbody[big[m]]]))
+                try_vv(d, v, big[m]);
+    }
+    vertex_done(d, first, raw_first);
+}
+
 /* Every thread's stage: the vertex-triangle and vertex-vertex contacts of vertices
  * [n tid / nth, n (tid + 1) / nth), each vertex's sorted on its own, into the
  * thread's lists (in vertex order, so their concatenation in thread order is the
@@ -1607,7 +1747,7 @@ static void detect_range(rbc_clothcontact *cc, uint32_t tid, uint32_t nth) {
     const float *vbox = cc->vbox.ptr, *tbox = cc->tbox.ptr, *trec = cc->trec.ptr;
     const float *bgrow = cc->bgrow.ptr;
     const uint8_t *active = cc->active.ptr;
-    const uint32_t nvall = vbase[count], nt = tbase[count];
+    const uint32_t nvall = vbase[count];
     const uint32_t v_begin = (uint32_t)((uint64_t)nvall * tid / nth),
                    v_end = (uint32_t)((uint64_t)nvall * (tid + 1) / nth);
     cc_part *part = (cc_part *)cc->parts.ptr + tid;
@@ -1618,132 +1758,27 @@ static void detect_range(rbc_clothcontact *cc, uint32_t tid, uint32_t nth) {
     cc_detect d = {cc, bodies, vbase, tbase, vbody, tbody, vbox, tbox, trec, bgrow,
                    cc->dmargin, 0, cc->dcap, 0, &part->vt, &part->nvt, &part->nearest,
                    &part->capped, part, &part->raw_vt, {0}};
-    const float inv = cc->inv_cell;
 
     /* Vertex-triangle: each vertex looks up the triangles around its swept box. */
+    uint32_t pair_body = UINT32_MAX;
+    uint8_t pair_ok[64];
     for (uint32_t v = v_begin; v < v_end && !d.oom; ++v) {
-        if (!active[vbody[v]]) continue;
-        const uint32_t first = *d.n;
-        const uint64_t raw_first = *d.raw;
-        const float *lo = vbox + 6 * (size_t)v, *hi = lo + 3;
-        cc_vq q;
-        vq_load(&d, v, &q);
-        /* Which of the first 64 bodies this vertex's body collides with (later bodies
-         * are judged in try_vt). */
-        uint8_t pair_ok[64];
-        for (uint32_t b = 0; b < 64; ++b)
-            pair_ok[b] = b >= count || (active[b] &&
-                                        bodies_pair(&bodies[vbody[v]], &bodies[b], b == vbody[v]));
-        const float vgrow = q.g;
-        cc_range r;
-        box_range(lo, hi, inv, &r);
-        const uint64_t cells = range_cells(&r);
-        /* A box in one cell meets every object there once (per bucket copy). */
-        const int one_cell = cells == 1;
-        if (cells > CC_BIG_CELLS) {
-            for (uint32_t t = 0; t < nt; ++t)
-                if (active[tbody[t]] && boxes_overlap(lo, tbox + 6 * (size_t)t, vgrow))
-                    try_vt(&d, &q, t);
-        } else {
-            const cc_hash *h = &cc->th;
-            const uint32_t *start = h->start.ptr, *id = h->id.ptr;
-            const uint32_t *ps = cc->tp.start.ptr, *pbd = cc->tp.body.ptr;
-            const float *pab = cc->tp.box.ptr;
-            int32_t c[3];
-            for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
-                for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
-                    for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
-                        const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
-                        for (uint32_t e = start[bk]; e < start[bk + 1]; ++e) {
-                            const uint32_t k = id[e];
-                            /* Bodies that do not collide (a cloth's own triangles
-                             * without self contact: most of a cell) first. */
-                            if (pbd[k] < 64 && !pair_ok[pbd[k]]) continue;
-                            /* The exact box test first: it rejects most, and is
-                             * cheaper than the lower-corner test. */
-                            if (!boxes_overlap(lo, pab + 6 * (size_t)k, vgrow)) continue;
-                            if (!one_cell) {
-                                float olo[3], ohi[3];
-                                grown_box(pab, k, cc->tri_grow, olo, ohi);
-                                if (!lower_corner_is(lo, olo, inv, c)) continue;
-                            }
-                            for (uint32_t t = ps[k]; t < ps[k + 1]; ++t)
-                                if (boxes_overlap(lo, tbox + 6 * (size_t)t, vgrow)) try_vt(&d, &q, t);
-                        }
-                    }
-            const uint32_t *big = h->big.ptr;
-            for (uint32_t m = 0; m < h->big_count; ++m) {
-                const uint32_t k = big[m];
-                if (!boxes_overlap(lo, pab + 6 * (size_t)k, vgrow)) continue;
-                for (uint32_t t = ps[k]; t < ps[k + 1]; ++t)
-                    if (boxes_overlap(lo, tbox + 6 * (size_t)t, vgrow)) try_vt(&d, &q, t);
-            }
+        const uint32_t bv = vbody[v];
+        if (!active[bv]) continue;
+        if (bv != pair_body) {
+            for (uint32_t b = 0; b < 64; ++b)
+                pair_ok[b] = b >= count ||
+                             (active[b] && bodies_pair(&bodies[bv], &bodies[b], b == bv));
+            pair_body = bv;
         }
-        if (!d.oom && !part->full) *d.n = sort_partners(d.out->ptr, first, *d.n);
-        if (!d.oom && !part->full && !keep_nearest(&d, first)) d.oom = 1;
-        {
-            const uint64_t run = *d.raw - raw_first;
-            *(d.raw == &part->raw_vt ? &part->need_vt : &part->need_vv) +=
-                run < RBC_CC_MAX_PER_VERTEX ? run : RBC_CC_MAX_PER_VERTEX;
-            if (run > part->near_need) part->near_need = (uint32_t)(run < UINT32_MAX ? run : UINT32_MAX);
-        }
+        vt_vertex(&d, v, pair_ok);
     }
-
     /* Vertex-vertex: each vertex looks up the vertices after it. */
     d.out = &part->vv;
     d.n = &part->nvv;
     d.raw = &part->raw_vv;
-    for (uint32_t v = v_begin; v < v_end && !d.oom; ++v) {
-        if (!active[vbody[v]]) continue;
-        const uint32_t first = *d.n;
-        const uint64_t raw_first = *d.raw;
-        float lo[3], hi[3];
-        const float vg = bgrow[vbody[v]];
-        const float *vb = vbox + 6 * (size_t)v;
-        grown_box(vbox, v, vg, lo, hi);
-        cc_range r;
-        box_range(lo, hi, inv, &r);
-        const uint64_t cells = range_cells(&r);
-        const int one_cell = cells == 1;
-        if (cells > CC_BIG_CELLS) {
-            for (uint32_t u = v + 1; u < nvall; ++u)
-                if (active[vbody[u]] && boxes_overlap(vb, vbox + 6 * (size_t)u, vg + bgrow[vbody[u]]))
-                    try_vv(&d, v, u);
-        } else {
-            const cc_hash *h = &cc->vh;
-            const uint32_t *start = h->start.ptr, *id = h->id.ptr;
-            int32_t c[3];
-            for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
-                for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
-                    for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {
-                        const uint32_t bk = cell_bucket(cell_key(c[0], c[1], c[2]), h->nb - 1);
-                        for (uint32_t e = start[bk]; e < start[bk + 1]; ++e) {
-                            const uint32_t u = id[e];
-                            if (u <= v) continue;
-                            const float ug = bgrow[vbody[u]];
-                            if (!boxes_overlap(vb, vbox + 6 * (size_t)u, vg + ug)) continue;
-                            if (!one_cell) {
-                                float olo[3], ohi[3];
-                                grown_box(vbox, u, ug, olo, ohi);
-                                if (!lower_corner_is(lo, olo, inv, c)) continue;
-                            }
-                            try_vv(&d, v, u);
-                        }
-                    }
-            const uint32_t *big = h->big.ptr;
-            for (uint32_t m = 0; m < h->big_count; ++m)
-                if (big[m] > v && boxes_overlap(vb, vbox + 6 * (size_t)big[m], vg + bgrow[vbody[big[m]]]))
-                    try_vv(&d, v, big[m]);
-        }
-        if (!d.oom && !part->full) *d.n = sort_partners(d.out->ptr, first, *d.n);
-        if (!d.oom && !part->full && !keep_nearest(&d, first)) d.oom = 1;
-        {
-            const uint64_t run = *d.raw - raw_first;
-            *(d.raw == &part->raw_vt ? &part->need_vt : &part->need_vv) +=
-                run < RBC_CC_MAX_PER_VERTEX ? run : RBC_CC_MAX_PER_VERTEX;
-            if (run > part->near_need) part->near_need = (uint32_t)(run < UINT32_MAX ? run : UINT32_MAX);
-        }
-    }
+    for (uint32_t v = v_begin; v < v_end && !d.oom; ++v)
+        if (active[vbody[v]]) vv_vertex(&d, v);
     /* Edge-edge within self-colliding bodies. */
     if (cc->any_self) {
         d.out = &part->ee;
@@ -1757,8 +1792,133 @@ static void detect_range(rbc_clothcontact *cc, uint32_t tid, uint32_t nth) {
 
 /* Thread 0's last stage: the threads' lists joined in order (vertex-triangle, then
  * vertex-vertex), then the edge contacts. */
+/* The particles contact c moves (global indices): the vertex and the triangle's
+ * corners, the two vertices, or the two edges' ends. */
+static uint32_t contact_particles(const rbc_contact *c, const rbc_contact_body *bodies,
+                                  const uint32_t *vbase, uint32_t g[4]) {
+    const uint32_t ga = vbase[c->body_a], gb = vbase[c->body_b];
+    g[0] = ga + c->a;
+    if (c->kind == RBC_CONTACT_VT) {
+        const uint32_t *tri = bodies[c->body_b].tris + 3 * (size_t)c->b;
+        g[1] = gb + tri[0], g[2] = gb + tri[1], g[3] = gb + tri[2];
+        return 4;
+    }
+    if (c->kind == RBC_CONTACT_EE) {
+        g[1] = ga + c->a2, g[2] = gb + c->b, g[3] = gb + c->b2;
+        return 4;
+    }
+    g[1] = gb + c->b;
+    return 2;
+}
+
+/* No groups: the whole list is the rest (thread 0's). */
+static void groups_none(rbc_clothcontact *cc) {
+    for (uint32_t g = 0; g < CC_GROUPS; ++g) cc->gstart[g] = 0;
+    cc->gstart[CC_GROUPS] = cc->count;
+    for (int k = 0; k < 4; ++k) cc->phase[k] = CC_GROUPS - 1;
+}
+
+/* Thread 0, after detection: the list sorted (stably) into groups that let the
+ * threads share the contact pass. The scene is cut across its longest axis into K
+ * slabs of about equal contact counts (K from the count alone), and each particle
+ * takes the slab of its position at p. A contact whose particles all lie in slab s
+ * is in group s (phase 1); one that spans slabs s and s + 1 is in a group of phase 2
+ * (s even) or 3 (s odd); any other is in the rest. Groups of one phase share no
+ * particle, so the threads project them at once, each group in list order, with
+ * the result of projecting them one after the other: a pass gives the same bits for
+ * any thread count, and needs three barriers. (The pass ran on one thread in
+ * detection order: a quarter of the four-layer scene's time. A greedy coloring of
+ * the contacts needed 42 colors there, a barrier each, which cost more than they
+ * saved on this shared 2-core machine: docs/design/cloth-contact.md.) */
+static int group_contacts(rbc_clothcontact *cc, const rbc_contact_body *bodies) {
+    const uint32_t n = cc->count, count = cc->body_count;
+    const uint32_t *vbase = cc->vbase.ptr;
+    const uint8_t *active = cc->active.ptr;
+    const uint32_t nv = vbase[count];
+    groups_none(cc);
+    uint32_t K = n / CC_SLAB_MIN;
+    if (K > CC_SLABS) K = CC_SLABS;
+    if (K < 2) return 1;
+    if (!buf_reserve(&cc->alloc, &cc->cslab, nv, 1, 0) ||
+        !buf_reserve(&cc->alloc, &cc->cscratch, n, sizeof(rbc_contact), 0) ||
+        !buf_reserve(&cc->alloc, &cc->cgroup, n, 1, 0))
+        return 0;
+    rbc_contact *list = cc->contacts.ptr;
+    /* The longest axis of the contacts' first vertices. */
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t m = 0; m < n; ++m) {
+        const rbc_contact_body *A = &bodies[list[m].body_a];
+        for (int k = 0; k < 3; ++k) {
+            const float v = A->p[k][list[m].a];
+            lo[k] = min2(lo[k], v), hi[k] = max2(hi[k], v);
+        }
+    }
+    int ax = 0;
+    for (int k = 1; k < 3; ++k)
+        if (hi[k] - lo[k] > hi[ax] - lo[ax]) ax = k;
+    const float ext = hi[ax] - lo[ax];
+    if (!(ext > 0.0f) || !isfinite(ext)) return 1;
+    const float scale = (float)CC_SLAB_BINS / ext;
+#define CC_BIN(v) ((uint32_t)fminf(fmaxf(((v) - lo[ax]) * scale, 0.0f), (float)(CC_SLAB_BINS - 1)))
+    uint32_t hist[CC_SLAB_BINS] = {0};
+    for (uint32_t m = 0; m < n; ++m) hist[CC_BIN(bodies[list[m].body_a].p[ax][list[m].a])]++;
+    /* Slab of a bin: by the contacts before it, so slabs hold about n / K each. */
+    uint8_t slab_of[CC_SLAB_BINS];
+    uint64_t before = 0;
+    for (uint32_t b = 0; b < CC_SLAB_BINS; ++b) {
+        slab_of[b] = (uint8_t)(before * K / n);
+        before += hist[b];
+    }
+    uint8_t *slab = cc->cslab.ptr;
+    for (uint32_t b = 0; b < count; ++b) {
+        if (!active[b]) continue;
+        const float *c = bodies[b].p[ax];
+        for (uint32_t i = 0; i < bodies[b].n; ++i) slab[vbase[b] + i] = slab_of[CC_BIN(c[i])];
+    }
+#undef CC_BIN
+    /* Groups in the order they run: slabs 0 .. K-1; pairs (0,1), (2,3), ...; pairs
+     * (1,2), (3,4), ...; the rest. */
+    const uint32_t even = K / 2, odd = (K - 1) / 2;
+    const uint32_t rest = K + even + odd;
+    uint8_t *group = cc->cgroup.ptr;
+    uint32_t size[CC_GROUPS] = {0};
+    for (uint32_t m = 0; m < n; ++m) {
+        uint32_t g[4];
+        const uint32_t np = contact_particles(&list[m], bodies, vbase, g);
+        uint32_t smin = slab[g[0]], smax = smin;
+        for (uint32_t k = 1; k < np; ++k) {
+            const uint32_t sk = slab[g[k]];
+            smin = sk < smin ? sk : smin, smax = sk > smax ? sk : smax;
+        }
+        const uint32_t gr = smin == smax       ? smin
+                            : smax != smin + 1 ? rest
+                            : (smin & 1)       ? K + even + smin / 2
+                                               : K + smin / 2;
+        group[m] = (uint8_t)gr;
+        size[gr]++;
+    }
+    uint32_t at = 0;
+    for (uint32_t k = 0; k < CC_GROUPS; ++k) {
+        cc->gstart[k] = at;
+        if (k <= rest) at += size[k];
+    }
+    cc->gstart[CC_GROUPS] = at;
+    for (uint32_t k = rest + 1; k < CC_GROUPS; ++k) cc->gstart[k] = at;
+    cc->phase[0] = 0, cc->phase[1] = K, cc->phase[2] = K + even, cc->phase[3] = rest;
+    uint32_t next[CC_GROUPS];
+    memcpy(next, cc->gstart, sizeof next);
+    rbc_contact *out = cc->cscratch.ptr;
+    for (uint32_t m = 0; m < n; ++m) out[next[group[m]]++] = list[m];
+    cc_buf t = cc->contacts;
+    cc->contacts = cc->cscratch;
+    cc->cscratch = t;
+    return 1;
+}
+
 static int32_t detect_finish(rbc_clothcontact *cc, uint32_t nth) {
     const rbc_contact_body *bodies = cc->dbodies;
+    cc->count = 0;
+    groups_none(cc);
     const uint32_t count = cc->body_count;
     cc_part *parts = cc->parts.ptr;
     uint64_t total = 0;
@@ -1796,6 +1956,7 @@ static int32_t detect_finish(rbc_clothcontact *cc, uint32_t nth) {
         return RBC_ERR_UNSTABLE;
     }
     if (d.oom) goto oom;
+    if (!group_contacts(cc, bodies)) goto oom;
     return RBC_OK;
 oom:
     cc->count = 0;
@@ -2045,11 +2206,12 @@ static void project_ee(rbc_contact_body *bodies, rbc_contact *c, const cc_eval *
     if (e->viol > c->dn) c->dn = e->viol;
 }
 
-float rbc_clothcontact_project(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count) {
-    if (count != cc->body_count) return 0.0f;
+/* One pass over contacts [from, to) in list order; the largest violation found. */
+static float project_range(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t from,
+                           uint32_t to) {
     rbc_contact *list = cc->contacts.ptr;
     float worst = 0.0f;
-    for (uint32_t m = 0; m < cc->count; ++m) {
+    for (uint32_t m = from; m < to; ++m) {
         rbc_contact *c = &list[m];
         cc_eval e;
         const int v = evaluate(c, bodies, &e);
@@ -2074,6 +2236,33 @@ float rbc_clothcontact_project(rbc_clothcontact *cc, rbc_contact_body *bodies, u
         if (e.viol > c->dn) c->dn = e.viol;
     }
     return worst;
+}
+
+float rbc_clothcontact_project(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count) {
+    if (count != cc->body_count) return 0.0f;
+    return project_range(cc, bodies, 0, cc->count);
+}
+
+void rbc_clothcontact_project_mt(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count,
+                                 uint32_t tid, uint32_t nth, void (*sync)(void *),
+                                 void *sync_ctx) {
+    if (count != cc->body_count) return;
+    /* The groups are those of the list (a failed detection leaves none). */
+    const int grouped = cc->gstart[CC_GROUPS] == cc->count;
+    const uint32_t *gs = cc->gstart, last = grouped ? cc->phase[3] : 0;
+    if (nth > 1 && sync && grouped) {
+        for (int ph = 0; ph < 3; ++ph) {
+            /* This thread's run of the phase's groups, one after the other. */
+            const uint32_t g0 = cc->phase[ph], ng = cc->phase[ph + 1] - g0;
+            if (ng == 0) continue;
+            const uint32_t a = g0 + ng * tid / nth, b = g0 + ng * (tid + 1) / nth;
+            if (a < b) project_range(cc, bodies, gs[a], gs[b]);
+            sync(sync_ctx);
+        }
+    } else if (tid == 0) {
+        project_range(cc, bodies, 0, gs[last]);
+    }
+    if (tid == 0) project_range(cc, bodies, grouped ? gs[last] : 0, cc->count);
 }
 
 float rbc_clothcontact_violation(const rbc_clothcontact *cc, const rbc_contact_body *bodies,

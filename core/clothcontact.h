@@ -197,6 +197,14 @@ int32_t rbc_clothcontact_detect_mt(rbc_clothcontact *cc, rbc_contact_body *bodie
  * given to detect (else nothing happens). Returns the largest violation found before
  * the pass (m). */
 float rbc_clothcontact_project(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count);
+/* The same pass on nth threads (all call it; sync is a barrier of the nth): the
+ * list is ordered by colors whose contacts share no particle, so each color large
+ * enough is split over the threads, and thread 0 projects the rest after them. The
+ * result is bitwise the serial pass's for any thread count. No barrier at the end:
+ * the caller's. */
+void rbc_clothcontact_project_mt(rbc_clothcontact *cc, rbc_contact_body *bodies, uint32_t count,
+                                 uint32_t tid, uint32_t nth, void (*sync)(void *),
+                                 void *sync_ctx);
 
 /* The largest violation project would find now, moving nothing (m): for tests and
  * stats. */

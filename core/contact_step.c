@@ -12,11 +12,13 @@
 
 /* Contacts join the solve after a linear iteration (its barrier passed): each thread
  * projects the collider contacts of its own particles (unary constraints: no race),
- * then thread 0 the host's contacts and one pass of cloth contact (constraints
- * between particles that may share a color, so not inside the parallel color sweeps:
- * docs/design/cloth-contact.md). Friction is added only on the first pass of a substep,
+ * then thread 0 the host's contacts, then every thread one pass of cloth contact by
+ * the contacts' own colors (constraints between particles that may share a spring
+ * color, so not inside the parallel color sweeps: docs/design/cloth-contact.md). Friction is added only on the first pass of a substep,
  * onto the prediction, when the color sweeps solve the contacts (color_pass). */
-void rbc_step_project_contacts(step_ctx *ctx, unsigned pass, uint32_t tid) {
+static void pool_sync(void *pool) { rbc_pool_barrier(pool); }
+
+void rbc_step_project_contacts(step_ctx *ctx, unsigned pass, uint32_t tid, uint32_t nt) {
     rbc_solver *s = ctx->s;
     const int colliders = (pass & RBC_PASS_COLLIDERS) != 0, alt = (pass & RBC_PASS_ALT) != 0;
     const int cloth = (pass & RBC_PASS_CLOTH) && ctx->cc_active;
@@ -28,16 +30,18 @@ void rbc_step_project_contacts(step_ctx *ctx, unsigned pass, uint32_t tid) {
         rbc_pool_barrier(s->pool);
         if (tid == 0 && host) rbc_collide_project(s, &s->host_contacts, alt, fh);
     }
-    if (cloth && tid == 0) {
-        for (uint32_t k = 0; k < s->cloth_count; ++k)
-            for (int a = 0; a < 3; ++a)
-                s->cc_bodies[k].p[a] = alt ? s->cloths[k]->alt[a] : s->cloths[k]->p[a];
-        rbc_clothcontact_project(s->cc, s->cc_bodies, s->cloth_count);
+    if (cloth) {
+        if (tid == 0)
+            for (uint32_t k = 0; k < s->cloth_count; ++k)
+                for (int a = 0; a < 3; ++a)
+                    s->cc_bodies[k].p[a] = alt ? s->cloths[k]->alt[a] : s->cloths[k]->p[a];
+        /* After the host's contacts, which may move the same particles. */
+        rbc_pool_barrier(s->pool);
+        rbc_clothcontact_project_mt(s->cc, s->cc_bodies, s->cloth_count, tid, nt, pool_sync,
+                                    s->pool);
     }
     rbc_pool_barrier(s->pool);
 }
-
-static void pool_sync(void *pool) { rbc_pool_barrier(pool); }
 
 /* Collider contacts over the substep's motion, per thread. Lists that overflow grow
  * (thread 0, between barriers; a steady scene stops allocating) and detection runs
@@ -158,7 +162,7 @@ void rbc_stage_detect(step_ctx *ctx, const rbc_step_at *at) {
      * from the local step. The inertial target y stays as predicted.) */
     if (ctx->result == RBC_OK)
         rbc_step_project_contacts(ctx, RBC_PASS_CLOTH | RBC_PASS_COLLIDERS | RBC_PASS_FRICTION,
-                                  at->tid);
+                                  at->tid, at->nt);
     rbc_pool_barrier(s->pool);
 }
 

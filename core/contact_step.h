@@ -14,7 +14,7 @@ enum {
     RBC_PASS_ALT = 8        /* the latest iterate is the Jacobi destination buffer */
 };
 /* All threads; ends at a barrier when it projects anything. */
-void rbc_step_project_contacts(step_ctx *ctx, unsigned pass, uint32_t tid);
+void rbc_step_project_contacts(step_ctx *ctx, unsigned pass, uint32_t tid, uint32_t nt);
 /* The stages (stage.h): DETECT also moves the prediction onto the contacts found. */
 void rbc_stage_detect(step_ctx *ctx, const rbc_step_at *at);
 void rbc_stage_friction(step_ctx *ctx, const rbc_step_at *at);

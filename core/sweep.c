@@ -330,7 +330,7 @@ static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uin
     for (;;) {
         double t0 = tid == 0 ? rbc_now_ms() : 0.0;
         linear_iteration(ctx, k, tid, nt);
-        rbc_step_project_contacts(ctx, iteration_pass(ctx, k), tid);
+        rbc_step_project_contacts(ctx, iteration_pass(ctx, k), tid, nt);
         k++;
         if (pl.fixed) {
             if (k >= pl.limit) break;
@@ -366,6 +366,6 @@ void rbc_stage_global(step_ctx *ctx, const rbc_step_at *at) {
                          c->dy, c->dz, c->p);
     }
     rbc_pool_barrier(s->pool);
-    rbc_step_project_contacts(ctx, RBC_PASS_CLOTH | RBC_PASS_COLLIDERS, at->tid);
+    rbc_step_project_contacts(ctx, RBC_PASS_CLOTH | RBC_PASS_COLLIDERS, at->tid, at->nt);
     if (at->tid == 0) ctx->linear_done += 1;
 }
