@@ -31,6 +31,9 @@ typedef struct cli_bench_options {
     int quick;
     /// perf only: the worlds' rbc_backend (--backend cpu|cuda). Default RBC_BACKEND_CPU.
     int backend;
+    /// perf only: time the set-up (cloth creation) of the 1M grid and the 1M
+    /// irregular mesh, this many times each, and nothing else (--setup-only N); 0 = off.
+    long setup_only;
 } cli_bench_options;
 
 /// `rbcloth bench accuracy`: the paper's Fig. 3/4 experiments for every solver.

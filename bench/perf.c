@@ -1121,6 +1121,49 @@ static int write_readback_csv(const perf_ctx *ctx) {
     return bench_close(f, ctx->run.dir, "perf_readback.csv") ? 1 : 0;
 }
 
+/* --setup-only N: the set-up of the 1M grid and the 1M irregular mesh (issue 23's
+ * figure), N creations each on one thread, the two interleaved so that the VM's drift
+ * hits both alike; each time, then the medians. The meshes are built once (their
+ * generation is not timed). Returns 0, or 1 after a message. */
+static int run_setup_only(perf_ctx *ctx, uint32_t repeats) {
+    const rbc_api_v1 *api = ctx->run.api;
+    bench_mesh m[2];
+    if (perf_mesh_grid(&m[PERF_GRID], 1000))
+        return out_of_memory();
+    if (perf_mesh_irregular(&m[PERF_IRREGULAR], 1000 * 1000, PERF_SEED)) {
+        bench_mesh_free(&m[PERF_GRID]);
+        return out_of_memory();
+    }
+    double *ms = calloc(2 * (size_t)repeats, sizeof *ms);
+    int rc = ms ? 0 : out_of_memory();
+    printf("Set-up (rbc_cloth_create) on 1 thread, load average %.2f\n", bench_load_average());
+    for (uint32_t k = 0; k < repeats && !rc; ++k)
+        for (int kind = 0; kind < 2 && !rc; ++kind) {
+            rbc_world_id w;
+            rbc_cloth_id c;
+            double *t = &ms[(size_t)kind * repeats + k];
+            rbc_result r = perf_world_create(ctx, &m[kind], 0, 1, &w, &c, t);
+            if (r != RBC_OK) {
+                rc = bench_report(api, r, "(creating a world for --setup-only)");
+                break;
+            }
+            api->world_destroy(w);
+            printf("%-9s %u particles: %8.1f ms\n", mesh_names[kind], m[kind].n, *t);
+        }
+    for (int kind = 0; kind < 2 && !rc; ++kind) {
+        double *t = &ms[(size_t)kind * repeats];
+        double med = bench_median(t, repeats);
+        bench_sort(t, repeats);
+        printf("median %-9s %8.1f ms (min %.1f, max %.1f, %u runs)\n", mesh_names[kind], med,
+               t[0], t[repeats - 1], repeats);
+    }
+    if (!rc) printf("load average %.2f\n", bench_load_average());
+    free(ms);
+    bench_mesh_free(&m[PERF_GRID]);
+    bench_mesh_free(&m[PERF_IRREGULAR]);
+    return rc;
+}
+
 int cli_bench_perf(const cli_plugin *plugin, const cli_bench_options *options) {
     if (bench_require_v1_1(plugin))
         return 1;
@@ -1139,6 +1182,11 @@ int cli_bench_perf(const cli_plugin *plugin, const cli_bench_options *options) {
                         "measure oversubscription\n",
                 ctx->threads_many, ctx->cores, ctx->threads_many);
 
+    if (options->setup_only) {
+        int rc = run_setup_only(ctx, (uint32_t)options->setup_only);
+        free(ctx);
+        return rc;
+    }
     if (fs_mkdir_p_or_say(ctx->run.dir)) {
         free(ctx);
         return 1;

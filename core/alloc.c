@@ -15,6 +15,9 @@
  * one-substep world, are never touched at all). Page alignment covers the 64 bytes
  * asked for. */
 enum { RBC_MMAP_MIN = 256 * 1024 };
+/* Blocks from this size on are offered huge pages (below, in rbc_mem_alloc): at
+ * least two 2 MB pages, so that most of the block can use them. */
+enum { RBC_HUGE_MIN = 4 * 1024 * 1024 };
 
 #if defined(_WIN32)
 /* The Windows C runtimes (msvcrt, the UCRT) have no aligned_alloc: a free() that takes
@@ -59,7 +62,16 @@ void *rbc_mem_alloc(const rbc_allocator *a, size_t size) {
 #ifdef RBC_HAVE_MMAP
     if (a->alloc == default_alloc && size >= RBC_MMAP_MIN) {
         void *m = mmap(NULL, size, PROT_READ | PROT_WRITE, MAP_PRIVATE | MAP_ANONYMOUS, -1, 0);
-        return m == MAP_FAILED ? NULL : m;
+        if (m == MAP_FAILED) return NULL;
+#ifdef MADV_HUGEPAGE
+        /* Blocks of several huge pages take them where the kernel has them (THP in
+         * "madvise" mode, the usual default): a 1M-particle cloth's creation faults
+         * in ~300 MB, and 4 KB pages made that a fault per page, a fifth of its time
+         * in the kernel. Untouched ranges still cost nothing; only a hint, so a
+         * refusal changes nothing. */
+        if (size >= RBC_HUGE_MIN) (void)madvise(m, size, MADV_HUGEPAGE);
+#endif
+        return m;
     }
 #endif
     void *p = a->alloc(a->user, size, 64);

@@ -10,6 +10,7 @@
 #include "ell.h"
 #include "global.h"
 #include "lattice.h"
+#include "prefetch.h"
 #include "report.h"
 #include "strain.h"
 
@@ -174,8 +175,12 @@ int32_t rbc_cloth_state_create(const rbc_allocator *al, rbc_solver_kind kind, in
         ok = c->quads != NULL;
         if (ok) {
             c->quad_count = c->quad_count0 = in->quad_count;
-            for (size_t k = 0; k < 4 * (size_t)in->quad_count; ++k)
+            const size_t nc = 4 * (size_t)in->quad_count, ahead = 4 * RBC_PREFETCH_AHEAD;
+            for (size_t k = 0; k < nc; ++k) {
+                /* Corners at random in a scattered mesh: their internal index ahead. */
+                if (k + ahead < nc) RBC_PREFETCH(&c->topo.to_internal[in->quads[k + ahead]]);
                 c->quads[k] = c->topo.to_internal[in->quads[k]];
+            }
         }
     }
     if (!ok) {

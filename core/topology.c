@@ -12,6 +12,7 @@
 
 #include "../abi/rbcloth.h"
 #include "coloring.h"
+#include "prefetch.h"
 
 
 static double dist3_sq(const float *p, uint32_t a, uint32_t b) {
@@ -66,6 +67,13 @@ static int32_t validate(const rbc_mesh_input *in, char *err, size_t errlen) {
     }
     for (uint32_t f = 0; f < in->quad_count; ++f) {
         const uint32_t *q = in->quads + 4 * (size_t)f;
+        /* The corners of a quad ahead (range-checked here before it is read):
+         * corners at random in a scattered mesh. */
+        if (f + RBC_PREFETCH_AHEAD < in->quad_count)
+            for (int k = 0; k < 4; ++k) {
+                const uint32_t v = q[4 * RBC_PREFETCH_AHEAD + k];
+                if (v < n) RBC_PREFETCH(&in->positions[3 * (size_t)v]);
+            }
         for (int k = 0; k < 4; ++k) {
             if (q[k] >= n)
                 return rbc_fail(err, errlen, RBC_ERR_BAD_MESH,
@@ -310,10 +318,29 @@ static void put_key(build_scratch *s, uint32_t i, uint32_t j, uint32_t kbits, in
     else s->bstart[i + 1]++;
 }
 
+/* The lines put_key will write for the edges of the quad `ahead` quads on: the
+ * count (scatter 0), or the fill pointer (2 ahead) and then the entry it points at
+ * (1 ahead), each at random in a scattered mesh. */
+static void prefetch_quad_keys(const rbc_mesh_input *in, const build_scratch *s, uint32_t f,
+                               int scatter) {
+    const uint32_t D = RBC_PREFETCH_AHEAD;
+    for (uint32_t a = 1; a <= (scatter ? 2u : 1u); ++a) {
+        if (f + a * D >= in->quad_count) continue;
+        const uint32_t *q = in->quads + 4 * ((size_t)f + a * D);
+        for (int k = 0; k < 4; ++k) {
+            const uint32_t i = q[k] < q[(k + 1) & 3] ? q[k] : q[(k + 1) & 3];
+            if (!scatter) RBC_PREFETCH_W(&s->bstart[i + 1]);
+            else if (a == 2) RBC_PREFETCH_W(&s->fill[i]);
+            else RBC_PREFETCH_W(&s->entries[s->fill[i]]);
+        }
+    }
+}
+
 static void emit_keys(const rbc_mesh_input *in, build_scratch *s, int scatter) {
     const uint32_t ks = float_bits(in->stiffness);
     for (uint32_t f = 0; f < in->quad_count; ++f) {
         const uint32_t *q = in->quads + 4 * (size_t)f;
+        prefetch_quad_keys(in, s, f, scatter);
         for (int k = 0; k < 4; ++k) /* an edge of two quads from the lower one only */
             if (!s->quad_nbr || s->quad_nbr[4 * (size_t)f + k] == NONE ||
                 s->quad_nbr[4 * (size_t)f + k] > f)
@@ -416,6 +443,8 @@ static void group_by_degree(rbc_topology *t, const uint32_t *hadj_start) {
             uint32_t count[65] = {0}, tmp[RBC_DEGREE_WINDOW];
             for (uint32_t i = w; i < end; ++i) {
                 uint32_t v = t->to_host[i], d = hadj_start[v + 1] - hadj_start[v];
+                if (i + RBC_PREFETCH_AHEAD < end) /* host vertices at random */
+                    RBC_PREFETCH(&hadj_start[t->to_host[i + RBC_PREFETCH_AHEAD]]);
                 count[(d < 63 ? d : 63) + 1]++;
             }
             for (uint32_t b = 0; b < 64; ++b) count[b + 1] += count[b];
@@ -503,8 +532,12 @@ static int32_t alloc_topology(rbc_topology *t, const rbc_allocator *a, const bui
     if (!ok) return rbc_fail(err, errlen, RBC_ERR_OUT_OF_MEMORY, "out of memory for %u particles", n);
     t->bytes = bytes;
     uint32_t *hadj_start = t->adj_start, *hadj = t->adj_nbr;
+    /* The upper ends w are at random in a scattered mesh: their count, fill pointer
+     * and slot are asked for ahead (the entries are read in order). */
+    const uint32_t D = RBC_PREFETCH_AHEAD, nk = s->bstart[n];
     for (uint32_t v = 0; v < n; ++v)
         for (uint32_t k = s->bstart[v]; k < s->bstart[v + 1]; ++k) {
+            if (k + D < nk) RBC_PREFETCH_W(&hadj_start[(uint32_t)(s->entries[k + D] >> 32) + 1]);
             hadj_start[v + 1]++;
             hadj_start[(uint32_t)(s->entries[k] >> 32) + 1]++;
         }
@@ -512,6 +545,8 @@ static int32_t alloc_topology(rbc_topology *t, const rbc_allocator *a, const bui
     memcpy(s->fill, hadj_start, (size_t)n * 4);
     for (uint32_t v = 0; v < n; ++v)
         for (uint32_t k = s->bstart[v]; k < s->bstart[v + 1]; ++k) {
+            if (k + 2 * D < nk) RBC_PREFETCH_W(&s->fill[(uint32_t)(s->entries[k + 2 * D] >> 32)]);
+            if (k + D < nk) RBC_PREFETCH_W(&hadj[s->fill[(uint32_t)(s->entries[k + D] >> 32)]]);
             uint32_t w = (uint32_t)(s->entries[k] >> 32);
             hadj[s->fill[v]++] = w;
             hadj[s->fill[w]++] = v;
@@ -581,11 +616,16 @@ static int32_t internal_order(const float *P, const rbc_allocator *a, rbc_topolo
     }
     for (uint32_t r = 0; r < n; ++r) {
         uint32_t v = order ? (uint32_t)order[r] : r;
+        /* Morton order visits the host's vertices at random: their colors ahead. */
+        if (order && r + RBC_PREFETCH_AHEAD < n)
+            RBC_PREFETCH(&s->color[(uint32_t)order[r + RBC_PREFETCH_AHEAD]]);
         t->to_host[next[s->color[v]]++] = v;
     }
     if (order) group_by_degree(t, t->adj_start);
     for (uint32_t i = 0; i < n; ++i) {
         uint32_t v = t->to_host[i];
+        if (*scattered && i + RBC_PREFETCH_AHEAD < n)
+            RBC_PREFETCH(&P[3 * (size_t)t->to_host[i + RBC_PREFETCH_AHEAD]]);
         t->to_internal[v] = i;
         t->rest_x[i] = P[3 * (size_t)v];
         t->rest_y[i] = P[3 * (size_t)v + 1];
@@ -635,8 +675,26 @@ static void internal_springs(rbc_topology *t, build_scratch *s, int scattered) {
     const uint32_t n = t->n, ns = t->ns;
     memset(t->adj_start, 0, ((size_t)n + 1) * 4);
     uint32_t k = 0;
+    const uint32_t D = RBC_PREFETCH_AHEAD;
     for (uint32_t r = 0; r < n; ++r) {
         const uint32_t hi = scattered ? t->to_host[r] : r;
+        if (scattered) {
+            /* Three chained reads per particle (its bucket's bounds, the bucket, the
+             * upper ends' internal indices), each at random in a scattered mesh:
+             * asked for 3D, 2D and D particles ahead, each after the one before it
+             * has had time to arrive. */
+            if (r + 3 * D < n) RBC_PREFETCH(&s->bstart[t->to_host[r + 3 * D]]);
+            if (r + 2 * D < n) {
+                const uint32_t h = t->to_host[r + 2 * D];
+                RBC_PREFETCH(&s->entries[s->bstart[h]]);
+                RBC_PREFETCH(&s->entries[s->bstart[h + 1]] - 1);
+            }
+            if (r + D < n) {
+                const uint32_t h = t->to_host[r + D];
+                for (uint32_t e = s->bstart[h]; e < s->bstart[h + 1]; ++e)
+                    RBC_PREFETCH(&t->to_internal[(uint32_t)(s->entries[e] >> 32)]);
+            }
+        }
         for (uint32_t e = s->bstart[hi]; e < s->bstart[hi + 1]; ++e, ++k) {
             uint32_t hj = (uint32_t)(s->entries[e] >> 32);
             uint32_t i = t->to_internal[hi], j = t->to_internal[hj];

@@ -157,7 +157,10 @@ static const char bench_usage[] =
     "                       scenes: 1 thread and N, default 2; peers, defaults: 1)\n"
     "  --quick              fewer frames, budgets and cases (the tests' smoke runs)\n"
     "  --backend cpu|cuda   perf: the worlds' backend (cuda: 10K .. 4M particles;\n"
-    "                       refused where no CUDA device is)\n";
+    "                       refused where no CUDA device is)\n"
+    "  --setup-only N       perf: only the set-up (cloth creation) of the 1M grid and\n"
+    "                       the 1M irregular mesh, N times each, interleaved; prints\n"
+    "                       each time and the medians, writes nothing\n";
 
 static const char info_usage[] =
     "Usage: rbcloth info\n"
@@ -179,7 +182,7 @@ static const char *const batch_option_names[] = {"--jobs", "--out", "--template"
                                                  "--job-timeout", "--term-grace", "--help",
                                                  NULL};
 static const char *const bench_option_names[] = {"--out", "--frames", "--threads", "--quick",
-                                                 "--backend", "--help", NULL};
+                                                 "--backend", "--setup-only", "--help", NULL};
 
 /* "rbcloth: unknown WHAT 'ARG'WHERE[; did you mean 'X'?]", exit code 2. */
 static int unknown(const char *what, const char *arg, const char *where,
@@ -525,6 +528,7 @@ static int parse_bench_args(int argc, char **argv, cli_bench_options *o) {
     int_option ints[] = {
         {"--frames", 1, 1000000, &o->frames},
         {"--threads", 0, 1024, &o->threads},
+        {"--setup-only", 1, 1000, &o->setup_only},
     };
     for (int i = 0; i < argc; ++i) {
         const char *arg = argv[i];
@@ -569,6 +573,7 @@ static int command_bench(int argc, char **argv) {
         .threads = -1,
         .quick = 0,
         .backend = RBC_BACKEND_CPU,
+        .setup_only = 0,
     };
     help_hint = "bench --help";
     if (help_asked(argc, argv, bench_usage))
@@ -599,6 +604,8 @@ static int command_bench(int argc, char **argv) {
         return rc;
     if (options.backend != RBC_BACKEND_CPU && run != cli_bench_perf)
         return usage_error("%s", "only bench perf takes --backend");
+    if (options.setup_only && run != cli_bench_perf)
+        return usage_error("%s", "only bench perf takes --setup-only");
 
     cli_plugin plugin;
     if (open_plugin(&plugin))
