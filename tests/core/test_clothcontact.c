@@ -24,6 +24,7 @@
  * vertices).
  */
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
@@ -1179,6 +1180,89 @@ static void test_ee_layout(void) {
     sheet_free(&far);
 }
 
+/* ---- the pass on several threads ------------------------------------------------ */
+
+typedef struct mt_run {
+    rbc_clothcontact *cc;
+    rbc_contact_body *b;
+    uint32_t count, tid, nth;
+    int passes;
+    pthread_barrier_t *bar;
+} mt_run;
+
+static void mt_sync(void *bar) { pthread_barrier_wait(bar); }
+
+static void *mt_thread(void *arg) {
+    mt_run *r = arg;
+    for (int k = 0; k < r->passes; ++k) {
+        rbc_clothcontact_project_mt(r->cc, r->b, r->count, r->tid, r->nth, mt_sync, r->bar);
+        pthread_barrier_wait(r->bar); /* the caller's barrier after a pass */
+    }
+    return NULL;
+}
+
+/* rbc_clothcontact_project_mt on 2 and 3 threads moves every particle to the same bits
+ * as the serial pass, and leaves the same contacts (flags, directions, dn): its groups
+ * share no particle. Four pressed layers give enough contacts for several slabs. */
+static void test_project_threads(void) {
+    rbc_allocator al = rbc_allocator_default();
+    sheet s[4];
+    rbc_contact_body bb[4];
+    make_stack(s, 4, 40, 0.01f, 0.004f, 0.002f);
+    for (int k = 0; k < 4; ++k) bb[k] = body_of(&s[k], 0.004f, 0.0f, 1, 1);
+    const uint32_t n = s[0].n;
+    float *ref = malloc(sizeof(float) * 4 * 3 * n), *out = malloc(sizeof(float) * 4 * 3 * n);
+    rbc_contact *lref = NULL;
+    uint32_t nref = 0;
+    for (uint32_t nth = 1; nth <= 3; ++nth) {
+        rbc_clothcontact *cc = NULL;
+        CHECK_EQ(rbc_clothcontact_create(&al, &cc), RBC_OK);
+        for (int m = 0; m < 4; ++m)
+            for (int k = 0; k < 3; ++k)
+                for (uint32_t i = 0; i < n; ++i) s[m].p[k][i] = s[m].x[k][i] + s[m].d[k][i];
+        CHECK_EQ(rbc_clothcontact_detect(cc, bb, 4, 0.002f), RBC_OK);
+        const uint32_t nc = rbc_clothcontact_count(cc);
+        /* The slabs need 2 x 2048 contacts at least. */
+        CHECK(nc >= 4096);
+        if (nth == 1) {
+            for (int k = 0; k < 3; ++k) rbc_clothcontact_project(cc, bb, 4);
+        } else {
+            pthread_barrier_t bar;
+            pthread_barrier_init(&bar, NULL, nth);
+            mt_run r[3];
+            pthread_t th[3];
+            for (uint32_t t = 0; t < nth; ++t) {
+                r[t] = (mt_run){cc, bb, 4, t, nth, 3, &bar};
+                if (t) pthread_create(&th[t], NULL, mt_thread, &r[t]);
+            }
+            mt_thread(&r[0]);
+            for (uint32_t t = 1; t < nth; ++t) pthread_join(th[t], NULL);
+            pthread_barrier_destroy(&bar);
+        }
+        float *dst = nth == 1 ? ref : out;
+        for (int m = 0; m < 4; ++m)
+            for (int k = 0; k < 3; ++k) memcpy(dst + (3 * m + k) * n, s[m].p[k], sizeof(float) * n);
+        if (nth == 1) {
+            nref = nc;
+            lref = malloc(sizeof(rbc_contact) * nc);
+            memcpy(lref, rbc_clothcontact_list(cc), sizeof(rbc_contact) * nc);
+            /* The passes moved something (else the comparison says nothing). */
+            double moved = 0.0;
+            for (int m = 0; m < 4; ++m)
+                for (uint32_t i = 0; i < n; ++i)
+                    moved += fabs((double)s[m].p[1][i] - (s[m].x[1][i] + s[m].d[1][i]));
+            CHECK(moved > 0.0);
+            printf("project_mt: %u contacts, serial pass moved %.3g m in y in all\n", nc, moved);
+        } else {
+            CHECK(nc == nref && memcmp(lref, rbc_clothcontact_list(cc), sizeof(rbc_contact) * nc) == 0);
+            CHECK(memcmp(ref, out, sizeof(float) * 4 * 3 * n) == 0);
+        }
+        rbc_clothcontact_destroy(cc);
+    }
+    free(ref), free(out), free(lref);
+    for (int k = 0; k < 4; ++k) sheet_free(&s[k]);
+}
+
 int main(void) {
     test_fast_particle();
     test_far_motion();
@@ -1188,6 +1272,7 @@ int main(void) {
     test_friction();
     test_pins();
     test_determinism();
+    test_project_threads();
     test_oom();
     test_sliver_and_deep();
     test_failsafe_zone();
