@@ -70,6 +70,7 @@ static const scene_entry entries[] = {
      1000.0 / 35.0 / 8.0, 1000.0 / 35.0},
     {"cannonballs_tearing.json", "Fig. 8: 4K particles; 8K springs; never below 60 fps", NAN,
      1000.0 / 60.0},
+    {"crumpled_cloth.json", "not in the paper; issue 23 asks for at most 100 ms a frame on 2 threads", NAN, NAN},
     {"cloth_on_sphere.json", "(reference; not in the paper)", NAN, NAN},
     {"hanging_cloth_paper.json", "Fig. 4: 10K particles; 11 iterations within a 2 ms budget", NAN,
      NAN},
