@@ -24,7 +24,7 @@
 #             OpenGL: the real-time viewer (tests/glviewer)
 #   external  browser, blender, slurm, mono, windows, xvfb and valgrind together
 set(RBC_LABEL_LONG_REGEX
-  "^(scene_funnel|scene_four_layers|scene_caches_thread_independent|abi_contact|abi_layer_order|core_clothcontact|import_sweep|bench_scenes_quick|bench_accuracy_quick|bench_stability_quick|cli_run_funnel|cli_batch_kill_trials|install_subdirectory|conformance_old_minor|conformance_catches_shared_state|conformance_catches_hangs)"
+  "^(scene_funnel|scene_four_layers|scene_crumpled|scene_caches_thread_independent|abi_contact|abi_layer_order|core_clothcontact|import_sweep|bench_scenes_quick|bench_accuracy_quick|bench_stability_quick|cli_run_funnel|cli_batch_kill_trials|install_subdirectory|conformance_old_minor|conformance_catches_shared_state|conformance_catches_hangs)"
   CACHE INTERNAL "")
 set(RBC_LABEL_THREADS_REGEX
   "^(core_rbgs|core_grid|core_clothcontact|abi_behaviour|abi_game_loop|abi_energy_guard|abi_target|abi_contact|abi_layer_order|abi_hardening|bench_scenes_quick|cli_batch)$"
