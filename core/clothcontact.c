@@ -105,6 +105,8 @@ struct rbc_clothcontact {
     uint32_t gstart[CC_GROUPS + 1]; /* first contact of group g; [CC_GROUPS]: count */
     uint32_t phase[4];          /* first group of phases 1-3 and of the rest (phase[3]
                                    .. CC_GROUPS - 1 is one group: thread 0's) */
+    uint32_t gk;                /* slabs of the sort in progress (0: none) */
+    cc_buf gcount;              /* uint32 [threads x CC_GROUPS]: counts, then slots */
     /* Border edges (in one triangle only) of every body, kept while the bodies'
      * triangles stay the same (checked by pointer, count and vertex count). */
     cc_buf ebase;               /* uint32 [count + 1]: first border edge of a body */
@@ -215,7 +217,7 @@ void rbc_clothcontact_destroy(rbc_clothcontact *cc) {
                       &cc->abase, &cc->aedge, &cc->frozen, &cc->pbox, &cc->zparent,
                       &cc->zp0, &cc->zlist, &cc->zsum, &cc->zflag, &cc->tp.start,
                       &cc->tp.body, &cc->tp.box, &cc->fp.start, &cc->fp.body, &cc->fp.box,
-                      &cc->eborder, &cc->tedge, &cc->cslab, &cc->cscratch, &cc->cgroup};
+                      &cc->eborder, &cc->tedge, &cc->cslab, &cc->cscratch, &cc->cgroup, &cc->gcount};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) buf_free(&a, bufs[k]);
     cc_part *parts = cc->parts.ptr;
     for (uint32_t t = 0; t < cc->part_cap; ++t) {
@@ -250,7 +252,7 @@ size_t rbc_clothcontact_bytes(const rbc_clothcontact *cc) {
                             &cc->zparent, &cc->zp0, &cc->zlist, &cc->zsum, &cc->zflag,
                             &cc->tp.start, &cc->tp.body, &cc->tp.box, &cc->fp.start,
                             &cc->fp.body, &cc->fp.box, &cc->eborder, &cc->tedge,
-                            &cc->cslab, &cc->cscratch, &cc->cgroup};
+                            &cc->cslab, &cc->cscratch, &cc->cgroup, &cc->gcount};
     size_t b = sizeof *cc;
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k) b += bufs[k]->bytes;
     const cc_part *parts = cc->parts.ptr;
@@ -1818,9 +1820,9 @@ static void groups_none(rbc_clothcontact *cc) {
     for (int k = 0; k < 4; ++k) cc->phase[k] = CC_GROUPS - 1;
 }
 
-/* Thread 0, after detection: the list sorted (stably) into groups that let the
- * threads share the contact pass. The scene is cut across its longest axis into K
- * slabs of about equal contact counts (K from the count alone), and each particle
+/* After detection, the list is sorted (stably) into groups that let the threads
+ * share the contact pass. The scene is cut across its longest axis into K slabs of
+ * about equal vertex counts (K from the contact count alone), and each particle
  * takes the slab of its position at p. A contact whose particles all lie in slab s
  * is in group s (phase 1); one that spans slabs s and s + 1 is in a group of phase 2
  * (s even) or 3 (s odd); any other is in the rest. Groups of one phase share no
@@ -1828,29 +1830,33 @@ static void groups_none(rbc_clothcontact *cc) {
  * the result of projecting them one after the other: a pass gives the same bits for
  * any thread count, and needs three barriers. (The pass ran on one thread in
  * detection order: a quarter of the four-layer scene's time. A greedy coloring of
- * the contacts needed 42 colors there, a barrier each, which cost more than they
- * saved on this shared 2-core machine: docs/design/cloth-contact.md.) */
-static int group_contacts(rbc_clothcontact *cc, const rbc_contact_body *bodies) {
+ * the contacts needed 42 colors there, a barrier each: docs/design/cloth-contact.md.)
+ * The sort runs on every thread (group_assign, group_scatter): on thread 0 alone it
+ * cost the four layers 9 % on one thread. */
+
+/* Thread 0: the slabs (cc->cslab per particle) and K; 0 = out of memory. */
+static int group_prepare(rbc_clothcontact *cc, const rbc_contact_body *bodies, uint32_t nth) {
     const uint32_t n = cc->count, count = cc->body_count;
     const uint32_t *vbase = cc->vbase.ptr;
     const uint8_t *active = cc->active.ptr;
     const uint32_t nv = vbase[count];
     groups_none(cc);
+    cc->gk = 0;
     uint32_t K = n / CC_SLAB_MIN;
     if (K > CC_SLABS) K = CC_SLABS;
     if (K < 2) return 1;
     if (!buf_reserve(&cc->alloc, &cc->cslab, nv, 1, 0) ||
         !buf_reserve(&cc->alloc, &cc->cscratch, n, sizeof(rbc_contact), 0) ||
-        !buf_reserve(&cc->alloc, &cc->cgroup, n, 1, 0))
+        !buf_reserve(&cc->alloc, &cc->cgroup, n, 1, 0) ||
+        !buf_reserve(&cc->alloc, &cc->gcount, (size_t)nth * CC_GROUPS, sizeof(uint32_t), 0))
         return 0;
-    rbc_contact *list = cc->contacts.ptr;
-    /* The longest axis of the contacts' first vertices. */
+    /* The longest axis of the colliding vertices at p. */
     float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (uint32_t m = 0; m < n; ++m) {
-        const rbc_contact_body *A = &bodies[list[m].body_a];
+    for (uint32_t b = 0; b < count; ++b) {
+        if (!active[b]) continue;
         for (int k = 0; k < 3; ++k) {
-            const float v = A->p[k][list[m].a];
-            lo[k] = min2(lo[k], v), hi[k] = max2(hi[k], v);
+            const float *c = bodies[b].p[k];
+            for (uint32_t i = 0; i < bodies[b].n; ++i) lo[k] = min2(lo[k], c[i]), hi[k] = max2(hi[k], c[i]);
         }
     }
     int ax = 0;
@@ -1861,12 +1867,18 @@ static int group_contacts(rbc_clothcontact *cc, const rbc_contact_body *bodies) 
     const float scale = (float)CC_SLAB_BINS / ext;
 #define CC_BIN(v) ((uint32_t)fminf(fmaxf(((v) - lo[ax]) * scale, 0.0f), (float)(CC_SLAB_BINS - 1)))
     uint32_t hist[CC_SLAB_BINS] = {0};
-    for (uint32_t m = 0; m < n; ++m) hist[CC_BIN(bodies[list[m].body_a].p[ax][list[m].a])]++;
-    /* Slab of a bin: by the contacts before it, so slabs hold about n / K each. */
+    uint64_t total = 0;
+    for (uint32_t b = 0; b < count; ++b) {
+        if (!active[b]) continue;
+        const float *c = bodies[b].p[ax];
+        for (uint32_t i = 0; i < bodies[b].n; ++i) hist[CC_BIN(c[i])]++;
+        total += bodies[b].n;
+    }
+    /* Slab of a bin: by the vertices before it, so slabs hold about total / K each. */
     uint8_t slab_of[CC_SLAB_BINS];
     uint64_t before = 0;
     for (uint32_t b = 0; b < CC_SLAB_BINS; ++b) {
-        slab_of[b] = (uint8_t)(before * K / n);
+        slab_of[b] = (uint8_t)(before * K / total);
         before += hist[b];
     }
     uint8_t *slab = cc->cslab.ptr;
@@ -1876,13 +1888,25 @@ static int group_contacts(rbc_clothcontact *cc, const rbc_contact_body *bodies) 
         for (uint32_t i = 0; i < bodies[b].n; ++i) slab[vbase[b] + i] = slab_of[CC_BIN(c[i])];
     }
 #undef CC_BIN
-    /* Groups in the order they run: slabs 0 .. K-1; pairs (0,1), (2,3), ...; pairs
-     * (1,2), (3,4), ...; the rest. */
-    const uint32_t even = K / 2, odd = (K - 1) / 2;
-    const uint32_t rest = K + even + odd;
+    cc->gk = K;
+    return 1;
+}
+
+/* Every thread: the groups of its share of the list, counted. Groups in the order
+ * they run: slabs 0 .. K-1; pairs (0,1), (2,3), ...; pairs (1,2), (3,4), ...; the
+ * rest. */
+static void group_assign(rbc_clothcontact *cc, const rbc_contact_body *bodies, uint32_t tid,
+                         uint32_t nth) {
+    const uint32_t K = cc->gk, n = cc->count;
+    const uint32_t even = K / 2, odd = (K - 1) / 2, rest = K + even + odd;
+    const uint32_t *vbase = cc->vbase.ptr;
+    const uint8_t *slab = cc->cslab.ptr;
+    const rbc_contact *list = cc->contacts.ptr;
     uint8_t *group = cc->cgroup.ptr;
-    uint32_t size[CC_GROUPS] = {0};
-    for (uint32_t m = 0; m < n; ++m) {
+    uint32_t *size = (uint32_t *)cc->gcount.ptr + (size_t)tid * CC_GROUPS;
+    for (uint32_t g = 0; g < CC_GROUPS; ++g) size[g] = 0;
+    const uint32_t m0 = (uint32_t)((uint64_t)n * tid / nth), m1 = (uint32_t)((uint64_t)n * (tid + 1) / nth);
+    for (uint32_t m = m0; m < m1; ++m) {
         uint32_t g[4];
         const uint32_t np = contact_particles(&list[m], bodies, vbase, g);
         uint32_t smin = slab[g[0]], smax = smin;
@@ -1897,22 +1921,35 @@ static int group_contacts(rbc_clothcontact *cc, const rbc_contact_body *bodies) 
         group[m] = (uint8_t)gr;
         size[gr]++;
     }
-    uint32_t at = 0;
-    for (uint32_t k = 0; k < CC_GROUPS; ++k) {
-        cc->gstart[k] = at;
-        if (k <= rest) at += size[k];
+}
+
+/* Thread 0: where each thread's contacts of each group go (groups in order, threads
+ * in order within a group: the stable sort), and the groups' starts. */
+static void group_offsets(rbc_clothcontact *cc, uint32_t nth) {
+    const uint32_t K = cc->gk;
+    const uint32_t even = K / 2, odd = (K - 1) / 2, rest = K + even + odd;
+    uint32_t *size = cc->gcount.ptr, at = 0;
+    for (uint32_t g = 0; g < CC_GROUPS; ++g) {
+        cc->gstart[g] = at;
+        for (uint32_t t = 0; t < nth; ++t) {
+            const uint32_t c = size[(size_t)t * CC_GROUPS + g];
+            size[(size_t)t * CC_GROUPS + g] = at; /* now the thread's next slot */
+            at += c;
+        }
     }
     cc->gstart[CC_GROUPS] = at;
-    for (uint32_t k = rest + 1; k < CC_GROUPS; ++k) cc->gstart[k] = at;
     cc->phase[0] = 0, cc->phase[1] = K, cc->phase[2] = K + even, cc->phase[3] = rest;
-    uint32_t next[CC_GROUPS];
-    memcpy(next, cc->gstart, sizeof next);
+}
+
+/* Every thread: its share of the list into the scratch list at its slots. */
+static void group_scatter(rbc_clothcontact *cc, uint32_t tid, uint32_t nth) {
+    const uint32_t n = cc->count;
+    const rbc_contact *list = cc->contacts.ptr;
+    const uint8_t *group = cc->cgroup.ptr;
+    uint32_t *next = (uint32_t *)cc->gcount.ptr + (size_t)tid * CC_GROUPS;
     rbc_contact *out = cc->cscratch.ptr;
-    for (uint32_t m = 0; m < n; ++m) out[next[group[m]]++] = list[m];
-    cc_buf t = cc->contacts;
-    cc->contacts = cc->cscratch;
-    cc->cscratch = t;
-    return 1;
+    const uint32_t m0 = (uint32_t)((uint64_t)n * tid / nth), m1 = (uint32_t)((uint64_t)n * (tid + 1) / nth);
+    for (uint32_t m = m0; m < m1; ++m) out[next[group[m]]++] = list[m];
 }
 
 static int32_t detect_finish(rbc_clothcontact *cc, uint32_t nth) {
@@ -1956,7 +1993,6 @@ static int32_t detect_finish(rbc_clothcontact *cc, uint32_t nth) {
         return RBC_ERR_UNSTABLE;
     }
     if (d.oom) goto oom;
-    if (!group_contacts(cc, bodies)) goto oom;
     return RBC_OK;
 oom:
     cc->count = 0;
@@ -2000,8 +2036,29 @@ int32_t rbc_clothcontact_detect_mt(rbc_clothcontact *cc, rbc_contact_body *bodie
         if (!cc->regrow) break;
         if (sync) sync(sync_ctx); /* everyone has read it */
     }
-    if (tid == 0 && cc->stage_rc == RBC_OK) cc->stage_rc = detect_finish(cc, nth);
+    if (tid == 0 && cc->stage_rc == RBC_OK) {
+        cc->stage_rc = detect_finish(cc, nth);
+        if (cc->stage_rc == RBC_OK && !group_prepare(cc, cc->dbodies, nth)) {
+            cc->count = 0;
+            groups_none(cc);
+            cc->stage_rc = RBC_ERR_OUT_OF_MEMORY;
+        }
+    }
     if (sync) sync(sync_ctx);
+    if (cc->stage_rc == RBC_OK && cc->gk) {
+        group_assign(cc, cc->dbodies, tid, nth);
+        if (sync) sync(sync_ctx);
+        if (tid == 0) group_offsets(cc, nth);
+        if (sync) sync(sync_ctx);
+        group_scatter(cc, tid, nth);
+        if (sync) sync(sync_ctx);
+        if (tid == 0) {
+            cc_buf t = cc->contacts;
+            cc->contacts = cc->cscratch;
+            cc->cscratch = t;
+        }
+        if (sync) sync(sync_ctx);
+    }
     return cc->stage_rc;
 }
 
