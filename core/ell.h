@@ -28,7 +28,10 @@ typedef struct rbc_ell {
     uint32_t *nbr;                   /* internal neighbour index (padding: a particle of
                                         another color, never written by the sweep) */
     float *k;                        /* stiffness (padding: 0) */
+    float *p4;                       /* [4 n] x, y, z, 0 per particle: the packed copy the
+                                        sweeps of a global step read (rbc_ell_pack) */
     size_t slots, bytes;
+    uint32_t n4;                     /* particles in p4 */
 } rbc_ell;
 
 /* 1 and *out set when the layout is worth it (padding at most doubles the slots);
@@ -44,4 +47,14 @@ void rbc_ell_break_spring(rbc_ell *e, const rbc_topology *t, uint32_t sp);
  * share: p_i = g_i (omega == 0) or p_i += omega (g_i - p_i); pinned particles stay. */
 void rbc_ell_sweep(const rbc_ell *e, struct rbc_cloth_state *c, uint32_t color, float omega,
                    uint32_t tid, uint32_t nt);
+
+/* The packed form of the sweep: the neighbours' x, y, z are one 16-byte load from p4
+ * instead of three scalar loads from p[0..2]. rbc_ell_pack copies this thread's share
+ * of p into p4 (a barrier must follow before any packed sweep); a packed sweep then
+ * writes its color to both p and p4, so p4 stays p's copy for as long as only
+ * packed sweeps write p. Each particle's sums are rbc_ell_sweep's, in the same order:
+ * bitwise its result. */
+void rbc_ell_pack(rbc_ell *e, const struct rbc_cloth_state *c, uint32_t tid, uint32_t nt);
+void rbc_ell_sweep_packed(rbc_ell *e, struct rbc_cloth_state *c, uint32_t color, float omega,
+                          uint32_t tid, uint32_t nt);
 #endif

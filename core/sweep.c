@@ -40,20 +40,30 @@ static rbc_layout row_sweep_layout(const rbc_cloth_state *c) {
     return c->lattice && c->lattice->csr_order ? RBC_LAYOUT_LATTICE : RBC_LAYOUT_CSR;
 }
 
-void rbc_global_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, float omega,
-                         uint32_t tid, uint32_t nt) {
+/* packed: the ELL layout's p4 holds p (ell_pack_all ran, and only packed sweeps
+ * wrote p since), so its sweeps may read it. */
+static void gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, float omega,
+                     int packed, uint32_t tid, uint32_t nt) {
     if (color >= c->topo.ncolors) return;
     switch (color_sweep_layout(c, v)) {
     case RBC_LAYOUT_LATTICE:
         rbc_lattice_sweep(c->lattice, c, color, v == RBC_GS_SOR ? omega : 0.0f, tid, nt);
         break;
     case RBC_LAYOUT_ELL:
-        rbc_ell_sweep(c->ell, c, color, v == RBC_GS_SOR ? omega : 0.0f, tid, nt);
+        if (packed)
+            rbc_ell_sweep_packed(c->ell, c, color, v == RBC_GS_SOR ? omega : 0.0f, tid, nt);
+        else
+            rbc_ell_sweep(c->ell, c, color, v == RBC_GS_SOR ? omega : 0.0f, tid, nt);
         break;
     case RBC_LAYOUT_CSR:
         rbc_csr_gs_color(c, color, v, omega, tid, nt);
         break;
     }
+}
+
+void rbc_global_gs_color(rbc_cloth_state *c, uint32_t color, rbc_gs_variant v, float omega,
+                         uint32_t tid, uint32_t nt) {
+    gs_color(c, color, v, omega, 0, tid, nt);
 }
 
 void rbc_global_jacobi(rbc_cloth_state *c, float *const src[3], float *const dst[3],
@@ -145,8 +155,9 @@ static void jacobi_iteration(step_ctx *ctx, uint32_t k, uint32_t tid, uint32_t n
     rbc_pool_barrier(s->pool);
 }
 
-/* One linear iteration of Gauss-Seidel by color (RBGS, multicolor, SOR, Chebyshev). */
-static void color_iteration(step_ctx *ctx, uint32_t k, uint32_t tid, uint32_t nt) {
+/* One linear iteration of Gauss-Seidel by color (RBGS, multicolor, SOR, Chebyshev);
+ * packed as gs_color's. */
+static void color_iteration(step_ctx *ctx, uint32_t k, int packed, uint32_t tid, uint32_t nt) {
     rbc_solver *s = ctx->s;
     rbc_pool *pool = s->pool;
     const rbc_solver_settings *st = &s->settings;
@@ -155,7 +166,7 @@ static void color_iteration(step_ctx *ctx, uint32_t k, uint32_t tid, uint32_t nt
                                                                : RBC_GS_PLAIN;
     for (uint32_t color = 0; color < ctx->ncolors; ++color) {
         for (uint32_t q = 0; q < s->cloth_count; ++q)
-            rbc_global_gs_color(s->cloths[q], color, v, ctx->sor_omega[rbc_step_slot(q)], tid, nt);
+            gs_color(s->cloths[q], color, v, ctx->sor_omega[rbc_step_slot(q)], packed, tid, nt);
         rbc_pool_barrier(pool);
         /* Collider contacts join particles of one color (each touches only its own
          * particle), so they are solved right after that color's sweep, before the
@@ -180,7 +191,8 @@ static void color_iteration(step_ctx *ctx, uint32_t k, uint32_t tid, uint32_t nt
 
 /* One linear iteration of the selected iterative solver over every cloth, with the
  * barriers it needs; k is the iteration's index in this non-linear iteration. */
-static void linear_iteration(step_ctx *ctx, uint32_t k, uint32_t tid, uint32_t nt) {
+static void linear_iteration(step_ctx *ctx, uint32_t k, int packed, uint32_t tid,
+                             uint32_t nt) {
     rbc_solver *s = ctx->s;
     switch (s->settings.kind) {
     case RBC_SOLVER_JACOBI:
@@ -193,7 +205,7 @@ static void linear_iteration(step_ctx *ctx, uint32_t k, uint32_t tid, uint32_t n
         rbc_pool_barrier(s->pool);
         break;
     default:
-        color_iteration(ctx, k, tid, nt);
+        color_iteration(ctx, k, packed, tid, nt);
         break;
     }
 }
@@ -302,6 +314,27 @@ static unsigned iteration_pass(const step_ctx *ctx, uint32_t k) {
            (!ctx->color_pass ? RBC_PASS_COLLIDERS : 0u);
 }
 
+/* Whether this global step's ELL sweeps read the packed positions (ell.h): only the
+ * color sweeps write p between its iterations, i.e. no contacts of any kind are
+ * projected between them, and not the Chebyshev stash (CSR rows). Then p is packed
+ * once here, for every ELL cloth, before the first iteration. */
+static int ell_pack_all(step_ctx *ctx, uint32_t tid, uint32_t nt) {
+    rbc_solver *s = ctx->s;
+    const rbc_solver_kind kind = s->settings.kind;
+    if (!ctx->color_pass || kind == RBC_SOLVER_RBGS_CHEBYSHEV || ctx->cc_active ||
+        ctx->any_contacts || ctx->host_contacts)
+        return 0;
+    int any = 0;
+    for (uint32_t q = 0; q < s->cloth_count; ++q) {
+        rbc_cloth_state *c = s->cloths[q];
+        if (c->lattice || !c->ell) continue;
+        rbc_ell_pack(c->ell, c, tid, nt);
+        any = 1;
+    }
+    if (any) rbc_pool_barrier(s->pool);
+    return any;
+}
+
 /* The global step of one non-linear iteration: iterate until the mode says stop. */
 static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uint32_t tid,
                         uint32_t nt) {
@@ -326,10 +359,11 @@ static void global_step(step_ctx *ctx, uint32_t segment, uint32_t nsegments, uin
         return;
     }
     double deadline = ctx->start_ms + (double)st->budget_ms * (segment + 1) / nsegments;
+    const int packed = ell_pack_all(ctx, tid, nt);
     uint32_t k = pl.pre;
     for (;;) {
         double t0 = tid == 0 ? rbc_now_ms() : 0.0;
-        linear_iteration(ctx, k, tid, nt);
+        linear_iteration(ctx, k, packed, tid, nt);
         rbc_step_project_contacts(ctx, iteration_pass(ctx, k), tid, nt);
         k++;
         if (pl.fixed) {

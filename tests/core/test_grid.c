@@ -322,8 +322,22 @@ static void test_ell_lanes(void) {
             moved |= memcmp(sweep[a], start[a], bytes) != 0;
         }
         CHECK(moved);
+        /* The packed sweep (ell.h): the same sums from the xyzw copy, shared out as 2
+         * threads would; each color's last chunk is not a multiple of 8 long, so both
+         * the 8-lane body and the one-lane tail run. p4 must come out as the copy of
+         * p the next color's sweep reads. */
+        for (int a = 0; a < 3; ++a) memcpy(c->p[a], start[a], bytes);
+        rbc_ell_pack(c->ell, c, 0, 2);
+        rbc_ell_pack(c->ell, c, 1, 2);
+        for (uint32_t col = 0; col < e->ncolors; ++col)
+            for (uint32_t th = 0; th < 2; ++th) rbc_ell_sweep_packed(c->ell, c, col, omegas[w], th, 2);
+        for (int a = 0; a < 3; ++a) {
+            CHECK(memcmp(sweep[a], c->p[a], bytes) == 0);
+            for (uint32_t i = 0; i < t->n; ++i) CHECK(memcmp(&e->p4[4 * (size_t)i + a], &sweep[a][i], 4) == 0);
+        }
     }
-    printf("ell lanes: %u particles, %u colors: one lane at a time == the chunked sweep\n",
+    printf("ell lanes: %u particles, %u colors: one lane at a time == the chunked sweep "
+           "== the packed sweep\n",
            t->n, e->ncolors);
     for (int a = 0; a < 3; ++a) {
         free(start[a]);
