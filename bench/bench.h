@@ -31,6 +31,9 @@ typedef struct cli_bench_options {
     int quick;
     /// perf only: the worlds' rbc_backend (--backend cpu|cuda). Default RBC_BACKEND_CPU.
     int backend;
+    /// perf only (--irregular): the grid-against-irregular comparison alone, i.e. the
+    /// irregular meshes and the grids of their sizes, without the other sections.
+    int irregular_only;
 } cli_bench_options;
 
 /// `rbcloth bench accuracy`: the paper's Fig. 3/4 experiments for every solver.

@@ -157,7 +157,9 @@ static const char bench_usage[] =
     "                       scenes: 1 thread and N, default 2; peers, defaults: 1)\n"
     "  --quick              fewer frames, budgets and cases (the tests' smoke runs)\n"
     "  --backend cpu|cuda   perf: the worlds' backend (cuda: 10K .. 4M particles;\n"
-    "                       refused where no CUDA device is)\n";
+    "                       refused where no CUDA device is)\n"
+    "  --irregular          perf: only the grid-against-irregular comparison (the\n"
+    "                       irregular meshes and the grids of their sizes)\n";
 
 static const char info_usage[] =
     "Usage: rbcloth info\n"
@@ -179,7 +181,7 @@ static const char *const batch_option_names[] = {"--jobs", "--out", "--template"
                                                  "--job-timeout", "--term-grace", "--help",
                                                  NULL};
 static const char *const bench_option_names[] = {"--out", "--frames", "--threads", "--quick",
-                                                 "--backend", "--help", NULL};
+                                                 "--backend", "--irregular", "--help", NULL};
 
 /* "rbcloth: unknown WHAT 'ARG'WHERE[; did you mean 'X'?]", exit code 2. */
 static int unknown(const char *what, const char *arg, const char *where,
@@ -530,6 +532,10 @@ static int parse_bench_args(int argc, char **argv, cli_bench_options *o) {
         const char *arg = argv[i];
         if (strcmp(arg, "--quick") == 0) {
             o->quick = 1;
+            continue;
+        }
+        if (strcmp(arg, "--irregular") == 0) {
+            o->irregular_only = 1;
             continue;
         }
         if (arg[0] != '-')
