@@ -34,6 +34,9 @@ typedef struct cli_bench_options {
     /// perf only: time the set-up (cloth creation) of the 1M grid and the 1M
     /// irregular mesh, this many times each, and nothing else (--setup-only N); 0 = off.
     long setup_only;
+    /// perf only (--irregular): the grid-against-irregular comparison alone, i.e. the
+    /// irregular meshes and the grids of their sizes, without the other sections.
+    int irregular_only;
 } cli_bench_options;
 
 /// `rbcloth bench accuracy`: the paper's Fig. 3/4 experiments for every solver.

@@ -1229,6 +1229,14 @@ int cli_bench_perf(const cli_plugin *plugin, const cli_bench_options *options) {
         ctx->thread_list[0] = 1;
     }
     ctx->solver_side = 100;
+    /* --irregular: the grids the irregular meshes are compared with, nothing else
+     * (no readback, no solver rows: the solver side is set to none of them). */
+    const int irr_only = options->irregular_only;
+    if (irr_only) {
+        sides = irr;
+        side_count = irr_count;
+        ctx->solver_side = 0;
+    }
 
     double start = bench_now();
     ctx->triad_gbs[0] = triad_gbs(1);
@@ -1246,7 +1254,7 @@ int cli_bench_perf(const cli_plugin *plugin, const cli_bench_options *options) {
             break;
         }
         rc = run_threads(ctx, &m, PERF_GRID, 0, sides[k]);
-        if (!rc && sides[k] <= 500 && !cuda) rc = run_readback(ctx, &m, sides[k]);
+        if (!rc && sides[k] <= 500 && !cuda && !irr_only) rc = run_readback(ctx, &m, sides[k]);
         /* Jacobi and serial Gauss-Seidel on the same grid, at equal iterations (the
          * CUDA backend: Jacobi only). */
         if (!rc && sides[k] == ctx->solver_side) {

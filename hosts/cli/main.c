@@ -160,7 +160,9 @@ static const char bench_usage[] =
     "                       refused where no CUDA device is)\n"
     "  --setup-only N       perf: only the set-up (cloth creation) of the 1M grid and\n"
     "                       the 1M irregular mesh, N times each, interleaved; prints\n"
-    "                       each time and the medians, writes nothing\n";
+    "                       each time and the medians, writes nothing\n"
+    "  --irregular          perf: only the grid-against-irregular comparison (the\n"
+    "                       irregular meshes and the grids of their sizes)\n";
 
 static const char info_usage[] =
     "Usage: rbcloth info\n"
@@ -182,7 +184,8 @@ static const char *const batch_option_names[] = {"--jobs", "--out", "--template"
                                                  "--job-timeout", "--term-grace", "--help",
                                                  NULL};
 static const char *const bench_option_names[] = {"--out", "--frames", "--threads", "--quick",
-                                                 "--backend", "--setup-only", "--help", NULL};
+                                                 "--backend", "--setup-only", "--irregular",
+                                                 "--help", NULL};
 
 /* "rbcloth: unknown WHAT 'ARG'WHERE[; did you mean 'X'?]", exit code 2. */
 static int unknown(const char *what, const char *arg, const char *where,
@@ -534,6 +537,10 @@ static int parse_bench_args(int argc, char **argv, cli_bench_options *o) {
         const char *arg = argv[i];
         if (strcmp(arg, "--quick") == 0) {
             o->quick = 1;
+            continue;
+        }
+        if (strcmp(arg, "--irregular") == 0) {
+            o->irregular_only = 1;
             continue;
         }
         if (arg[0] != '-')
