@@ -14,7 +14,7 @@ shift 3
 rm -rf "$out"
 case $kind in
   accuracy) options="--quick --frames 12" ;;
-  scenes) options="--frames 3" ;;
+  scenes) options="--quick --frames 3" ;;
   *) options=--quick ;;
 esac
 if [ "$kind" = scenes ]; then
