@@ -222,7 +222,11 @@ static inline ell_v8 ell_pair(const float *lo, const float *hi) {
 #define ELL_LH(a, b) __builtin_shufflevector(a, b, 0, 1, 8, 9, 4, 5, 12, 13)   /* movlhps */
 #define ELL_HL(a, b) __builtin_shufflevector(a, b, 2, 3, 10, 11, 6, 7, 14, 15) /* movhlps */
 
+#endif
+
+#ifdef ELL_PACKED_V8
 RBC_VECTOR_CLONES
+#endif
 static void ell_chunk_packed(uint32_t len, uint32_t width, const uint32_t *restrict nbr,
                              const float *restrict kk, const float *restrict p4,
                              const float *restrict bx, const float *restrict by,
@@ -231,6 +235,7 @@ static void ell_chunk_packed(uint32_t len, uint32_t width, const uint32_t *restr
                              float *restrict oy, float *restrict oz, float *restrict o4,
                              float omega) {
     uint32_t m = 0;
+#ifdef ELL_PACKED_V8
     for (; m + 8 <= len; m += 8) {
         ell_v8 ax = ell_ld8(bx + m), ay = ell_ld8(by + m), az = ell_ld8(bz + m);
         for (uint32_t j = 0; j < width; ++j) {
@@ -275,19 +280,9 @@ static void ell_chunk_packed(uint32_t len, uint32_t width, const uint32_t *restr
             memcpy(d + 16 + 4 * l, &hi, sizeof hi);
         }
     }
+#endif
     ell_lanes_packed(m, len, width, nbr, kk, p4, bx, by, bz, inv, pin, ox, oy, oz, o4, omega);
 }
-#else
-static void ell_chunk_packed(uint32_t len, uint32_t width, const uint32_t *restrict nbr,
-                             const float *restrict kk, const float *restrict p4,
-                             const float *restrict bx, const float *restrict by,
-                             const float *restrict bz, const float *restrict inv,
-                             const uint8_t *restrict pin, float *restrict ox,
-                             float *restrict oy, float *restrict oz, float *restrict o4,
-                             float omega) {
-    ell_lanes_packed(0, len, width, nbr, kk, p4, bx, by, bz, inv, pin, ox, oy, oz, o4, omega);
-}
-#endif
 
 void rbc_ell_sweep_packed(rbc_ell *e, rbc_cloth_state *c, uint32_t color, float omega,
                           uint32_t tid, uint32_t nt) {
