@@ -26,7 +26,9 @@
  *     and tests the edges of the triangles found (once each: a sorted set per
  *     border edge).
  * A box over more than CC_BIG_CELLS cells (a vertex moving many cells in one
- * substep, a non-finite position) is not hashed: it is tested against everything.
+ * substep, a non-finite position) is not hashed: it is tested against everything. A
+ * query over more cells than its hash's scan_cells (at most CC_BIG_CELLS, fewer when
+ * the buckets are crowded) tests every object in order instead of reading buckets.
  */
 #include "clothcontact.h"
 
@@ -54,6 +56,7 @@ typedef struct cc_hash {
     cc_buf id;                  /* uint32 [entries]: object */
     cc_buf big;                 /* uint32 [objects]: boxes too big to hash, ascending */
     uint32_t nb, big_count;
+    uint32_t scan_cells;        /* a query over more cells scans every object (hash_scan_cells) */
 } cc_hash;
 
 /* Patches: runs of up to CC_PATCH consecutive triangles of one body, at most
@@ -493,6 +496,13 @@ static int hash_build(rbc_clothcontact *cc, cc_hash *h, uint32_t m, const float 
     }
     for (uint32_t b = nb; b > 0; --b) start[b] = start[b - 1];
     start[0] = 0;
+    /* A query reads a bucket per cell, with total / nb entries each on average; past
+     * m / (1 + total / nb) cells that costs more than one box test per object. Boxes
+     * far larger than the mesh (a thickness of a metre on a 40 cm cloth, a cloth
+     * thrown across the scene) would otherwise read up to CC_BIG_CELLS buckets each,
+     * every bucket holding every object: the fuzzer's 128 vertices took seconds. */
+    uint64_t scan = (uint64_t)m / (1u + total / nb);
+    h->scan_cells = scan < 1 ? 1u : scan > CC_BIG_CELLS ? CC_BIG_CELLS : (uint32_t)scan;
     return 1;
 }
 
@@ -1182,7 +1192,7 @@ static inline void patches_near(const rbc_clothcontact *cc, const float box[6],
     const float *pab = cc->tp.box.ptr, inv = cc->inv_cell;
     cc_range r;
     box_range(box, box + 3, inv, &r);
-    if (range_cells(&r) > CC_BIG_CELLS) {
+    if (range_cells(&r) > h->scan_cells) {
         for (uint32_t k = 0; k < cc->tp.n; ++k)
             if (keep(ctx, k) && boxes_overlap(box, pab + 6 * (size_t)k, 0.0f)) visit(ctx, k);
         return;
@@ -1645,11 +1655,14 @@ static void vt_vertex(cc_detect *d, uint32_t v, const uint8_t *pair_ok) {
     const uint64_t cells = range_cells(&r);
     /* A box in one cell meets every object there once (per bucket copy). */
     const int one_cell = cells == 1;
-    if (cells > CC_BIG_CELLS) {
-        const uint32_t nt = ((const uint32_t *)cc->tbase.ptr)[cc->body_count];
-        const uint32_t *tbody = d->tbody;
-        for (uint32_t t = 0; t < nt; ++t)
-            if (active[tbody[t]] && boxes_overlap(lo, tbox + 6 * (size_t)t, vgrow)) try_vt(d, &q, t);
+    if (cells > cc->th.scan_cells) {
+        /* Every patch, in order (so every triangle in order, as the hash would find
+         * them after vertex_done's sort). */
+        for (uint32_t k = 0; k < cc->tp.n; ++k) {
+            if (!active[pbd[k]] || !boxes_overlap(lo, pab + 6 * (size_t)k, vgrow)) continue;
+            for (uint32_t t = ps[k]; t < ps[k + 1]; ++t)
+                if (boxes_overlap(lo, tbox + 6 * (size_t)t, vgrow)) try_vt(d, &q, t);
+        }
     } else {
         const cc_hash *h = &cc->th;
         const uint32_t *start = h->start.ptr, *id = h->id.ptr;
@@ -1703,7 +1716,7 @@ static void vv_vertex(cc_detect *d, uint32_t v) {
     const uint64_t cells = range_cells(&r);
     const int one_cell = cells == 1;
     const uint32_t nvall = ((const uint32_t *)cc->vbase.ptr)[cc->body_count];
-    if (cells > CC_BIG_CELLS) {
+    if (cells > cc->vh.scan_cells) {
         for (uint32_t u = v + 1; u < nvall; ++u)
             if (active[vbody[u]] && boxes_overlap(vb, vbox + 6 * (size_t)u, vg + bgrow[vbody[u]]))
                 try_vv(d, v, u);
@@ -2464,8 +2477,7 @@ static void failsafe_query(cc_fs *f, const float lo[3], const float hi[3], uint3
     const float box[6] = {lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]};
     cc_range r;
     box_range(lo, hi, inv, &r);
-    const int all = range_cells(&r) > CC_BIG_CELLS;
-    const uint32_t tn = tbase[cc->body_count];
+    const int all = range_cells(&r) > h->scan_cells;
     const uint8_t *active = cc->active.ptr;
     /* An edge's query skips the triangles of bodies it does not collide with first
      * (its own, without self contact: the nearest triangles, and a quarter of a
@@ -2490,11 +2502,6 @@ static void failsafe_query(cc_fs *f, const float lo[3], const float hi[3], uint3
             }                                                                               \
         }                                                                                   \
     } while (0)
-    if (all) {
-        for (uint32_t t = 0; t < tn; ++t)
-            if (active[tbody[t]] && boxes_overlap(box, pbox + 6 * (size_t)t, 0.0f)) CC_FS_VISIT(t);
-        return;
-    }
     int32_t c[3];
     /* Patches: body (edge queries) and box first, then each triangle's box at p; each
      * patch once (in the cell of the lower corner of its hashed box's intersection
@@ -2510,6 +2517,14 @@ static void failsafe_query(cc_fs *f, const float lo[3], const float hi[3], uint3
         for (uint32_t g_ = ps[pk_]; g_ < ps[pk_ + 1]; ++g_)                                 \
             if (boxes_overlap(box, pbox + 6 * (size_t)g_, 0.0f)) CC_FS_VISIT(g_);           \
     } while (0)
+    if (all) {
+        /* Every patch in order: every triangle in order, as before patches. */
+        for (uint32_t k = 0; k < P->n; ++k)
+            if (active[pbd[k]] && (!A || bodies_pair(A, &f->bodies[pbd[k]], pbd[k] == ba)) &&
+                boxes_overlap(box, pab + 6 * (size_t)k, pg))
+                CC_FS_PATCH(k);
+        return;
+    }
     for (c[0] = r.lo[0]; c[0] <= r.hi[0]; ++c[0])
         for (c[1] = r.lo[1]; c[1] <= r.hi[1]; ++c[1])
             for (c[2] = r.lo[2]; c[2] <= r.hi[2]; ++c[2]) {

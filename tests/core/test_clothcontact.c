@@ -15,7 +15,8 @@
  *     on a free triangle the relative slip is removed and momentum kept;
  *  6. pinned vertices never move;
  *  7. determinism: fresh objects, a repeated call and grown buffers give bitwise
- *     equal results; a repeated detect of the same scene allocates nothing;
+ *     equal results; a repeated detect of the same scene allocates nothing; a query
+ *     that scans every object gives the bits of the same query through the hash;
  *  8. a failing allocator (every k-th allocation) gives RBC_ERR_OUT_OF_MEMORY and
  *     leaks nothing;
  *  9. the fail-safe moves an impact zone rigidly by its mean motion in its first
@@ -769,6 +770,51 @@ static void test_determinism(void) {
     sheet_free(&s[1]);
 }
 
+/* A query over more cells than its hash's scan limit tests every object in order
+ * instead (hash_scan_cells: the limit falls as buckets fill, so a box far larger than
+ * the mesh stops reading the same crowded buckets hundreds of times). Both ways must
+ * give the same bits. Two 8 x 8 sheets, one a metre thick (everything in reach of
+ * everything, as the fuzzer's input), both moving 6 m a substep: their swept boxes
+ * cover 36-64 of the 2 m cells, over the limit (4) of a hash of 196 patches of one
+ * triangle each, so they are scanned. A third grid of 100 x 100, far away and touching
+ * nothing, raises the limit to CC_BIG_CELLS (2,451 more patches, none hashed): the
+ * same queries go through the hash. Dropping one patch from the scan fails it. The contacts and the positions after the passes are compared bitwise. */
+static void scan_run(int far, rbc_contact **list, uint32_t *n, float **pos) {
+    rbc_clothcontact *cc = new_contact();
+    sheet s[3] = {sheet_grid(8, 8, 0.05f, 0.0f, 1.0f, 0.0f), sheet_grid(8, 8, 0.05f, 0.0f, 1.01f, 0.0f),
+                  sheet_grid(100, 100, 0.01f, 0.0f, 50.0f, 0.0f)};
+    for (int m = 0; m < 2; ++m)
+        for (int k = 0; k < 3; ++k)
+            for (uint32_t i = 0; i < s[m].n; ++i) s[m].p[k][i] = s[m].x[k][i] + 6.0f;
+    /* B pressed into A at its far corner: not every contact alike. */
+    s[1].p[1][s[1].n - 1] -= 0.02f;
+    rbc_contact_body b[3] = {body_of(&s[0], 0.003f, 0.0f, 1, 1), body_of(&s[1], 1.003f, 0.0f, 1, 1),
+                             body_of(&s[2], 0.003f, 0.0f, 0, 1)};
+    CHECK_EQ(rbc_clothcontact_detect(cc, b, far ? 3 : 2, 0.002f), RBC_OK);
+    *n = rbc_clothcontact_count(cc);
+    *list = malloc(sizeof(rbc_contact) * (*n + 1));
+    memcpy(*list, rbc_clothcontact_list(cc), sizeof(rbc_contact) * *n);
+    for (int it = 0; it < 4; ++it) rbc_clothcontact_project(cc, b, far ? 3 : 2);
+    *pos = malloc(sizeof(float) * 3 * 128);
+    for (int m = 0; m < 2; ++m)
+        for (int k = 0; k < 3; ++k) memcpy(*pos + 64 * (3 * m + k), s[m].p[k], sizeof(float) * 64);
+    rbc_clothcontact_destroy(cc);
+    for (int m = 0; m < 3; ++m) sheet_free(&s[m]);
+}
+
+static void test_scan_equals_hash(void) {
+    rbc_contact *ls, *lh;
+    uint32_t ns, nh;
+    float *ps, *ph;
+    scan_run(0, &ls, &ns, &ps);
+    scan_run(1, &lh, &nh, &ph);
+    printf("scan against hash: %u and %u contacts\n", ns, nh);
+    CHECK(ns > 100);
+    CHECK(ns == nh && memcmp(ls, lh, sizeof(rbc_contact) * ns) == 0);
+    CHECK(memcmp(ps, ph, sizeof(float) * 3 * 128) == 0);
+    free(ls), free(lh), free(ps), free(ph);
+}
+
 /* ---- 8. out of memory ------------------------------------------------------------- */
 
 static void test_oom(void) {
@@ -1273,6 +1319,7 @@ int main(void) {
     test_pins();
     test_determinism();
     test_project_threads();
+    test_scan_equals_hash();
     test_oom();
     test_sliver_and_deep();
     test_failsafe_zone();
