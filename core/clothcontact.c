@@ -56,7 +56,7 @@ typedef struct cc_hash {
     cc_buf id;                  /* uint32 [entries]: object */
     cc_buf big;                 /* uint32 [objects]: boxes too big to hash, ascending */
     uint32_t nb, big_count;
-    uint32_t scan_cells;        /* a query over more cells scans every object (hash_scan_cells) */
+    uint32_t scan_cells;        /* a query over more cells scans every object (hash_build) */
 } cc_hash;
 
 /* Patches: runs of up to CC_PATCH consecutive triangles of one body, at most

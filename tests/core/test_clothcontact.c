@@ -771,14 +771,16 @@ static void test_determinism(void) {
 }
 
 /* A query over more cells than its hash's scan limit tests every object in order
- * instead (hash_scan_cells: the limit falls as buckets fill, so a box far larger than
- * the mesh stops reading the same crowded buckets hundreds of times). Both ways must
- * give the same bits. Two 8 x 8 sheets, one a metre thick (everything in reach of
- * everything, as the fuzzer's input), both moving 6 m a substep: their swept boxes
- * cover 36-64 of the 2 m cells, over the limit (4) of a hash of 196 patches of one
- * triangle each, so they are scanned. A third grid of 100 x 100, far away and touching
- * nothing, raises the limit to CC_BIG_CELLS (2,451 more patches, none hashed): the
- * same queries go through the hash. Dropping one patch from the scan fails it. The contacts and the positions after the passes are compared bitwise. */
+ * instead (the hash's scan_cells, set by hash_build, falls as its buckets fill: a
+ * box far larger than the mesh no longer reads the same crowded buckets hundreds of
+ * times). Both ways must give the same bits. Two 8 x 8 sheets, one a metre thick
+ * (everything in reach of everything, as the fuzzer's input), both moving 6 m a
+ * substep: their swept boxes cover 36-64 of the 2 m cells, over the limit (4) of a
+ * hash of 196 patches of one triangle each, so they are scanned. A third grid of
+ * 100 x 100, far away and touching nothing, raises the limit to CC_BIG_CELLS (2,451
+ * more patches, none hashed): the same queries go through the hash. The contacts and
+ * the positions after the passes are compared bitwise; dropping one patch from the
+ * scan fails it. (The fail-safe's scan is not reached by this scene.) */
 static void scan_run(int far, rbc_contact **list, uint32_t *n, float **pos) {
     rbc_clothcontact *cc = new_contact();
     sheet s[3] = {sheet_grid(8, 8, 0.05f, 0.0f, 1.0f, 0.0f), sheet_grid(8, 8, 0.05f, 0.0f, 1.01f, 0.0f),
